@@ -1,0 +1,5 @@
+"""The Langevin sliding-friction model of the paper (eqs. 8-9), as a stickslip plugin."""
+
+from ._model import Langevin as Langevin
+
+__all__ = ["Langevin"]

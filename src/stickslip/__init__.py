@@ -1,0 +1,58 @@
+"""stickslip: statistics of frictional stick-slip motion.
+
+`import stickslip` is light: JAX, diffrax and equinox load on first use of a name that needs
+them (a model class, the simulator, the estimator).
+"""
+
+from importlib import import_module as _import_module
+from importlib.metadata import PackageNotFoundError as _PNF
+from importlib.metadata import version as _version
+
+from ._errors import ParameterError as ParameterError
+from ._errors import PluginError as PluginError
+from ._errors import StickSlipError as StickSlipError
+from ._registry import get_model as get_model
+from ._registry import list_models as list_models
+from ._registry import refresh_models as refresh_models
+from ._registry import register_model as register_model
+
+try:
+    __version__ = _version("stickslip")
+except _PNF:  # running from a source tree that is not installed
+    __version__ = "0+unknown"
+
+# name -> module that defines it; loaded on first access (PEP 562).
+_LAZY = {
+    "FrictionModel": "._model",
+    "LinearGaussian": "._model",
+    "simulate": "._simulate",
+    "simulate_cycles": "._simulate",
+    "Ensemble": "._simulate",
+    "CycleSeries": "._simulate",
+    "ExactGaussian": "._solver",
+    "EulerMaruyama": "._solver",
+}
+
+__all__ = [
+    "ParameterError",
+    "PluginError",
+    "StickSlipError",
+    "get_model",
+    "list_models",
+    "refresh_models",
+    "register_model",
+    "__version__",
+    *_LAZY,
+]
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        value = getattr(_import_module(_LAZY[name], __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'stickslip' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))

@@ -1,0 +1,89 @@
+"""Exceptions with one-line messages that name what is wrong and why."""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+class StickSlipError(Exception):
+    """Base class of the package's own errors."""
+
+
+class ParameterError(StickSlipError, ValueError):
+    """An invalid parameter value.
+
+    The message is one line: `<owner>: parameter '<name>' <reason> (got <value>)`. The
+    attributes `owner`, `parameter` and `reason` let callers (the study validator, the CLI)
+    re-phrase it in their own terms.
+    """
+
+    def __init__(self, owner: str, parameter: str, reason: str, value: Any = None):
+        self.owner = owner
+        self.parameter = parameter
+        self.reason = reason
+        self.value = value
+        got = "" if value is None else f" (got {value!r})"
+        super().__init__(f"{owner}: parameter '{parameter}' {reason}{got}")
+
+
+class PluginError(StickSlipError, LookupError):
+    """A model name that no installed plugin provides, or a plugin that is not a model."""
+
+
+def check_real(owner: str, name: str, value: Any, *, allow_none: bool = False) -> float | None:
+    """Return `value` as a finite float, or raise a `ParameterError` naming `name`."""
+    if value is None:
+        if allow_none:
+            return None
+        raise ParameterError(owner, name, "is required and must be a finite number", value)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        try:  # numpy / JAX scalars
+            import numpy as np
+
+            arr = np.asarray(value)
+            if arr.shape != () or arr.dtype.kind not in "iuf":
+                raise TypeError
+            value = float(arr)
+        except (TypeError, ValueError):
+            raise ParameterError(owner, name, "must be a real number", value) from None
+    value = float(value)
+    if value != value or value in (float("inf"), float("-inf")):
+        raise ParameterError(owner, name, "must be finite", value)
+    return value
+
+
+def check_positive(owner: str, name: str, value: Any, *, allow_none: bool = False) -> float | None:
+    value = check_real(owner, name, value, allow_none=allow_none)
+    if value is not None and value <= 0:
+        raise ParameterError(owner, name, "must be > 0", value)
+    return value
+
+
+def check_nonnegative(owner: str, name: str, value: Any) -> float:
+    value = check_real(owner, name, value)
+    if value < 0:
+        raise ParameterError(owner, name, "must be >= 0", value)
+    return value
+
+
+def check_choice(owner: str, name: str, value: Any, choices: tuple[str, ...]) -> str:
+    if value not in choices:
+        options = ", ".join(repr(c) for c in choices)
+        raise ParameterError(owner, name, f"must be one of {options}", value)
+    return value
+
+
+def check_int(owner: str, name: str, value: Any, *, minimum: int | None = None) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        try:
+            import numpy as np
+
+            if isinstance(value, np.integer):
+                value = int(value)
+            else:
+                raise TypeError
+        except TypeError:
+            raise ParameterError(owner, name, "must be an integer", value) from None
+    if minimum is not None and value < minimum:
+        raise ParameterError(owner, name, f"must be >= {minimum}", value)
+    return value

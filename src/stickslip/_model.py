@@ -1,0 +1,154 @@
+"""The abstract hybrid stick/slip model that every friction model plugin implements."""
+
+from __future__ import annotations
+
+import abc
+from typing import Any
+
+import equinox as eqx
+import numpy as np
+
+from ._jax import jax, jnp
+
+
+class LinearGaussian(eqx.Module):
+    r"""Linear-Gaussian description of a slip phase.
+
+    The slip-phase SDE is $dX = (A X + b)\,dt + B\,dW$ with additive noise; the crossing
+    variable is the linear functional $c^\top X$ and the position $p^\top X$. At slip
+    onset $X(0) \sim \mathcal{N}(m_0, P_0)$. The exact simulator and the exact
+    crossing-statistics estimator both use it.
+
+    **Arguments:**
+
+    - `A`: drift matrix, shape `(d, d)`.
+    - `b`: drift offset, shape `(d,)`.
+    - `B`: noise matrix, shape `(d, m)`.
+    - `crossing`: crossing functional $c$, shape `(d,)`.
+    - `position`: position functional $p$, shape `(d,)`.
+    - `m0`, `P0`: mean `(d,)` and covariance `(d, d)` of the state at slip onset.
+    """
+
+    A: Any
+    b: Any
+    B: Any
+    crossing: Any
+    position: Any
+    m0: Any
+    P0: Any
+
+
+class FrictionModel(eqx.Module):
+    r"""A stochastic friction model as a hybrid stick/slip system.
+
+    A concrete model is a final class whose fields are its parameters, validated on
+    construction (`__check_init__`) with a `ParameterError` naming the parameter. It states:
+
+    - the **slip-phase SDE** $dX = f(X)\,dt + G(X)\,dW$: `state_names`, `noise_dim`,
+      `drift` and `diffusion` (single path; the simulator vectorises). The slip phase is
+      autonomous: time is measured from slip onset and does not enter $f$ or $G$;
+    - the **crossing variable** `crossing(X)` and its `stick_level`: a slip ends at the first
+      $t > 0$ with `crossing(X(t)) >= stick_level` (the stick). If the crossing variable is
+      increasing at onset the slip has zero length (an immediate re-stick);
+    - the **stick phase** in closed form: `stick_duration(X_stick, X_next)` from the state at
+      the stick and the state the next slip starts from;
+    - the **release rule**: `onset_state(key)`, the state at slip onset (it may be random,
+      e.g. a random threshold or a random initial noise);
+    - optionally `linear_gaussian()`, when the slip SDE is linear with additive noise: the
+      simulator then steps exactly and the estimator is exact.
+
+    The defaults read the crossing variable and position from the state components named
+    `"v"` and `"x"`, and give the stick phase of eq. (9): the position advances at the stick
+    level (the driving speed) until it reaches the next threshold.
+    """
+
+    # -- slip-phase SDE ------------------------------------------------------------------
+    @property
+    @abc.abstractmethod
+    def state_names(self) -> tuple[str, ...]:
+        """Names of the state components, e.g. `("x", "v")`."""
+
+    @property
+    @abc.abstractmethod
+    def noise_dim(self) -> int:
+        """Number of independent Brownian motions driving the slip phase."""
+
+    @abc.abstractmethod
+    def drift(self, y):
+        """Drift $f(X)$ of one path: shape `(d,)` from a state of shape `(d,)`."""
+
+    @abc.abstractmethod
+    def diffusion(self, y):
+        """Diffusion $G(X)$ of one path: shape `(d, noise_dim)`."""
+
+    # -- crossing and stick --------------------------------------------------------------
+    @property
+    @abc.abstractmethod
+    def stick_level(self):
+        """The level of the crossing variable at which the slip ends (e.g. $v_b$)."""
+
+    def crossing(self, y):
+        """The crossing variable of one path (default: the component named `"v"`)."""
+        return y[self.state_names.index("v")]
+
+    def position(self, y):
+        """The position of one path (default: the component named `"x"`)."""
+        return y[self.state_names.index("x")]
+
+    def crossing_rate(self, y):
+        """Drift part of d(crossing)/dt: the crossing variable's velocity where it is
+        differentiable (default: by forward-mode differentiation along the drift)."""
+        return jax.jvp(self.crossing, (y,), (self.drift(y),))[1]
+
+    def crossing_noise(self, y):
+        """Variance rate of the noise entering the crossing variable directly:
+        $|\\nabla c^\\top G|^2$ (zero when the crossing variable is differentiable)."""
+        grad = jax.grad(self.crossing)(y)
+        return jnp.sum((grad @ self.diffusion(y)) ** 2)
+
+    @property
+    def crossing_is_smooth(self) -> bool:
+        """True when no noise enters the crossing variable directly, so it is differentiable
+        in time and has a finite upcrossing rate (Rice). Must be a Python bool, decided from
+        the parameters; the default evaluates `crossing_noise` at a sample onset state."""
+        y0 = self.onset_state(jax.random.key(0))
+        return bool(self.crossing_noise(y0) == 0.0)
+
+    def onset_state(self, key):
+        """The state at slip onset, shape `(d,)`; `key` is a JAX PRNG key for random onsets."""
+        raise NotImplementedError
+
+    def stick_duration(self, y_stick, y_next):
+        """Duration of the stick phase between a stick in state `y_stick` and the next slip
+        onset in state `y_next` (eq. 9): $T_{st} = \\max(0, (x_0' - x_{sl}) / v_b)$.
+
+        A stick that ends beyond the next threshold releases at once (zero stick time)."""
+        gap = self.position(y_next) - self.position(y_stick)
+        return jnp.maximum(gap, 0.0) / self.stick_level
+
+    def linear_gaussian(self) -> LinearGaussian | None:
+        """The linear-Gaussian description of the slip phase, or None (the default)."""
+        return None
+
+    # -- conveniences --------------------------------------------------------------------
+    @property
+    def state_dim(self) -> int:
+        return len(self.state_names)
+
+    def params(self) -> dict[str, Any]:
+        """The model's parameters as a plain dict (field name -> value)."""
+        import dataclasses
+
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+
+
+def _to_arrays(model: FrictionModel) -> FrictionModel:
+    """Turn float parameters into float64 0-d arrays, so that jitted code takes them as
+    inputs: a new parameter value then reuses the compiled code instead of recompiling."""
+
+    def conv(x):
+        if isinstance(x, float) or (isinstance(x, np.floating)):
+            return jnp.asarray(x, dtype=jnp.float64)
+        return x
+
+    return jax.tree_util.tree_map(conv, model)

@@ -1,0 +1,350 @@
+"""`simulate`: one slip-stick cycle for each of many paths."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+import time
+
+import diffrax
+import equinox as eqx
+import numpy as np
+
+from .. import _compile, _rng
+from .._errors import ParameterError, check_choice, check_int, check_positive
+from .._jax import jax, jnp
+from .._model import FrictionModel, _to_arrays
+from .._solver import EulerMaruyama, ExactGaussian, PathwiseBrownian, SlipTerm
+from .._solver.base import over_paths
+from . import localise
+from .ensemble import Ensemble
+from .hybrid import INACTIVE, SLIPPING, StickSlipHybrid
+
+MIN_BUFFER = 128  # smallest buffer; below it a step costs the same whatever the size
+LOCATE_BATCH = 4096  # paths located at once (bounds the memory of the dense nodes)
+DEFAULT_CHUNK = 2**16
+# Interpolation sub-steps of the exact solver: chosen so that h_sub * rho(A) <= this, where
+# the cubic pieces' relative error (h_sub rho)^4 / 384 stays below 1e-10.
+_NODE_SCALE = 0.0125
+_MAX_NODES = 64
+
+
+@dataclasses.dataclass(frozen=True)
+class _Config:
+    """The static (compile-time) description of a run."""
+
+    solver: str
+    monitor: str
+    smooth: bool
+    nodes: int
+
+
+@eqx.filter_jit
+def _make_solver(model, cfg: _Config, dt):
+    if cfg.solver == "exact":
+        lg = model.linear_gaussian()
+        return ExactGaussian(lg.A, lg.b, lg.B, dt, nodes=cfg.nodes)
+    return EulerMaruyama()
+
+
+@eqx.filter_jit
+def _onset(model, key, path, counter):
+    keys = _rng.path_keys(key, path, counter)
+    return jax.vmap(model.onset_state, out_axes=-1)(keys)
+
+
+@eqx.filter_jit
+def _onset_rate(model, X):
+    return over_paths(model.crossing_rate)(X)
+
+
+@eqx.filter_jit
+def _advance(
+    model, solver, cfg, X, X_prev, k_stick, path, k0, k1, dt, step_key, bridge_key, stop_at
+):
+    """Run the buffer from step k0 until step k1, or until at most `stop_at` paths slip."""
+    control = PathwiseBrownian(step_key, path, dt, solver.noise_dim(model))
+    hybrid = StickSlipHybrid(solver, dt, bridge_key, path, cfg.smooth, cfg.monitor)
+    event = diffrax.Event(lambda t, y, args, **kw: jnp.sum(y[1][1] == SLIPPING) <= stop_at)
+    sol = diffrax.diffeqsolve(
+        SlipTerm(model, control),
+        hybrid,
+        t0=k0,
+        t1=k1,
+        dt0=1.0,
+        y0=(X, (X_prev, k_stick)),
+        args=model,
+        saveat=diffrax.SaveAt(t1=True),
+        stepsize_controller=diffrax.ConstantStepSize(),
+        event=event,
+        max_steps=None,
+        throw=False,
+        adjoint=diffrax.ForwardMode(),
+    )
+    X, (X_prev, k_stick) = sol.ys
+    return X[0], X_prev[0], k_stick[0], sol.ts[0]
+
+
+@eqx.filter_jit
+def _locate(model, solver, cfg, X_prev, X, k_stick, path, dt, z_key, u_key):
+    """Locate each stick inside the step (from X_prev to X) in which it happened."""
+    step = jnp.maximum(k_stick, 0.0).astype(jnp.uint32)
+    z = _rng.normals(z_key, path, step, 1)[0]
+    u = _rng.uniforms(u_key, path, step, 1)[0]
+    return localise.locate(
+        model, solver, X_prev, X, dt, smooth=cfg.smooth, monitor=cfg.monitor, z=z, u=u
+    )
+
+
+@eqx.filter_jit
+def _finish(model, stick_state, next_onset):
+    T_st = over_paths(model.stick_duration)(stick_state, next_onset)
+    return T_st, over_paths(model.position)(stick_state)
+
+
+def _next_pow2(n: int) -> int:
+    return 1 << max(0, (int(n) - 1).bit_length())
+
+
+def _nodes_for(model: FrictionModel, dt: float) -> int:
+    A = np.asarray(model.linear_gaussian().A, dtype=float)
+    rho = float(np.max(np.abs(np.linalg.eigvals(A)))) if A.size else 0.0
+    m = max(2, math.ceil(dt * rho / _NODE_SCALE))
+    return min(_MAX_NODES, _next_pow2(m))
+
+
+def _validate(model, n_paths, dt, t_max, seed, solver, monitor, chunk_size):
+    if not isinstance(model, FrictionModel):
+        raise TypeError(
+            f"simulate: model must be a stickslip.FrictionModel instance, got {model!r}"
+        )
+    n_paths = check_int("simulate", "n_paths", n_paths, minimum=1)
+    dt = check_positive("simulate", "dt", dt)
+    t_max = check_positive("simulate", "t_max", t_max)
+    if t_max < dt:
+        raise ParameterError("simulate", "t_max", f"must be >= dt = {dt}", t_max)
+    if t_max / dt >= 2**30:
+        raise ParameterError("simulate", "t_max", "/ dt must be below 2**30 steps", t_max)
+    seed = check_int("simulate", "seed", seed, minimum=0)
+    if seed >= 2**64:
+        raise ParameterError("simulate", "seed", "must be < 2**64", seed)
+    check_choice("simulate", "solver", solver, ("auto", "exact", "euler"))
+    check_choice("simulate", "monitor", monitor, ("continuous", "grid"))
+    chunk_size = check_int("simulate", "chunk_size", chunk_size, minimum=1)
+    if n_paths >= 2**32:
+        raise ParameterError("simulate", "n_paths", "must be < 2**32", n_paths)
+    return n_paths, dt, t_max, seed, chunk_size
+
+
+def simulate(
+    model: FrictionModel,
+    n_paths: int,
+    dt: float,
+    t_max: float,
+    seed: int = 0,
+    *,
+    solver: str = "auto",
+    monitor: str = "continuous",
+    chunk_size: int = DEFAULT_CHUNK,
+    progress: bool | None = None,
+) -> Ensemble:
+    r"""Simulate one slip-stick cycle for each of `n_paths` paths.
+
+    Each path starts a slip at the model's onset state, is integrated until its crossing
+    variable first reaches the stick level (the stick) or until `t_max`, and then sticks for
+    the closed-form stick time up to the next release.
+
+    **Arguments:**
+
+    - `model`: a `FrictionModel` instance.
+    - `n_paths`: number of paths.
+    - `dt`: step size. With the exact solver it sets only how often the stick is looked for.
+    - `t_max`: longest slip followed; paths still slipping then get `nan`.
+    - `seed`: results are a function of `(seed, path index)` alone: any `chunk_size` gives
+      the same numbers.
+    - `solver`: `"exact"` (exact Gaussian transitions; linear-Gaussian slips only),
+      `"euler"` (Euler-Maruyama, any model) or `"auto"` (exact where possible).
+    - `monitor`: `"continuous"` (default) looks for sticks inside each step as well: a cubic
+      check for a differentiable crossing variable, the Brownian-bridge test when noise
+      enters it. `"grid"` checks only the grid points, as the paper's simulations (and the
+      reference data) do.
+    - `chunk_size`: paths per chunk (memory bound); inside a chunk, finished paths are
+      dropped by re-packing the survivors into buffers half as large.
+    - `progress`: show a progress bar (default: on a terminal, for 20000 paths or more).
+
+    **Returns:** an `Ensemble`.
+    """
+    n_paths, dt, t_max, seed, chunk_size = _validate(
+        model, n_paths, dt, t_max, seed, solver, monitor, chunk_size
+    )
+    wall0 = time.perf_counter()
+    lg_available = model.linear_gaussian() is not None
+    if solver == "auto":
+        solver = "exact" if lg_available else "euler"
+    if solver == "exact" and not lg_available:
+        raise ParameterError(
+            "simulate", "solver", f"'exact' needs a linear-Gaussian model; "
+            f"{type(model).__name__} has none (use 'euler')", solver,
+        )
+    cfg = _Config(
+        solver=solver,
+        monitor=monitor,
+        smooth=bool(model.crossing_is_smooth),
+        nodes=_nodes_for(model, dt) if solver == "exact" else 1,
+    )
+    n_steps = max(1, math.ceil(t_max / dt - 1e-9))
+    amodel = _to_arrays(model)
+    root = _rng.seed_key(seed)
+    keys = {
+        "step": _rng.stream_key(root, _rng.STEP),
+        "bridge": _rng.stream_key(root, _rng.BRIDGE),
+        "z": _rng.stream_key(root, _rng.LOCATE, 0),
+        "u": _rng.stream_key(root, _rng.LOCATE, 1),
+        "onset": _rng.stream_key(root, _rng.ONSET),
+    }
+    timer = _compile.Timer()
+    if progress is None:
+        progress = n_paths >= 20000 and sys.stderr.isatty()
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=n_paths, desc="simulate", unit="path", leave=False)
+    stats = {"path_steps": 0, "buffers": 0}
+    slip_solver = _compile.call(_make_solver, amodel, cfg, jnp.asarray(dt), timer=timer)
+    parts = []
+    try:
+        for first in range(0, n_paths, chunk_size):
+            count = min(chunk_size, n_paths - first)
+            parts.append(
+                _run_chunk(
+                    amodel, slip_solver, cfg, keys, first, count, dt, n_steps, timer, stats, bar
+                )
+            )
+    finally:
+        if bar is not None:
+            bar.close()
+    cat = lambda i: np.concatenate([p[i] for p in parts], axis=-1)
+    X0, stick_state, t_stick, immediate, located = (cat(i) for i in range(5))
+    paths = np.arange(n_paths, dtype=np.uint32)
+    next_onset = np.asarray(
+        _compile.call(_onset, amodel, keys["onset"], paths, jnp.uint32(1), timer=timer)
+    )
+    T_st, x_sl = (
+        np.asarray(a)
+        for a in _compile.call(_finish, amodel, stick_state, next_onset, timer=timer)
+    )
+    x_start = np.asarray(_compile.call(_finish, amodel, X0, X0, timer=timer)[1])
+    stuck = np.isfinite(t_stick) & (t_stick <= t_max)
+    nan = np.where(stuck, 1.0, np.nan)
+    slip_time = t_stick * nan
+    stick_time = T_st * nan
+    info = dict(
+        model=type(model).__name__,
+        params=model.params(),
+        solver=solver,
+        monitor=monitor,
+        dt=dt,
+        t_max=t_max,
+        seed=seed,
+        chunk_size=chunk_size,
+        interpolation_nodes=cfg.nodes,
+    )
+    stats.update(
+        wall_seconds=time.perf_counter() - wall0,
+        compile_seconds=timer.compile_seconds,
+        unlocated=int(np.sum(~located & stuck)),
+    )
+    return Ensemble(
+        slip_time=slip_time,
+        stick_position=x_sl * nan,
+        slip_distance=(x_start - x_sl) * nan,
+        stick_time=stick_time,
+        period=slip_time + stick_time,
+        immediate=immediate & stuck,
+        stuck=stuck,
+        onset_state=X0.T,
+        stick_state=stick_state.T,
+        next_onset_state=next_onset.T,
+        state_names=tuple(model.state_names),
+        info=info,
+        stats=stats,
+    )
+
+
+def _run_chunk(model, solver, cfg, keys, first, count, dt, n_steps, timer, stats, bar):
+    """Simulate paths `first .. first + count - 1`; see `simulate`."""
+    size = max(MIN_BUFFER, _next_pow2(count))
+    path = np.zeros(size, dtype=np.uint32)
+    path[:count] = np.arange(first, first + count, dtype=np.uint32)
+    X0 = np.asarray(_compile.call(_onset, model, keys["onset"], path, jnp.uint32(0), timer=timer))
+    k_stick = np.full(size, INACTIVE)
+    k_stick[:count] = SLIPPING
+    immediate = np.zeros(size, dtype=bool)
+    if cfg.smooth:
+        # A crossing variable already rising at onset ends the slip at once (T_sl = 0).
+        rate = np.asarray(_compile.call(_onset_rate, model, X0, timer=timer))
+        immediate[:count] = rate[:count] >= 0.0
+        k_stick[immediate] = INACTIVE
+    if bar is not None:
+        bar.update(int(np.sum(immediate)))
+    # Chunk-level results; buffers are written back into them by `slot` (-1: padding).
+    X_end, X_prev_end, k_end = X0.copy(), X0.copy(), k_stick.copy()
+    slot = np.arange(size)
+    slot[count:] = -1
+    X, X_prev, ks, p = X0, X0, k_stick, path
+    k0 = 0
+    dt_arr = jnp.asarray(dt, dtype=jnp.float64)
+    while True:
+        n_slip = int(np.sum(ks == SLIPPING))
+        if n_slip == 0 or k0 >= n_steps:
+            break
+        stop_at = size // 2 if size > MIN_BUFFER else 0
+        X, X_prev, ks, t_end = (
+            np.asarray(a)
+            for a in _compile.call(
+                _advance, model, solver, cfg, X, X_prev, ks, p,
+                jnp.asarray(float(k0)), jnp.asarray(float(n_steps)), dt_arr,
+                keys["step"], keys["bridge"], jnp.asarray(stop_at), timer=timer,
+            )
+        )  # fmt: skip
+        k1 = int(round(float(t_end)))
+        stats["path_steps"] += size * (k1 - k0)
+        stats["buffers"] += 1
+        k0 = k1
+        real = slot >= 0
+        X_end[:, slot[real]] = X[:, real]
+        X_prev_end[:, slot[real]] = X_prev[:, real]
+        k_end[slot[real]] = ks[real]
+        alive = np.nonzero(ks == SLIPPING)[0]
+        if bar is not None:
+            bar.update(n_slip - alive.size)
+        if alive.size and size > MIN_BUFFER and alive.size <= size // 2:
+            # Re-pack the survivors into a smaller buffer: finished paths cost nothing more.
+            size = max(MIN_BUFFER, _next_pow2(alive.size))
+            pad = size - alive.size
+            fill = lambda a, value: np.concatenate([a[..., alive], np.full(a.shape[:-1] + (pad,), value, a.dtype)], axis=-1)  # noqa: E501
+            X, X_prev = fill(X, 0.0), fill(X, 0.0)
+            ks, p, slot = fill(ks, INACTIVE), fill(p, 0), fill(slot, -1)
+    # Locate each stick inside its step, in batches that bound the memory of dense nodes.
+    t_stick = np.full(count, np.nan)
+    stick_state = X_end[:, :count].copy()
+    located = np.ones(count, dtype=bool)
+    done = np.nonzero(k_end[:count] >= 0)[0]
+    batch = min(LOCATE_BATCH, _next_pow2(max(done.size, 1)))
+    for start in range(0, done.size, batch):
+        rows = done[start : start + batch]
+        rows_padded = np.concatenate([rows, np.repeat(rows[:1], batch - rows.size)])
+        frac, state, found = _compile.call(
+            _locate, model, solver, cfg, X_prev_end[:, rows_padded], X_end[:, rows_padded],
+            k_end[rows_padded], path[rows_padded], dt_arr, keys["z"], keys["u"], timer=timer,
+        )  # fmt: skip
+        n = rows.size
+        t_stick[rows] = (k_end[rows] + np.asarray(frac)[:n]) * dt
+        stick_state[:, rows] = np.asarray(state)[:, :n]
+        located[rows] = np.asarray(found)[:n]
+    imm = immediate[:count]
+    t_stick[imm] = 0.0
+    stick_state[:, imm] = X0[:, :count][:, imm]
+    return X0[:, :count], stick_state, t_stick, imm.copy(), located
