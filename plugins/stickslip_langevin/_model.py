@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 import equinox as eqx
 from stickslip import FrictionModel, LinearGaussian, ParameterError
 from stickslip._errors import check_choice, check_nonnegative, check_positive
@@ -141,8 +139,7 @@ class Langevin(FrictionModel):
             P0=P0,
         )
 
-    # -- closed forms used by tests and docs ------------------------------------------------
-    def deterministic_period_estimate(self) -> float:
-        """Free-oscillation period $2\\pi/\\omega_d$ of the noise-free slip (a time scale)."""
-        wd2 = self.omega0**2 - self.zeta**2 / 4.0
-        return 2 * math.pi / math.sqrt(wd2) if wd2 > 0 else 2 * math.pi / self.omega0
+    @classmethod
+    def example(cls):
+        """The public reference set: OU friction noise."""
+        return cls(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=0.1)

@@ -1,12 +1,42 @@
-"""Import point for JAX inside the package: float64 everywhere.
+"""Import point for JAX inside the package: float64 everywhere, and a persistent cache of
+compiled code.
 
 Every module that uses JAX imports it from here, so `jax_enable_x64` is set before the first
 array is made. `import stickslip` alone does not import this module (it stays light).
+
+Compiling the simulator's loop takes about a second per buffer size on a 2-core CPU, so
+compiled code is kept on disk between runs (JAX's persistent compilation cache) in
+`$STICKSLIP_CACHE_DIR`, default `~/.cache/stickslip/jax`; set `STICKSLIP_CACHE_DIR=off` to
+disable it. A cache directory the user configured for JAX is left alone.
 """
+
+import os
+import pathlib
 
 import jax
 
 jax.config.update("jax_enable_x64", True)
+
+
+def _enable_compilation_cache() -> None:
+    if jax.config.jax_compilation_cache_dir:
+        return
+    where = os.environ.get("STICKSLIP_CACHE_DIR")
+    if where is not None and where.strip().lower() in ("", "off", "0", "none", "false"):
+        return
+    if where is None:
+        base = os.environ.get("XDG_CACHE_HOME") or pathlib.Path.home() / ".cache"
+        where = str(pathlib.Path(base) / "stickslip" / "jax")
+    try:
+        pathlib.Path(where).mkdir(parents=True, exist_ok=True)
+    except OSError:  # read-only home: run without the cache
+        return
+    jax.config.update("jax_compilation_cache_dir", where)
+    # Only the costly compilations (the simulator's loops) are worth a disk entry.
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
+
+
+_enable_compilation_cache()
 
 import jax.numpy as jnp  # noqa: E402
 

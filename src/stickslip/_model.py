@@ -131,6 +131,23 @@ class FrictionModel(eqx.Module):
         return None
 
     # -- conveniences --------------------------------------------------------------------
+    @classmethod
+    def example(cls) -> FrictionModel | None:
+        """A typical instance (used by `stickslip models`, the docs and the contract tests
+        that every registered model must pass); None if the model offers none."""
+        return None
+
+    @classmethod
+    def parameters(cls) -> dict[str, Any]:
+        """The parameters of the model: `{name: default}` (`dataclasses.MISSING` if
+        required)."""
+        import dataclasses
+
+        return {
+            f.name: (f.default if f.default is not dataclasses.MISSING else dataclasses.MISSING)
+            for f in dataclasses.fields(cls)
+        }
+
     @property
     def state_dim(self) -> int:
         return len(self.state_names)

@@ -1,4 +1,6 @@
 """The event-driven stick/slip simulator."""
 
+from .cycles import CycleSeries as CycleSeries
+from .cycles import simulate_cycles as simulate_cycles
 from .driver import simulate as simulate
 from .ensemble import Ensemble as Ensemble

@@ -28,6 +28,9 @@ DEFAULT_CHUNK = 2**16
 # the cubic pieces' relative error (h_sub rho)^4 / 384 stays below 1e-10.
 _NODE_SCALE = 0.0125
 _MAX_NODES = 64
+# The far end of every solve (in steps); events end the solves long before. A power of two:
+# diffrax's step times t0 + (t1 - t0) * j / n are then exact integers.
+_HORIZON = float(2**30)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -63,27 +66,33 @@ def _onset_rate(model, X):
 def _advance(
     model, solver, cfg, X, X_prev, k_stick, path, k0, k1, dt, step_key, bridge_key, stop_at
 ):
-    """Run the buffer from step k0 until step k1, or until at most `stop_at` paths slip."""
-    control = PathwiseBrownian(step_key, path, dt, solver.noise_dim(model))
-    hybrid = StickSlipHybrid(solver, dt, bridge_key, path, cfg.smooth, cfg.monitor)
-    event = diffrax.Event(lambda t, y, args, **kw: jnp.sum(y[1][1] == SLIPPING) <= stop_at)
+    """Run the buffer from global step k0 until step k1, or until at most `stop_at` paths
+    slip. The solve's own time runs from 0 towards a fixed far horizon and the event ends
+    it: with static end points diffrax checks them at trace time instead of inserting a
+    host callback, and code with host callbacks cannot be kept in the persistent cache."""
+    control = PathwiseBrownian(step_key, path, dt, solver.noise_dim(model), offset=k0)
+    hybrid = StickSlipHybrid(solver, dt, bridge_key, path, k0, cfg.smooth, cfg.monitor)
+
+    def stop(t, y, args, **kwargs):
+        return (jnp.sum(y[1][1] == SLIPPING) <= stop_at) | (t + k0 >= k1)
+
     sol = diffrax.diffeqsolve(
         SlipTerm(model, control),
         hybrid,
-        t0=k0,
-        t1=k1,
+        t0=0.0,
+        t1=_HORIZON,
         dt0=1.0,
         y0=(X, (X_prev, k_stick)),
         args=model,
         saveat=diffrax.SaveAt(t1=True),
         stepsize_controller=diffrax.ConstantStepSize(),
-        event=event,
+        event=diffrax.Event(stop),
         max_steps=None,
         throw=False,
         adjoint=diffrax.ForwardMode(),
     )
     X, (X_prev, k_stick) = sol.ys
-    return X[0], X_prev[0], k_stick[0], sol.ts[0]
+    return X[0], X_prev[0], k_stick[0], k0 + sol.ts[0]
 
 
 @eqx.filter_jit
@@ -211,35 +220,19 @@ def simulate(
         from tqdm.auto import tqdm
 
         bar = tqdm(total=n_paths, desc="simulate", unit="path", leave=False)
-    stats = {"path_steps": 0, "buffers": 0}
-    slip_solver = _compile.call(_make_solver, amodel, cfg, jnp.asarray(dt), timer=timer)
-    parts = []
+    run = _Run(amodel, cfg, keys, dt, n_steps, timer, bar)
     try:
-        for first in range(0, n_paths, chunk_size):
-            count = min(chunk_size, n_paths - first)
-            parts.append(
-                _run_chunk(
-                    amodel, slip_solver, cfg, keys, first, count, dt, n_steps, timer, stats, bar
-                )
-            )
+        X0, stick_state, t_stick, located = run.first_passages(
+            np.arange(n_paths, dtype=np.uint32), chunk_size
+        )
     finally:
         if bar is not None:
             bar.close()
-    cat = lambda i: np.concatenate([p[i] for p in parts], axis=-1)
-    X0, stick_state, t_stick, immediate, located = (cat(i) for i in range(5))
     paths = np.arange(n_paths, dtype=np.uint32)
     next_onset = np.asarray(
         _compile.call(_onset, amodel, keys["onset"], paths, jnp.uint32(1), timer=timer)
     )
-    T_st, x_sl = (
-        np.asarray(a)
-        for a in _compile.call(_finish, amodel, stick_state, next_onset, timer=timer)
-    )
-    x_start = np.asarray(_compile.call(_finish, amodel, X0, X0, timer=timer)[1])
-    stuck = np.isfinite(t_stick) & (t_stick <= t_max)
-    nan = np.where(stuck, 1.0, np.nan)
-    slip_time = t_stick * nan
-    stick_time = T_st * nan
+    out = run.cycle_outputs(X0, stick_state, t_stick, next_onset, t_max)
     info = dict(
         model=type(model).__name__,
         params=model.params(),
@@ -251,19 +244,14 @@ def simulate(
         chunk_size=chunk_size,
         interpolation_nodes=cfg.nodes,
     )
-    stats.update(
+    stats = dict(
+        run.stats,
         wall_seconds=time.perf_counter() - wall0,
         compile_seconds=timer.compile_seconds,
-        unlocated=int(np.sum(~located & stuck)),
+        unlocated=int(np.sum(~located & out["stuck"])),
     )
     return Ensemble(
-        slip_time=slip_time,
-        stick_position=x_sl * nan,
-        slip_distance=(x_start - x_sl) * nan,
-        stick_time=stick_time,
-        period=slip_time + stick_time,
-        immediate=immediate & stuck,
-        stuck=stuck,
+        **out,
         onset_state=X0.T,
         stick_state=stick_state.T,
         next_onset_state=next_onset.T,
@@ -273,78 +261,125 @@ def simulate(
     )
 
 
-def _run_chunk(model, solver, cfg, keys, first, count, dt, n_steps, timer, stats, bar):
-    """Simulate paths `first .. first + count - 1`; see `simulate`."""
-    size = max(MIN_BUFFER, _next_pow2(count))
-    path = np.zeros(size, dtype=np.uint32)
-    path[:count] = np.arange(first, first + count, dtype=np.uint32)
-    X0 = np.asarray(_compile.call(_onset, model, keys["onset"], path, jnp.uint32(0), timer=timer))
-    k_stick = np.full(size, INACTIVE)
-    k_stick[:count] = SLIPPING
-    immediate = np.zeros(size, dtype=bool)
-    if cfg.smooth:
-        # A crossing variable already rising at onset ends the slip at once (T_sl = 0).
-        rate = np.asarray(_compile.call(_onset_rate, model, X0, timer=timer))
-        immediate[:count] = rate[:count] >= 0.0
-        k_stick[immediate] = INACTIVE
-    if bar is not None:
-        bar.update(int(np.sum(immediate)))
-    # Chunk-level results; buffers are written back into them by `slot` (-1: padding).
-    X_end, X_prev_end, k_end = X0.copy(), X0.copy(), k_stick.copy()
-    slot = np.arange(size)
-    slot[count:] = -1
-    X, X_prev, ks, p = X0, X0, k_stick, path
-    k0 = 0
-    dt_arr = jnp.asarray(dt, dtype=jnp.float64)
-    while True:
-        n_slip = int(np.sum(ks == SLIPPING))
-        if n_slip == 0 or k0 >= n_steps:
-            break
-        stop_at = size // 2 if size > MIN_BUFFER else 0
-        X, X_prev, ks, t_end = (
-            np.asarray(a)
-            for a in _compile.call(
-                _advance, model, solver, cfg, X, X_prev, ks, p,
-                jnp.asarray(float(k0)), jnp.asarray(float(n_steps)), dt_arr,
-                keys["step"], keys["bridge"], jnp.asarray(stop_at), timer=timer,
-            )
-        )  # fmt: skip
-        k1 = int(round(float(t_end)))
-        stats["path_steps"] += size * (k1 - k0)
-        stats["buffers"] += 1
-        k0 = k1
-        real = slot >= 0
-        X_end[:, slot[real]] = X[:, real]
-        X_prev_end[:, slot[real]] = X_prev[:, real]
-        k_end[slot[real]] = ks[real]
-        alive = np.nonzero(ks == SLIPPING)[0]
-        if bar is not None:
-            bar.update(n_slip - alive.size)
-        if alive.size and size > MIN_BUFFER and alive.size <= size // 2:
-            # Re-pack the survivors into a smaller buffer: finished paths cost nothing more.
-            size = max(MIN_BUFFER, _next_pow2(alive.size))
-            pad = size - alive.size
-            fill = lambda a, value: np.concatenate([a[..., alive], np.full(a.shape[:-1] + (pad,), value, a.dtype)], axis=-1)  # noqa: E501
-            X, X_prev = fill(X, 0.0), fill(X, 0.0)
-            ks, p, slot = fill(ks, INACTIVE), fill(p, 0), fill(slot, -1)
-    # Locate each stick inside its step, in batches that bound the memory of dense nodes.
-    t_stick = np.full(count, np.nan)
-    stick_state = X_end[:, :count].copy()
-    located = np.ones(count, dtype=bool)
-    done = np.nonzero(k_end[:count] >= 0)[0]
-    batch = min(LOCATE_BATCH, _next_pow2(max(done.size, 1)))
-    for start in range(0, done.size, batch):
-        rows = done[start : start + batch]
-        rows_padded = np.concatenate([rows, np.repeat(rows[:1], batch - rows.size)])
-        frac, state, found = _compile.call(
-            _locate, model, solver, cfg, X_prev_end[:, rows_padded], X_end[:, rows_padded],
-            k_end[rows_padded], path[rows_padded], dt_arr, keys["z"], keys["u"], timer=timer,
-        )  # fmt: skip
-        n = rows.size
-        t_stick[rows] = (k_end[rows] + np.asarray(frac)[:n]) * dt
-        stick_state[:, rows] = np.asarray(state)[:, :n]
-        located[rows] = np.asarray(found)[:n]
-    imm = immediate[:count]
-    t_stick[imm] = 0.0
-    stick_state[:, imm] = X0[:, :count][:, imm]
-    return X0[:, :count], stick_state, t_stick, imm.copy(), located
+class _Run:
+    """One configured run: first passages for any set of path counters."""
+
+    def __init__(self, model, cfg, keys, dt, n_steps, timer, bar):
+        self.model, self.cfg, self.keys = model, cfg, keys
+        self.dt, self.n_steps, self.timer, self.bar = dt, n_steps, timer, bar
+        self.dt_arr = jnp.asarray(dt, dtype=jnp.float64)
+        self.solver = _compile.call(_make_solver, model, cfg, self.dt_arr, timer=timer)
+        self.stats = {"path_steps": 0, "buffers": 0}
+
+    def call(self, fn, *args):
+        return _compile.call(fn, *args, timer=self.timer)
+
+    def first_passages(self, paths, chunk_size):
+        """Onset state, stick state, stick time (`nan` if none by the last step) and whether
+        the stick was located, for the paths with counters `paths`, chunk by chunk."""
+        parts = [
+            self._chunk(paths[i : i + chunk_size]) for i in range(0, paths.size, chunk_size)
+        ]
+        return tuple(np.concatenate([p[i] for p in parts], axis=-1) for i in range(4))
+
+    def cycle_outputs(self, X0, stick_state, t_stick, next_onset, t_max):
+        """The per-path outputs of an `Ensemble` from the raw first-passage results."""
+        T_st, x_sl = (np.asarray(a) for a in self.call(_finish, self.model, stick_state, next_onset))
+        x_start = np.asarray(self.call(_finish, self.model, X0, X0)[1])
+        stuck = np.isfinite(t_stick) & (t_stick <= t_max)
+        nan = np.where(stuck, 1.0, np.nan)
+        slip_time = t_stick * nan
+        stick_time = T_st * nan
+        return dict(
+            slip_time=slip_time,
+            stick_position=x_sl * nan,
+            slip_distance=(x_start - x_sl) * nan,
+            stick_time=stick_time,
+            period=slip_time + stick_time,
+            immediate=stuck & (t_stick == 0.0),
+            stuck=stuck,
+        )
+
+    def onsets(self, paths, counter=0):
+        return np.asarray(self.call(_onset, self.model, self.keys["onset"], paths, jnp.uint32(counter)))
+
+    def _chunk(self, paths):
+        """First passages of one chunk of paths; see `simulate`."""
+        model, cfg, keys, n_steps = self.model, self.cfg, self.keys, self.n_steps
+        count = paths.size
+        size = max(MIN_BUFFER, _next_pow2(count))
+        path = np.zeros(size, dtype=np.uint32)
+        path[:count] = paths
+        X0 = self.onsets(path)
+        k_stick = np.full(size, INACTIVE)
+        k_stick[:count] = SLIPPING
+        immediate = np.zeros(size, dtype=bool)
+        if cfg.smooth:
+            # A crossing variable already rising at onset ends the slip at once (T_sl = 0).
+            rate = np.asarray(self.call(_onset_rate, model, X0))
+            immediate[:count] = rate[:count] >= 0.0
+            k_stick[immediate] = INACTIVE
+        if self.bar is not None:
+            self.bar.update(int(np.sum(immediate)))
+        # Chunk-level results; buffers are written back into them by `slot` (-1: padding).
+        X_end, X_prev_end, k_end = X0.copy(), X0.copy(), k_stick.copy()
+        slot = np.arange(size)
+        slot[count:] = -1
+        X, X_prev, ks, p = X0, X0, k_stick, path
+        k0 = 0
+        while True:
+            n_slip = int(np.sum(ks == SLIPPING))
+            if n_slip == 0 or k0 >= n_steps:
+                break
+            stop_at = size // 2 if size > MIN_BUFFER else 0
+            X, X_prev, ks, t_end = (
+                np.asarray(a)
+                for a in self.call(
+                    _advance, model, self.solver, cfg, X, X_prev, ks, p,
+                    jnp.asarray(float(k0)), jnp.asarray(float(n_steps)), self.dt_arr,
+                    keys["step"], keys["bridge"], jnp.asarray(stop_at),
+                )
+            )  # fmt: skip
+            k1 = int(round(float(t_end)))
+            self.stats["path_steps"] += size * (k1 - k0)
+            self.stats["buffers"] += 1
+            k0 = k1
+            real = slot >= 0
+            X_end[:, slot[real]] = X[:, real]
+            X_prev_end[:, slot[real]] = X_prev[:, real]
+            k_end[slot[real]] = ks[real]
+            alive = np.nonzero(ks == SLIPPING)[0]
+            if self.bar is not None:
+                self.bar.update(n_slip - alive.size)
+            if alive.size and size > MIN_BUFFER and alive.size <= size // 2:
+                # Re-pack the survivors into a smaller buffer: finished paths cost nothing.
+                size = max(MIN_BUFFER, _next_pow2(alive.size))
+                pad = size - alive.size
+
+                def fill(a, value):
+                    tail = np.full(a.shape[:-1] + (pad,), value, a.dtype)
+                    return np.concatenate([a[..., alive], tail], axis=-1)
+
+                X, X_prev = fill(X, 0.0), fill(X, 0.0)
+                ks, p, slot = fill(ks, INACTIVE), fill(p, 0), fill(slot, -1)
+        # Locate each stick inside its step, in batches that bound the memory of dense nodes.
+        t_stick = np.full(count, np.nan)
+        stick_state = X_end[:, :count].copy()
+        located = np.ones(count, dtype=bool)
+        done = np.nonzero(k_end[:count] >= 0)[0]
+        batch = min(LOCATE_BATCH, _next_pow2(max(done.size, 1)))
+        for start in range(0, done.size, batch):
+            rows = done[start : start + batch]
+            rows_padded = np.concatenate([rows, np.repeat(rows[:1], batch - rows.size)])
+            frac, state, found = self.call(
+                _locate, model, self.solver, cfg, X_prev_end[:, rows_padded],
+                X_end[:, rows_padded], k_end[rows_padded], path[rows_padded], self.dt_arr,
+                keys["z"], keys["u"],
+            )  # fmt: skip
+            n = rows.size
+            t_stick[rows] = (k_end[rows] + np.asarray(frac)[:n]) * self.dt
+            stick_state[:, rows] = np.asarray(state)[:, :n]
+            located[rows] = np.asarray(found)[:n]
+        imm = immediate[:count]
+        t_stick[imm] = 0.0
+        return X0[:, :count], stick_state, t_stick, located

@@ -10,7 +10,8 @@ Freezing is deferred by design: the states written in a step depend only on the 
 start of the step, so the crossing test feeds one output (`k_stick`) and XLA does not
 re-derive it inside every fused output (measured 1.6x faster than freezing at once). The
 solve's time variable counts steps (`t = k`), so grid times are exact integers whatever
-buffer a path is in.
+buffer a path is in: a solve starts at time 0 and `offset` is the global index of its first
+step.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ import equinox as eqx
 from .. import _rng
 from .._jax import jax, jnp
 from .._solver import AbstractSlipSolver
-from .._solver.base import over_paths
+from .._solver.base import global_step, over_paths, steps
 from . import localise
 
 SLIPPING = -1.0
@@ -44,6 +45,7 @@ class StickSlipHybrid(diffrax.AbstractItoSolver):
     dt: jax.Array
     bridge_key: jax.Array
     path: jax.Array
+    offset: jax.Array
     smooth: bool = eqx.field(static=True)
     monitor: str = eqx.field(static=True)
 
@@ -65,7 +67,7 @@ class StickSlipHybrid(diffrax.AbstractItoSolver):
     def _uniforms(self, t):
         """Bridge-test uniforms of step `t`, drawn a step ahead like the solver's noise."""
         if self.monitor == "continuous" and not self.smooth:
-            k = jnp.round(t).astype(jnp.uint32)
+            k = global_step(t, self.offset)
             return _rng.uniforms(self.bridge_key, self.path, k, 1)[0]
         return None
 
@@ -81,7 +83,7 @@ class StickSlipHybrid(diffrax.AbstractItoSolver):
         c0, c1 = cross(X), cross(X1)
         hit = c1 >= level
         if self.monitor == "continuous":
-            h = self.dt * (t1 - t0)
+            h = self.dt * steps(t0, t1)
             if self.smooth:
                 rate = over_paths(model.crossing_rate)
                 hit = hit | localise.interior_reaches(c0, c1, h * rate(X), h * rate(X1), level)
@@ -93,7 +95,7 @@ class StickSlipHybrid(diffrax.AbstractItoSolver):
         slipping = k_stick == SLIPPING
         X_out = jnp.where(slipping[None], X1, X)
         X_prev_out = jnp.where(slipping[None], X, X_prev)
-        k_out = jnp.where(slipping & hit, jnp.round(t0), k_stick)
+        k_out = jnp.where(slipping & hit, jnp.round(t0) + self.offset, k_stick)
         y1 = (X_out, (X_prev_out, k_out))
         state = (inner_state, self._uniforms(t1))
         return y1, None, dict(y0=y0, y1=y1), state, result

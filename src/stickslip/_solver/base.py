@@ -23,6 +23,18 @@ def over_paths(fn):
     return jax.vmap(fn, in_axes=-1, out_axes=-1)
 
 
+def steps(t0, t1):
+    """Whole steps between two times of the solve. diffrax makes step times as
+    `t0 + (t1 - t0) * j / n`, which after a restart can be off an integer by rounding; the
+    physical step length must not depend on where a buffer was restarted."""
+    return jnp.round(t1 - t0)
+
+
+def global_step(t, offset):
+    """The global step index (uint32) of the step starting at solve time `t`."""
+    return (jnp.round(t) + offset).astype(jnp.uint32)
+
+
 def contract(G, w):
     """`sum_m G[:, m] * w[m]` path by path, for `G` `(d, m, n)` and `w` `(m, n)`, with a fixed
     summation order (results must not depend on how many paths are in the batch)."""
@@ -35,12 +47,14 @@ def contract(G, w):
 class PathwiseBrownian(diffrax.AbstractBrownianPath):
     """Brownian increments for an ensemble, drawn path by path from counters.
 
-    Time is counted in steps: the solve runs from step `t0` to step `t1`, and the physical
-    time is `t * dt`. The increment of path `path[i]` over the step starting at `t0` depends
-    only on the key, the path's global index and the step index `t0`: the ensemble can be
-    split, re-packed or re-run in any grouping and each path sees the same noise.
+    Time is counted in steps from `offset`: the step starting at solve time `t0` is global
+    step `offset + t0`, and lasts `dt` in physical time. The increment of path `path[i]` over
+    a step depends only on the key, the path's global index and the global step index: the
+    ensemble can be split, re-packed or re-run in any grouping and each path sees the same
+    noise.
+
     **Arguments:** `key` (uint32[2]), `path` (uint32[n]), `dt` (physical step length), `dim`
-    (noise columns per path).
+    (noise columns per path), `offset` (global index of the solve's first step).
 
     **Returns** (from `evaluate(t0, t1)`): increments of shape `(dim, n)`.
     """
@@ -49,6 +63,7 @@ class PathwiseBrownian(diffrax.AbstractBrownianPath):
     path: jax.Array
     dt: jax.Array
     dim: int = eqx.field(static=True)
+    offset: jax.Array = 0.0
     levy_area: ClassVar = diffrax.BrownianIncrement
 
     @property
@@ -63,9 +78,9 @@ class PathwiseBrownian(diffrax.AbstractBrownianPath):
         del left
         if t1 is None or use_levy:
             raise NotImplementedError("PathwiseBrownian gives increments over grid steps only")
-        k = jnp.round(t0).astype(jnp.uint32)
+        k = global_step(t0, self.offset)
         z = _rng.normals(self.key, self.path, k, self.dim)
-        return jnp.sqrt(self.dt * (t1 - t0)) * z
+        return jnp.sqrt(self.dt * steps(t0, t1)) * z
 
 
 class SlipTerm(diffrax.AbstractTerm):
@@ -86,7 +101,7 @@ class SlipTerm(diffrax.AbstractTerm):
 
     def contr(self, t0, t1, **kwargs):
         # Times are in steps (see PathwiseBrownian); the control is in physical time.
-        return self.control.dt * (t1 - t0), self.control.evaluate(t0, t1)
+        return self.control.dt * steps(t0, t1), self.control.evaluate(t0, t1)
 
     def prod(self, vf, control):
         (f, g), (dt, dw) = vf, control

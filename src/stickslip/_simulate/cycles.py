@@ -1,0 +1,280 @@
+"""`simulate_cycles`: successive stick-slip cycles of a few paths, as time series."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+import warnings
+from typing import Any
+
+import diffrax
+import equinox as eqx
+import numpy as np
+
+from .. import _compile, _rng
+from .._errors import ParameterError, check_int
+from .._jax import jnp
+from .._model import FrictionModel, _to_arrays
+from .driver import _Config, _make_solver, _nodes_for, _Run, _validate
+from .hybrid import INACTIVE, SLIPPING, StickSlipHybrid
+
+_CYCLE_BITS = 20  # a slot's counter is path * 2**20 + cycle
+_MAX_RECORD_FLOATS = 2**25  # memory bound of one recording solve (about 256 MB)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class CycleSeries:
+    """Successive slip-stick cycles of a few paths, from `simulate_cycles`.
+
+    - `cycles`: a table (dict of arrays, one row per cycle, ordered by path then cycle) with
+      `path`, `cycle`, `release_time` (slip onset), `slip_time`, `stick_position`,
+      `slip_distance`, `stick_time`, `period`, `immediate`;
+    - `trajectory(path)`: the time series of one path, `(t, states, slipping)`: during a slip
+      one sample per step; a stick is the segment from the stick sample (`slipping` False)
+      to the next release, along which the stick phase is linear (eq. 9);
+    - `periods(path)`: successive periods, e.g. for return maps $T_{n+1}$ against $T_n$.
+
+    Every cycle starts from the model's onset state (the sharp reset of the paper), so the
+    cycles of a path are independent given their keys.
+    """
+
+    cycles: dict[str, np.ndarray]
+    traces: tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...] | None
+    state_names: tuple[str, ...]
+    info: dict[str, Any]
+    stats: dict[str, Any]
+
+    @property
+    def n_paths(self) -> int:
+        return int(self.info["n_paths"])
+
+    def _rows(self, path: int) -> np.ndarray:
+        if not 0 <= path < self.n_paths:
+            raise IndexError(f"path {path} out of range (n_paths={self.n_paths})")
+        return self.cycles["path"] == path
+
+    def periods(self, path: int = 0) -> np.ndarray:
+        return self.cycles["period"][self._rows(path)]
+
+    def trajectory(self, path: int = 0):
+        """`(t, states, slipping)` of one path: times `(K,)`, states `(K, d)`, flags `(K,)`."""
+        self._rows(path)
+        if self.traces is None:
+            raise ValueError("this series was run with record=False: no trajectories")
+        return self.traces[path]
+
+    def __repr__(self) -> str:
+        n = self.cycles["period"].size
+        return (
+            f"CycleSeries(n_paths={self.n_paths}, cycles={n}, model={self.info['model']!r}, "
+            f"t_max={self.info['t_max']})"
+        )
+
+
+@eqx.filter_jit
+def _record(model, solver, cfg, X, k_stick, path, dt, step_key, bridge_key, n_steps):
+    """The same solve as in `simulate`, saving the state after every step."""
+    control = _solver_control(step_key, path, dt, solver.noise_dim(model))
+    hybrid = StickSlipHybrid(solver, dt, bridge_key, path, 0.0, cfg.smooth, cfg.monitor)
+    from .._solver import SlipTerm
+
+    sol = diffrax.diffeqsolve(
+        SlipTerm(model, control),
+        hybrid,
+        t0=0.0,
+        t1=float(n_steps),
+        dt0=1.0,
+        y0=(X, (X, k_stick)),
+        args=model,
+        saveat=diffrax.SaveAt(steps=True),
+        stepsize_controller=diffrax.ConstantStepSize(),
+        max_steps=n_steps,
+        throw=False,
+        adjoint=diffrax.ForwardMode(),
+    )
+    return sol.ys[0]
+
+
+def _solver_control(key, path, dt, dim):
+    from .._solver import PathwiseBrownian
+
+    return PathwiseBrownian(key, path, dt, dim)
+
+
+def simulate_cycles(
+    model: FrictionModel,
+    n_paths: int,
+    dt: float,
+    t_max: float,
+    seed: int = 0,
+    *,
+    solver: str = "auto",
+    monitor: str = "continuous",
+    record: bool = True,
+    max_cycles: int = 100_000,
+) -> CycleSeries:
+    """Run a few paths through successive slip-stick cycles until time `t_max`.
+
+    Arguments as in `simulate`; `record` keeps the time series of every slip (one sample per
+    step) for plots of the motion and phase portraits; `max_cycles` bounds the cycles of a
+    path (a model whose cycles have zero length, such as white friction noise under
+    continuous monitoring, would otherwise never reach `t_max`: a warning says so).
+
+    **Returns:** a `CycleSeries`.
+    """
+    n_paths, dt, t_max, seed, _ = _validate(
+        model, n_paths, dt, t_max, seed, solver, monitor, 1
+    )
+    if n_paths > 2 ** (32 - _CYCLE_BITS):
+        raise ParameterError(
+            "simulate_cycles", "n_paths", f"must be <= {2 ** (32 - _CYCLE_BITS)}", n_paths
+        )
+    max_cycles = check_int("simulate_cycles", "max_cycles", max_cycles, minimum=1)
+    if max_cycles > 2**_CYCLE_BITS - 1:
+        raise ParameterError(
+            "simulate_cycles", "max_cycles", f"must be < {2**_CYCLE_BITS}", max_cycles
+        )
+    wall0 = time.perf_counter()
+    if solver == "auto":
+        solver = "exact" if model.linear_gaussian() is not None else "euler"
+    if solver == "exact" and model.linear_gaussian() is None:
+        raise ParameterError("simulate_cycles", "solver", "'exact' needs a linear-Gaussian model", solver)
+    cfg = _Config(
+        solver=solver,
+        monitor=monitor,
+        smooth=bool(model.crossing_is_smooth),
+        nodes=_nodes_for(model, dt) if solver == "exact" else 1,
+    )
+    n_steps = max(1, math.ceil(t_max / dt - 1e-9))
+    amodel = _to_arrays(model)
+    root = _rng.stream_key(_rng.seed_key(seed), _rng.SERIES)
+    keys = {
+        "step": _rng.stream_key(root, _rng.STEP),
+        "bridge": _rng.stream_key(root, _rng.BRIDGE),
+        "z": _rng.stream_key(root, _rng.LOCATE, 0),
+        "u": _rng.stream_key(root, _rng.LOCATE, 1),
+        "onset": _rng.stream_key(root, _rng.ONSET),
+    }
+    timer = _compile.Timer()
+    run = _Run(amodel, cfg, keys, dt, n_steps, timer, None)
+
+    rows: list[dict[str, np.ndarray]] = []
+    elapsed = np.zeros(n_paths)
+    active = np.ones(n_paths, dtype=bool)
+    first, batch = 0, 16
+    while active.any() and first < max_cycles:
+        count = min(batch, max_cycles - first)
+        ids = np.nonzero(active)[0]
+        slots = (
+            (ids[:, None].astype(np.uint64) << _CYCLE_BITS) + first + np.arange(count)
+        ).ravel().astype(np.uint32)
+        X0, stick_state, t_stick, _ = run.first_passages(slots, 2**16)
+        next_onset = run.onsets(slots + np.uint32(1))
+        out = run.cycle_outputs(X0, stick_state, t_stick, next_onset, t_max)
+        out.update(
+            path=np.repeat(ids, count),
+            cycle=np.tile(np.arange(first, first + count), ids.size),
+            onset=X0,
+            stick=stick_state,
+        )
+        period = np.where(out["stuck"], out["period"], np.inf).reshape(ids.size, count)
+        start = elapsed[ids, None] + np.concatenate(
+            [np.zeros((ids.size, 1)), np.cumsum(period, axis=1)[:, :-1]], axis=1
+        )
+        out["release_time"] = start.ravel()
+        keep = out["release_time"] < t_max
+        rows.append({k: v[..., keep] for k, v in out.items()})
+        elapsed[ids] = start[:, -1] + period[:, -1]
+        active[ids] = elapsed[ids] < t_max
+        first += count
+        batch *= 2
+    if active.any():
+        warnings.warn(
+            f"simulate_cycles: {int(active.sum())} path(s) did not reach t_max = {t_max} in "
+            f"{max_cycles} cycles (mean period {np.mean(elapsed[active]) / max_cycles:.3g}); "
+            "zero-length cycles, as with white friction noise, never advance time",
+            stacklevel=2,
+        )
+    table = {k: np.concatenate([r[k] for r in rows], axis=-1) for k in rows[0]}
+    order = np.lexsort((table["cycle"], table["path"]))
+    table = {k: v[..., order] for k, v in table.items()}
+    traces = _traces(run, amodel, cfg, keys, table, n_paths, dt, timer) if record else None
+    cycles = {
+        k: table[k]
+        for k in (
+            "path", "cycle", "release_time", "slip_time", "stick_position", "slip_distance",
+            "stick_time", "period", "immediate",
+        )
+    }  # fmt: skip
+    info = dict(
+        model=type(model).__name__,
+        params=model.params(),
+        solver=solver,
+        monitor=monitor,
+        dt=dt,
+        t_max=t_max,
+        seed=seed,
+        n_paths=n_paths,
+    )
+    stats = dict(
+        run.stats,
+        wall_seconds=time.perf_counter() - wall0,
+        compile_seconds=timer.compile_seconds,
+    )
+    return CycleSeries(cycles, traces, tuple(model.state_names), info, stats)
+
+
+def _traces(run, model, cfg, keys, table, n_paths, dt, timer):
+    """Re-run every kept slip with the same noise, saving each step, and join the cycles."""
+    slots = ((table["path"].astype(np.uint64) << _CYCLE_BITS) + table["cycle"]).astype(
+        np.uint32
+    )
+    slip_time = np.where(np.isfinite(table["slip_time"]), table["slip_time"], run.n_steps * dt)
+    steps_needed = np.ceil(slip_time / dt).astype(int)
+    d = table["onset"].shape[0]
+    # Group slots so that one recording solve stays within the memory bound.
+    n_rec = _next_pow2_int(max(1, int(steps_needed.max())))
+    group = max(1, _MAX_RECORD_FLOATS // (n_rec * d * 2))
+    samples = []
+    for start in range(0, slots.size, group):
+        idx = np.arange(start, min(start + group, slots.size))
+        n = max(128, _next_pow2_int(idx.size))
+        pad = n - idx.size
+        X0 = np.concatenate([table["onset"][:, idx], np.zeros((d, pad))], axis=1)
+        ks = np.concatenate(
+            [np.where(table["immediate"][idx], INACTIVE, SLIPPING), np.full(pad, INACTIVE)]
+        )
+        path = np.concatenate([slots[idx], np.zeros(pad, dtype=np.uint32)])
+        ys = np.asarray(
+            _compile.call(
+                _record, model, run.solver, cfg, X0, ks, path, run.dt_arr, keys["step"],
+                keys["bridge"], n_rec, timer=timer,
+            )
+        )  # fmt: skip
+        for col, row in enumerate(idx):
+            k = int(np.floor(slip_time[row] / dt + 1e-9)) if not table["immediate"][row] else 0
+            k = min(k, n_rec)
+            samples.append(np.concatenate([X0[:, col : col + 1], ys[:k, :, col].T], axis=1))
+    traces = []
+    for p in range(n_paths):
+        rows = np.nonzero(table["path"] == p)[0]
+        ts, xs, flags = [], [], []
+        for row in rows:
+            slip = samples[row]
+            t0 = table["release_time"][row]
+            ts.append(t0 + dt * np.arange(slip.shape[1]))
+            xs.append(slip)
+            flags.append(np.ones(slip.shape[1], dtype=bool))
+            if np.isfinite(table["slip_time"][row]):
+                ts.append([t0 + table["slip_time"][row]])
+                xs.append(table["stick"][:, row : row + 1])
+                flags.append([False])
+        traces.append(
+            (np.concatenate(ts), np.concatenate(xs, axis=1).T, np.concatenate(flags))
+        )
+    return tuple(traces)
+
+
+def _next_pow2_int(n: int) -> int:
+    return 1 << max(0, (int(n) - 1).bit_length())
