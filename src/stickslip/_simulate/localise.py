@@ -115,15 +115,23 @@ def locate(model, solver, y0, y1, h, *, smooth, monitor, z, u):
     """Where a path stuck inside its last step: `(fraction of the step, state at the stick,
     found)` for each path, from the states `y0`, `y1` (each `(d, n)`) at the step's ends.
 
+    Grid monitoring: linear interpolation (the classic convention). Continuous monitoring:
+
     - differentiable crossing variable: the first upcrossing of the solver's interpolant
       (cubic Hermite pieces between the solver's dense nodes); if that interpolant has none
       (a graze caught only by the coarse in-step check), the coarse cubic through the end
       points with the drift as slope;
-    - noise in the crossing variable: the Brownian-bridge hitting time (continuous
-      monitoring) or linear interpolation (grid monitoring).
+    - noise in the crossing variable: the Brownian-bridge hitting time.
     """
     level = model.stick_level
     cross = over_paths(model.crossing)
+    if monitor == "grid":
+        # The classic convention (the paper's simulations, the reference data): the stick is
+        # found at the first grid point at or above the level, and placed by linear
+        # interpolation of the crossing variable and of the state.
+        c0, c1 = cross(y0), cross(y1)
+        frac = jnp.clip((level - c0) / jnp.where(c1 > c0, c1 - c0, 1.0), 0.0, 1.0)
+        return frac, y0 + frac * (y1 - y0), jnp.ones(c0.shape, dtype=bool)
     values, slopes = solver.dense_nodes(model, y0, y1, h)  # (M+1, d, n)
     M = values.shape[0] - 1
     hs = h / M
@@ -148,11 +156,8 @@ def locate(model, solver, y0, y1, h, *, smooth, monitor, z, u):
         frac = jnp.where(found, pick((j + uu) / M, uu), 1.0)
     else:
         c0, c1 = c[0], c[M]
-        if monitor == "continuous":
-            var = over_paths(model.crossing_noise)(y0)
-            frac = bridge_crossing_fraction(level - c0, level - c1, var, h, z, u)
-        else:
-            frac = jnp.clip((level - c0) / jnp.where(c1 > c0, c1 - c0, 1.0), 0.0, 1.0)
+        var = over_paths(model.crossing_noise)(y0)
+        frac = bridge_crossing_fraction(level - c0, level - c1, var, h, z, u)
         found = jnp.ones(c0.shape, dtype=bool)
     # State at the stick: Hermite interpolation on the piece holding it.
     pos = jnp.clip(frac * M, 0.0, M)

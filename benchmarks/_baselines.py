@@ -1,0 +1,72 @@
+"""NumPy baselines for the Langevin model with OU friction noise (no JAX, no stickslip).
+
+Both use grid monitoring and linear interpolation of the stick time, the classic convention
+(the paper's simulations, the reference data).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg
+
+
+def _matrices(omega0, zeta, D, tau):
+    A = np.array([[0.0, 1.0, 0.0], [-(omega0**2), -zeta, 1.0], [0.0, 0.0, -1.0 / tau]])
+    B = np.array([[0.0], [0.0], [np.sqrt(2 * D) / tau]])
+    return A, B
+
+
+def exact_dropping(n_paths, dt, t_max, seed, *, omega0, zeta, D, v_b, x0, tau):
+    """Exact Gaussian stepping of (x, v, eta); finished paths are dropped from the arrays."""
+    A, B = _matrices(omega0, zeta, D, tau)
+    M = np.block([[-A, B @ B.T], [np.zeros((3, 3)), A.T]]) * dt
+    E = scipy.linalg.expm(M)
+    Phi = E[3:, 3:].T
+    S = Phi @ E[:3, 3:]
+    L = np.linalg.cholesky(0.5 * (S + S.T))
+    PhiT, LT = Phi.T, L.T
+    rng = np.random.default_rng(seed)
+    X = np.tile([x0, v_b, 0.0], (n_paths, 1))
+    T = np.full(n_paths, np.nan)
+    idx = np.arange(n_paths)
+    k = 0
+    steps = 0
+    while idx.size and k * dt < t_max:
+        Xn = X @ PhiT + rng.standard_normal((idx.size, 3)) @ LT
+        steps += idx.size
+        k += 1
+        hit = Xn[:, 1] >= v_b
+        if hit.any():
+            v0, v1 = X[hit, 1], Xn[hit, 1]
+            T[idx[hit]] = (k - 1 + (v_b - v0) / (v1 - v0)) * dt
+            keep = ~hit
+            X, idx = Xn[keep], idx[keep]
+        else:
+            X = Xn
+    return T, steps
+
+
+def euler_all(n_paths, dt, t_max, seed, *, omega0, zeta, D, v_b, x0, tau):
+    """Euler-Maruyama over all paths at every step (masked), until all stuck or t_max."""
+    rng = np.random.default_rng(seed)
+    x = np.full(n_paths, x0)
+    v = np.full(n_paths, v_b)
+    e = np.zeros(n_paths)
+    T = np.full(n_paths, np.nan)
+    alive = np.ones(n_paths, dtype=bool)
+    g = np.sqrt(2 * D * dt) / tau
+    k = 0
+    steps = 0
+    while alive.any() and k * dt < t_max:
+        xn = x + v * dt
+        vn = v + (-(omega0**2) * x - zeta * v + e) * dt
+        en = e - e / tau * dt + g * rng.standard_normal(n_paths)
+        steps += n_paths
+        k += 1
+        hit = alive & (vn >= v_b)
+        T[hit] = (k - 1 + (v_b - v[hit]) / (vn[hit] - v[hit])) * dt
+        alive &= ~hit
+        x = np.where(alive, xn, x)
+        v = np.where(alive, vn, v)
+        e = np.where(alive, en, e)
+    return T, steps

@@ -1,0 +1,55 @@
+"""Shared test helpers: the reference data and the registry of models under contract."""
+
+from __future__ import annotations
+
+import json
+import pathlib
+
+import numpy as np
+import pytest
+
+DATA = pathlib.Path(__file__).parent / "data"
+
+
+@pytest.fixture(scope="session")
+def reference():
+    """The public reference set (independent NumPy implementation); see data/README.md."""
+    npz = np.load(DATA / "langevin_ou_public.npz")
+    meta = json.loads((DATA / "langevin_ou_public.json").read_text())
+    return {k: npz[k] for k in npz.files} | {"meta": meta}
+
+
+@pytest.fixture(scope="session")
+def Langevin():
+    import stickslip
+
+    return stickslip.get_model("langevin")
+
+
+def chi2_homogeneity(counts_a, counts_b, min_expected=5.0):
+    """Chi-square test that two histograms (same bins) come from one distribution.
+
+    Adjacent bins are merged until every expected count is at least `min_expected` (the
+    usual validity rule). Returns `(statistic, dof, p_value)`.
+    """
+    from scipy import stats
+
+    a = np.asarray(counts_a, float)
+    b = np.asarray(counts_b, float)
+    na, nb = a.sum(), b.sum()
+    merged_a, merged_b = [], []
+    acc_a = acc_b = 0.0
+    for x, y in zip(a, b):
+        acc_a += x
+        acc_b += y
+        total = acc_a + acc_b
+        if min(total * na / (na + nb), total * nb / (na + nb)) >= min_expected:
+            merged_a.append(acc_a)
+            merged_b.append(acc_b)
+            acc_a = acc_b = 0.0
+    if acc_a + acc_b > 0:  # leftover tail joins the last bin
+        merged_a[-1] += acc_a
+        merged_b[-1] += acc_b
+    table = np.array([merged_a, merged_b])
+    stat, p, dof, _ = stats.chi2_contingency(table, correction=False)
+    return stat, dof, p

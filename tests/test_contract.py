@@ -1,0 +1,34 @@
+"""The contract every registered model must meet (new plugins are checked automatically)."""
+
+import numpy as np
+import pytest
+
+import stickslip as ss
+from stickslip._jax import jax, jnp
+
+MODELS = sorted(ss.list_models().items())
+
+
+@pytest.mark.parametrize("name, cls", MODELS, ids=[n for n, _ in MODELS])
+def test_model_contract(name, cls):
+    m = cls.example()
+    assert isinstance(m, ss.FrictionModel), f"{name}: example() must return an instance"
+    d = len(m.state_names)
+    y0 = m.onset_state(jax.random.key(0))
+    assert y0.shape == (d,) and y0.dtype == jnp.float64
+    assert m.drift(y0).shape == (d,)
+    assert m.diffusion(y0).shape == (d, m.noise_dim)
+    assert float(m.crossing(y0)) == pytest.approx(float(m.stick_level))
+    assert isinstance(m.crossing_is_smooth, bool)
+    lg = m.linear_gaussian()
+    if lg is not None:
+        y = y0 + 0.1
+        np.testing.assert_allclose(m.drift(y), lg.A @ y + lg.b, rtol=1e-12, atol=1e-14)
+        np.testing.assert_allclose(m.diffusion(y), lg.B, rtol=1e-12, atol=1e-14)
+        assert float(m.crossing(y)) == pytest.approx(float(lg.crossing @ y))
+    solvers = ["euler", "exact"] if lg is not None else ["euler"]
+    for solver in solvers:
+        e = ss.simulate(m, 256, 0.01, 20.0, seed=0, solver=solver)
+        assert e.n_paths == 256 and e.fraction_stuck > 0
+        s = e.stuck
+        assert np.all(np.isfinite(e.period[s])) and np.all(e.stick_time[s] >= 0)

@@ -1,0 +1,71 @@
+"""Successive cycles: time series for plots and return maps."""
+
+import numpy as np
+import pytest
+
+import stickslip as ss
+
+PUBLIC = dict(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=0.1)
+
+
+@pytest.fixture(scope="module")
+def series(Langevin):
+    return ss.simulate_cycles(Langevin(**PUBLIC), 3, 0.005, 60.0, seed=4)
+
+
+def test_cycles_chain_up(series):
+    c = series.cycles
+    for p in range(3):
+        rows = c["path"] == p
+        release = c["release_time"][rows]
+        assert release[0] == 0.0 and release[-1] < 60.0
+        assert release[-1] + c["period"][rows][-1] >= 60.0
+        np.testing.assert_allclose(np.diff(release), c["period"][rows][:-1])
+        np.testing.assert_array_equal(c["cycle"][rows], np.arange(rows.sum()))
+        np.testing.assert_array_equal(series.periods(p), c["period"][rows])
+
+
+def test_trajectories(series):
+    c = series.cycles
+    for p in range(3):
+        t, X, slipping = series.trajectory(p)
+        assert X.shape == (t.size, 3)
+        assert np.all(np.diff(t) >= -1e-12)
+        assert np.all(X[slipping, 1] <= 1.0 + 1e-12)  # v <= v_b while slipping
+        sticks = ~slipping
+        assert sticks.sum() == np.sum(c["path"] == p)
+        np.testing.assert_allclose(X[sticks, 1], 1.0, atol=1e-6)  # at the stick v = v_b
+        np.testing.assert_allclose(X[sticks, 0], c["stick_position"][c["path"] == p])
+        # every slip starts at the threshold, with v = v_b
+        starts = np.r_[0, np.nonzero(sticks)[0][:-1] + 1]
+        np.testing.assert_allclose(X[starts, :2], [[1.0, 1.0]] * starts.size)
+
+
+def test_cycles_are_distributed_like_single_slips(series, Langevin):
+    """Every cycle starts afresh (the paper's sharp reset): cycle slip times follow the
+    one-cycle distribution (means within 4 standard errors)."""
+    longer = ss.simulate_cycles(Langevin(**PUBLIC), 20, 0.005, 200.0, seed=5, record=False)
+    one = ss.simulate(Langevin(**PUBLIC), 20_000, 0.005, 30.0, seed=6)
+    a = longer.cycles["slip_time"]
+    m1, se1 = one.mean("slip_time")
+    assert abs(a.mean() - m1) < 4 * np.hypot(a.std() / np.sqrt(a.size), se1)
+    assert longer.traces is None
+    with pytest.raises(ValueError, match="record=False"):
+        longer.trajectory(0)
+
+
+def test_zero_length_cycles_warn(Langevin):
+    white = Langevin(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0)
+    with pytest.warns(UserWarning, match="did not reach t_max"):
+        s = ss.simulate_cycles(white, 2, 0.01, 10.0, max_cycles=40, record=False)
+    assert np.all(s.cycles["period"] == 0)
+
+
+def test_bad_arguments(Langevin):
+    m = Langevin(**PUBLIC)
+    with pytest.raises(ss.ParameterError, match="'n_paths' must be <="):
+        ss.simulate_cycles(m, 10_000, 0.01, 1.0)
+    with pytest.raises(ss.ParameterError, match="'max_cycles'"):
+        ss.simulate_cycles(m, 1, 0.01, 1.0, max_cycles=0)
+    with pytest.raises(IndexError):
+        ss.simulate_cycles(m, 1, 0.01, 5.0).trajectory(3)

@@ -1,0 +1,68 @@
+"""Counter-based random numbers."""
+
+import numpy as np
+import pytest
+from jax.extend.random import threefry_2x32
+from scipy import special, stats
+
+from stickslip import _rng
+from stickslip._jax import jnp
+
+
+def test_unrolled_threefry_equals_jax():
+    rng = np.random.default_rng(1)
+    for _ in range(5):
+        key = rng.integers(0, 2**32, size=2, dtype=np.uint32)
+        x = rng.integers(0, 2**32, size=(2, 1000), dtype=np.uint32)
+        ref = np.asarray(threefry_2x32(jnp.asarray(key), jnp.asarray(x)))
+        w0, w1 = _rng.threefry2x32(jnp.asarray(key), jnp.asarray(x[0]), jnp.asarray(x[1]))
+        np.testing.assert_array_equal(np.stack([w0, w1]), ref)
+
+
+def test_draws_do_not_depend_on_the_batch():
+    key = _rng.stream_key(_rng.seed_key(5), _rng.STEP)
+    paths = np.arange(1000, dtype=np.uint32)
+    full = np.asarray(_rng.normals(key, paths, 17, 3))
+    some = np.asarray(_rng.normals(key, paths[[3, 999, 500]], 17, 3))
+    np.testing.assert_array_equal(full[:, [3, 999, 500]], some)
+    per_path_counter = np.asarray(_rng.normals(key, paths[:4], np.array([17, 17, 17, 17]), 3))
+    np.testing.assert_array_equal(per_path_counter, full[:, :4])
+
+
+def test_streams_seeds_and_counters_differ():
+    paths = np.arange(64, dtype=np.uint32)
+    root = _rng.seed_key(0)
+    a = np.asarray(_rng.normals(_rng.stream_key(root, 1), paths, 0, 2))
+    b = np.asarray(_rng.normals(_rng.stream_key(root, 2), paths, 0, 2))
+    c = np.asarray(_rng.normals(_rng.stream_key(_rng.seed_key(1), 1), paths, 0, 2))
+    d = np.asarray(_rng.normals(_rng.stream_key(root, 1), paths, 1, 2))
+    for other in (b, c, d):
+        assert not np.any(a == other)
+    with pytest.raises(ValueError):
+        _rng.seed_key(-1)
+
+
+def test_normals_are_standard_normal():
+    key = _rng.stream_key(_rng.seed_key(2), _rng.STEP)
+    paths = np.arange(250_000, dtype=np.uint32)
+    z = np.asarray(_rng.normals(key, paths, 3, 4)).ravel()
+    n = z.size
+    assert abs(z.mean()) < 4 / np.sqrt(n)
+    assert abs(z.var() - 1) < 4 * np.sqrt(2 / n)
+    assert stats.kstest(z, "norm").pvalue > 1e-3
+    assert np.max(np.abs(z)) < 5.4  # float32 uniforms clip the tails near 5.3 sigma
+    assert np.corrcoef(z[: n // 2], z[n // 2 :])[0, 1] < 4 / np.sqrt(n / 2)
+
+
+def test_uniforms_are_open_unit():
+    key = _rng.stream_key(_rng.seed_key(3), _rng.BRIDGE)
+    u = np.asarray(_rng.uniforms(key, np.arange(100_000, dtype=np.uint32), 0, 3)).ravel()
+    assert u.min() > 0 and u.max() < 1
+    assert stats.kstest(u, "uniform").pvalue > 1e-3
+
+
+def test_erfinv32_accuracy():
+    x = np.linspace(-1 + 2**-23, 1 - 2**-23, 200_001).astype(np.float32)
+    ours = np.asarray(_rng.erfinv32(jnp.asarray(x)), dtype=float)
+    exact = special.erfinv(x.astype(float))
+    assert np.max(np.abs(ours - exact) / np.maximum(np.abs(exact), 1e-30)) < 3e-7

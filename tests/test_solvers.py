@@ -1,0 +1,135 @@
+"""The slip-phase solvers as diffrax solvers."""
+
+import numpy as np
+import pytest
+import scipy.integrate
+import scipy.linalg
+
+from stickslip import EulerMaruyama, ExactGaussian
+from stickslip._jax import jnp
+from stickslip._model import _to_arrays
+from stickslip._solver import PathwiseBrownian, SlipTerm
+from stickslip._solver.exact import psd_factor, transition
+from stickslip import _rng
+
+A = np.array([[0.0, 1.0, 0.0], [-1.0, -0.1, 1.0], [0.0, 0.0, -10.0]])
+b = np.array([0.1, -0.2, 0.0])
+B = np.array([[0.0], [0.0], [np.sqrt(0.8) * 10]])
+
+
+def test_transition_against_quadrature():
+    h = 0.07
+    Phi, c, Sigma = (np.asarray(a) for a in transition(jnp.asarray(A), jnp.asarray(b), jnp.asarray(B), h))
+    np.testing.assert_allclose(Phi, scipy.linalg.expm(A * h), rtol=1e-13, atol=1e-15)
+    c_ref = scipy.integrate.quad_vec(lambda s: scipy.linalg.expm(A * s) @ b, 0, h, epsabs=1e-15)[0]
+    np.testing.assert_allclose(c, c_ref, rtol=1e-10, atol=1e-16)
+    S_ref = scipy.integrate.quad_vec(
+        lambda s: scipy.linalg.expm(A * s) @ B @ B.T @ scipy.linalg.expm(A * s).T, 0, h, epsabs=1e-18
+    )[0]
+    np.testing.assert_allclose(Sigma, S_ref, rtol=1e-9, atol=1e-18)
+
+
+def test_psd_factor_handles_tiny_and_zero_variances():
+    _, _, Sigma = transition(jnp.asarray(A), jnp.asarray(b), jnp.asarray(B), 0.005)
+    L = np.asarray(psd_factor(Sigma))
+    np.testing.assert_allclose(L @ L.T, np.asarray(Sigma), rtol=1e-9, atol=1e-22)
+    Z = np.asarray(psd_factor(jnp.zeros((3, 3))))
+    assert np.all(Z == 0)
+
+
+def _setup(Langevin, solver, n, tau=0.1):
+    model = _to_arrays(Langevin(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=tau))
+    key = _rng.stream_key(_rng.seed_key(0), _rng.STEP)
+    path = jnp.arange(n, dtype=jnp.uint32)
+    dt = jnp.asarray(0.01)
+    control = PathwiseBrownian(key, path, dt, solver.noise_dim(model))
+    X0 = jnp.tile(jnp.asarray(model.onset_state(None))[:, None], (1, n))
+    return model, SlipTerm(model, control), (X0, None)
+
+
+def test_exact_step_has_the_transition_law(Langevin):
+    n, h = 200_000, 0.01
+    m = Langevin(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=0.1)
+    lg = m.linear_gaussian()
+    solver = ExactGaussian(lg.A, lg.b, lg.B, h)
+    model, terms, y0 = _setup(Langevin, solver, n)
+    state = solver.init(terms, 0.0, 1.0, y0, model)
+    X1 = np.asarray(solver.step(terms, 0.0, 1.0, y0, model, state, False)[0][0])
+    Phi, c, Sigma = (np.asarray(a) for a in transition(lg.A, lg.b, lg.B, h))
+    mean = Phi @ np.asarray(lg.m0) + c
+    dev = X1 - mean[:, None]
+    cov = dev @ dev.T / n
+    sd = np.sqrt(np.diag(Sigma))
+    assert np.all(np.abs(dev.mean(axis=1)) < 4 * sd / np.sqrt(n))
+    corr_err = (cov - Sigma) / np.outer(sd, sd)
+    assert np.max(np.abs(corr_err)) < 4 * np.sqrt(2 / n)
+
+
+def test_euler_maruyama_step(Langevin):
+    """X1 = X0 + f(X0) h + G(X0) dW with the increments the control hands out for that step."""
+    solver = EulerMaruyama()
+    model, terms, y0 = _setup(Langevin, solver, 64)
+    state = solver.init(terms, 3.0, 4.0, y0, model)
+    ours = np.asarray(solver.step(terms, 3.0, 4.0, y0, model, state, False)[0][0])
+    h, dw = (np.asarray(a) for a in terms.contr(3.0, 4.0))
+    X0 = np.asarray(y0[0])
+    x, v, eta = X0
+    drift = np.stack([v, -x - 0.1 * v + eta, -eta / 0.1])
+    diffusion = np.array([0.0, 0.0, np.sqrt(0.8) / 0.1])[:, None] * dw
+    np.testing.assert_allclose(ours, X0 + drift * h + diffusion, rtol=1e-14, atol=1e-15)
+    assert h == pytest.approx(0.01)
+    # The increments of step 3 are the same whichever step they are drawn from (counters).
+    again = np.asarray(terms.control.evaluate(3.0, 4.0))
+    np.testing.assert_array_equal(again, dw)
+
+
+@pytest.mark.parametrize("nodes", [2, 8])
+def test_bridge_mean_nodes(Langevin, nodes):
+    """Node values are E[X(s) | X_k, X_{k+1}], checked against Gaussian conditioning written
+    out independently in NumPy; with no noise they are the exact flow."""
+    h = 0.02
+    m = Langevin(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=0.1)
+    lg = m.linear_gaussian()
+    solver = ExactGaussian(lg.A, lg.b, lg.B, h, nodes=nodes)
+    rng = np.random.default_rng(0)
+    y0 = rng.normal(size=(3, 5))
+    y1 = rng.normal(size=(3, 5))
+    values, slopes = (np.asarray(a) for a in solver.dense_nodes(m, jnp.asarray(y0), jnp.asarray(y1), h))
+    np.testing.assert_array_equal(values[0], y0)
+    np.testing.assert_array_equal(values[-1], y1)
+    An, Bn = np.asarray(lg.A), np.asarray(lg.B)
+    for j in range(1, nodes):
+        s = h * j / nodes
+        P1, S1 = scipy.linalg.expm(An * s), _cov(An, Bn, s)
+        P2, S2 = scipy.linalg.expm(An * (h - s)), _cov(An, Bn, h - s)
+        # X(s) = P1 y0 + e1, X(h) = P2 X(s) + e2: condition X(s) on X(h) = y1.
+        mean_s, cov_s_h = P1 @ y0, S1 @ P2.T
+        cov_h = P2 @ S1 @ P2.T + S2
+        expected = mean_s + cov_s_h @ np.linalg.solve(cov_h, y1 - P2 @ mean_s)
+        np.testing.assert_allclose(values[j], expected, rtol=1e-7, atol=1e-9)
+    # Slopes are the time derivative of the node values (finite differences of a fine solver).
+    fine = ExactGaussian(lg.A, lg.b, lg.B, h, nodes=64)
+    fv, fs = (np.asarray(a) for a in fine.dense_nodes(m, jnp.asarray(y0), jnp.asarray(y1), h))
+    fd = (fv[2:] - fv[:-2]) / (2 * h / 64)
+    np.testing.assert_allclose(fd, fs[1:-1], rtol=2e-3, atol=2e-3 * np.abs(fs).max())
+
+
+def _cov(A, B, t):
+    d = A.shape[0]
+    M = np.block([[-A, B @ B.T], [np.zeros((d, d)), A.T]]) * t
+    E = scipy.linalg.expm(M)
+    return E[d:, d:].T @ E[:d, d:]
+
+
+def test_noise_free_nodes_are_the_flow(Langevin):
+    h = 0.05
+    m = Langevin(omega0=1.0, zeta=0.1, D=0.0, v_b=1.0, x0=1.0, tau=0.1)
+    lg = m.linear_gaussian()
+    solver = ExactGaussian(lg.A, lg.b, lg.B, h, nodes=4)
+    y0 = np.array([[1.0], [1.0], [0.0]])
+    y1 = scipy.linalg.expm(np.asarray(lg.A) * h) @ y0
+    values, slopes = (np.asarray(a) for a in solver.dense_nodes(m, jnp.asarray(y0), jnp.asarray(y1), h))
+    for j in range(5):
+        flow = scipy.linalg.expm(np.asarray(lg.A) * h * j / 4) @ y0
+        np.testing.assert_allclose(values[j], flow, rtol=1e-13, atol=1e-14)
+        np.testing.assert_allclose(slopes[j], np.asarray(lg.A) @ flow, rtol=1e-12, atol=1e-14)
