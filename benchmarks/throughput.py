@@ -63,9 +63,7 @@ def main(argv=None):
         return t
 
     def baseline(label, fn):
-        (T, steps), t = _timed(
-            lambda: fn(n, dt, t_max, args.seed, **PUBLIC)
-        )
+        (T, steps), t = _timed(lambda: fn(n, dt, t_max, args.seed, **PUBLIC))
         rows.append(
             dict(method=label, seconds=t, compile_seconds=0.0, path_steps=steps,
                  mean_slip_time=float(np.nanmean(T)))
@@ -85,8 +83,12 @@ def main(argv=None):
         "numpy_euler_all / stickslip_exact_continuous": t_np_euler / t_exact_cont,
     }
     print(f"{n} first passages, public reference set, dt = {dt}, t_max = {t_max}")
-    print(f"machine: {platform.machine()}, {os.cpu_count()} cores; python {platform.python_version()}")
-    print(f"{'method':52s} {'run s':>8s} {'compile s':>10s} {'path-steps/s':>13s} {'mean T_sl':>10s}")
+    print(
+        f"machine: {platform.machine()}, {os.cpu_count()} cores; python {platform.python_version()}"
+    )
+    print(
+        f"{'method':52s} {'run s':>8s} {'compile s':>10s} {'path-steps/s':>13s} {'mean T_sl':>10s}"
+    )
     for r in rows:
         rate = r["path_steps"] / r["seconds"]
         print(
@@ -97,7 +99,9 @@ def main(argv=None):
     for k, v in ratios.items():
         print(f"  {k:52s} {v:6.2f}x")
     if args.json:
-        args.json.write_text(json.dumps(dict(n_paths=n, dt=dt, t_max=t_max, rows=rows, ratios=ratios), indent=2))
+        args.json.write_text(
+            json.dumps(dict(n_paths=n, dt=dt, t_max=t_max, rows=rows, ratios=ratios), indent=2)
+        )
     return rows, ratios
 
 

@@ -35,7 +35,7 @@ def chi2_homogeneity(a, b, min_expected=5.0):
 
     na, nb = a.sum(), b.sum()
     rows, acc = [], np.zeros(2)
-    for x, y in zip(a, b):
+    for x, y in zip(a, b, strict=True):
         acc += (x, y)
         if acc.sum() * min(na, nb) / (na + nb) >= min_expected:
             rows.append(acc.copy())
@@ -120,24 +120,44 @@ def main(argv=None):
     ]
     (args.out / "summary.md").write_text("\n".join(lines) + "\n")
 
+    time_label = r"slip time $T_{sl}$ ($1/\omega_0$)"
+    distance_label = r"slip distance $d$ ($v_b/\omega_0$)"
     for attr, edges, counts, xlabel, fname in (
-        ("slip_time", ref["T_edges"], ref["T_counts"], r"slip time $T_{sl}$ ($1/\omega_0$)", "slip_time.png"),
-        ("slip_distance", ref["d_edges"], ref["d_counts"], r"slip distance $d$ ($v_b/\omega_0$)", "slip_distance.png"),
-    ):  # fmt: skip
+        ("slip_time", ref["T_edges"], ref["T_counts"], time_label, "slip_time.png"),
+        ("slip_distance", ref["d_edges"], ref["d_counts"], distance_label, "slip_distance.png"),
+    ):
         fig, ax = plt.subplots(figsize=(6.4, 4.0))
         width = np.diff(edges)
         centres = 0.5 * (edges[1:] + edges[:-1])
         ref_density = counts / counts.sum() / width
-        ax.step(centres, ref_density, where="mid", color="0.3", lw=1.2, label="reference (2e5 paths, NumPy)")
+        ax.step(
+            centres,
+            ref_density,
+            where="mid",
+            color="0.3",
+            lw=1.2,
+            label="reference (2e5 paths, NumPy)",
+        )
         values, errors, _ = ens.histogram(attr, edges)
-        ax.errorbar(centres, values, yerr=errors, fmt="x", ms=3, color="C3", label=f"stickslip ({args.n_paths} paths)")
+        ax.errorbar(
+            centres,
+            values,
+            yerr=errors,
+            fmt="x",
+            ms=3,
+            color="C3",
+            label=f"stickslip ({args.n_paths} paths)",
+        )
         ax.set_xlabel(xlabel)
         ax.set_ylabel("probability density")
         if attr == "slip_time":
             ax.set_xlim(0, 15)
             ax.set_yscale("log")
         ax.legend()
-        ax.set_title(r"Langevin, OU noise: $\omega_0=1, \zeta=0.1, D=0.4, v_b=1, x_0=1, \tau=0.1$", fontsize=9)
+        ax.set_title(
+            r"Langevin, OU noise: $\omega_0=1, \zeta=0.1, D=0.4, v_b=1, x_0=1, \tau=0.1$",
+            fontsize=9,
+        )
         fig.tight_layout()
         fig.savefig(args.out / fname, dpi=120)
         plt.close(fig)
@@ -151,7 +171,7 @@ def main(argv=None):
     a1.set_ylabel("$x$, $v$")
     a1.legend(loc="lower left", fontsize=8)
     a1.set_title("stick-slip motion (flat segments of $v$: sticks)", fontsize=9)
-    for i, (start, stop) in enumerate(_slips(slipping)[:6]):
+    for start, stop in _slips(slipping)[:6]:
         a2.plot(X[start:stop, 0], X[start:stop, 1], lw=0.8)
     a2.set_xlabel("position $x$")
     a2.set_ylabel("velocity $v$")
@@ -167,7 +187,7 @@ def _slips(slipping):
     """(start, stop) index ranges of the slips in a trajectory (stop includes the stick)."""
     ends = np.nonzero(~slipping)[0]
     starts = np.r_[0, ends[:-1] + 1]
-    return list(zip(starts, ends + 1))
+    return list(zip(starts, ends + 1, strict=True))
 
 
 if __name__ == "__main__":

@@ -27,7 +27,9 @@ def main(argv=None):
     n = args.n_paths
     se = np.sqrt(0.25 / n)
     print(f"{n} paths per cell; standard error of a fraction <= {se:.4f}")
-    print(f"{'noise':6s} {'monitoring':22s} {'dt':>8s} {'P(T_sl < 0.1)':>14s} {'P(first step)':>14s}")
+    print(
+        f"{'noise':6s} {'monitoring':22s} {'dt':>8s} {'P(T_sl < 0.1)':>14s} {'P(first step)':>14s}"
+    )
     cases = [
         ("white", dict(solver="euler", monitor="grid"), "grid (Euler-Maruyama)", {}),
         ("white", dict(solver="euler"), "Brownian bridge", {}),

@@ -39,7 +39,7 @@ def chi2_homogeneity(counts_a, counts_b, min_expected=5.0):
     na, nb = a.sum(), b.sum()
     merged_a, merged_b = [], []
     acc_a = acc_b = 0.0
-    for x, y in zip(a, b):
+    for x, y in zip(a, b, strict=True):
         acc_a += x
         acc_b += y
         total = acc_a + acc_b

@@ -10,19 +10,39 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 def test_public_reference_example(tmp_path):
     out = tmp_path / "results"
     run = subprocess.run(
-        [sys.executable, str(ROOT / "examples" / "public_reference.py"), "--out", str(out), "--n-paths", "2000"],
+        [
+            sys.executable,
+            str(ROOT / "examples" / "public_reference.py"),
+            "--out",
+            str(out),
+            "--n-paths",
+            "2000",
+        ],
         capture_output=True,
         text=True,
     )
     assert run.returncode == 0, run.stderr
-    for name in ("summary.md", "ensemble.npz", "slip_time.png", "slip_distance.png", "time_series.png"):
+    for name in (
+        "summary.md",
+        "ensemble.npz",
+        "slip_time.png",
+        "slip_distance.png",
+        "time_series.png",
+    ):
         assert (out / name).stat().st_size > 0
     assert "mean slip time" in (out / "summary.md").read_text()
 
 
 def test_throughput_benchmark_runs(tmp_path):
     run = subprocess.run(
-        [sys.executable, str(ROOT / "benchmarks" / "throughput.py"), "--n-paths", "1000", "--json", str(tmp_path / "b.json")],
+        [
+            sys.executable,
+            str(ROOT / "benchmarks" / "throughput.py"),
+            "--n-paths",
+            "1000",
+            "--json",
+            str(tmp_path / "b.json"),
+        ],
         capture_output=True,
         text=True,
     )

@@ -2,7 +2,6 @@
 
 import subprocess
 import sys
-import warnings
 from importlib.metadata import EntryPoint
 
 import pytest
@@ -30,7 +29,12 @@ def test_unknown_model_names_the_known_ones():
 
 def test_broken_plugin_warns_and_is_skipped():
     with pytest.warns(PluginWarning, match=r"'broken'.*failed to load.*ModuleNotFoundError"):
-        models = _registry._load([ep("broken", "no_such_module_xyz:Model"), ep("langevin", "stickslip_langevin:Langevin")])
+        models = _registry._load(
+            [
+                ep("broken", "no_such_module_xyz:Model"),
+                ep("langevin", "stickslip_langevin:Langevin"),
+            ]
+        )
     assert list(models) == ["langevin"]
 
 
@@ -43,7 +47,10 @@ def test_non_model_plugin_warns():
 def test_duplicate_plugin_warns():
     with pytest.warns(PluginWarning, match=r"'langevin'.*duplicates"):
         models = _registry._load(
-            [ep("langevin", "stickslip_langevin:Langevin"), ep("langevin", "stickslip_langevin:Langevin")]
+            [
+                ep("langevin", "stickslip_langevin:Langevin"),
+                ep("langevin", "stickslip_langevin:Langevin"),
+            ]
         )
     assert list(models) == ["langevin"]
 

@@ -21,7 +21,10 @@ def closed_form_slip(omega0, zeta, v_b, x0):
     s = -zeta / 2
     a, b = x0, (v_b - s * x0) / wd
     x = lambda t: math.exp(s * t) * (a * math.cos(wd * t) + b * math.sin(wd * t))
-    v = lambda t: math.exp(s * t) * ((s * a + wd * b) * math.cos(wd * t) + (s * b - wd * a) * math.sin(wd * t))
+    v = lambda t: (
+        math.exp(s * t)
+        * ((s * a + wd * b) * math.cos(wd * t) + (s * b - wd * a) * math.sin(wd * t))
+    )
     grid = np.linspace(1e-9, 4 * math.pi / wd, 100_001)
     f = np.array([v(t) for t in grid]) - v_b
     i = np.nonzero((f[:-1] < 0) & (f[1:] >= 0))[0][0]
@@ -48,7 +51,10 @@ def test_noise_free_slip_is_exact(Langevin, tau, dt):
 def test_noise_free_euler_converges_at_first_order(Langevin):
     m = Langevin(omega0=1.0, zeta=0.1, D=0.0, v_b=1.0, x0=1.0)
     T, _ = closed_form_slip(1.0, 0.1, 1.0, 1.0)
-    errors = [abs(ss.simulate(m, 4, dt, 30.0, solver="euler").slip_time[0] - T) for dt in (0.02, 0.01, 0.005)]
+    errors = [
+        abs(ss.simulate(m, 4, dt, 30.0, solver="euler").slip_time[0] - T)
+        for dt in (0.02, 0.01, 0.005)
+    ]
     rates = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
     assert np.all(np.abs(rates - 1.0) < 0.15)
 
@@ -154,7 +160,8 @@ def test_ensemble_bookkeeping(Langevin):
 
 
 def test_stationary_noise_onset_gives_immediate_resticks(Langevin):
-    """eta0 = 'stationary': the slip ends at once when a(0) >= 0, p0 = P(eta0 >= w^2 x0 + zeta v_b)."""
+    """eta0 = 'stationary': the slip ends at once when a(0) >= 0, with probability
+    p0 = P(eta0 >= w^2 x0 + zeta v_b)."""
     m = Langevin(**PUBLIC, eta0="stationary")
     e = ss.simulate(m, 20_000, 0.005, 30.0, seed=9)
     p0 = norm.sf((1.0 + 0.1) / math.sqrt(0.4 / 0.1))

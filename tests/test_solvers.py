@@ -5,12 +5,11 @@ import pytest
 import scipy.integrate
 import scipy.linalg
 
-from stickslip import EulerMaruyama, ExactGaussian
+from stickslip import EulerMaruyama, ExactGaussian, _rng
 from stickslip._jax import jnp
 from stickslip._model import _to_arrays
 from stickslip._solver import PathwiseBrownian, SlipTerm
 from stickslip._solver.exact import psd_factor, transition
-from stickslip import _rng
 
 A = np.array([[0.0, 1.0, 0.0], [-1.0, -0.1, 1.0], [0.0, 0.0, -10.0]])
 b = np.array([0.1, -0.2, 0.0])
@@ -19,12 +18,17 @@ B = np.array([[0.0], [0.0], [np.sqrt(0.8) * 10]])
 
 def test_transition_against_quadrature():
     h = 0.07
-    Phi, c, Sigma = (np.asarray(a) for a in transition(jnp.asarray(A), jnp.asarray(b), jnp.asarray(B), h))
+    Phi, c, Sigma = (
+        np.asarray(a) for a in transition(jnp.asarray(A), jnp.asarray(b), jnp.asarray(B), h)
+    )
     np.testing.assert_allclose(Phi, scipy.linalg.expm(A * h), rtol=1e-13, atol=1e-15)
     c_ref = scipy.integrate.quad_vec(lambda s: scipy.linalg.expm(A * s) @ b, 0, h, epsabs=1e-15)[0]
     np.testing.assert_allclose(c, c_ref, rtol=1e-10, atol=1e-16)
     S_ref = scipy.integrate.quad_vec(
-        lambda s: scipy.linalg.expm(A * s) @ B @ B.T @ scipy.linalg.expm(A * s).T, 0, h, epsabs=1e-18
+        lambda s: scipy.linalg.expm(A * s) @ B @ B.T @ scipy.linalg.expm(A * s).T,
+        0,
+        h,
+        epsabs=1e-18,
     )[0]
     np.testing.assert_allclose(Sigma, S_ref, rtol=1e-9, atol=1e-18)
 
@@ -94,7 +98,9 @@ def test_bridge_mean_nodes(Langevin, nodes):
     rng = np.random.default_rng(0)
     y0 = rng.normal(size=(3, 5))
     y1 = rng.normal(size=(3, 5))
-    values, slopes = (np.asarray(a) for a in solver.dense_nodes(m, jnp.asarray(y0), jnp.asarray(y1), h))
+    values, slopes = (
+        np.asarray(a) for a in solver.dense_nodes(m, jnp.asarray(y0), jnp.asarray(y1), h)
+    )
     np.testing.assert_array_equal(values[0], y0)
     np.testing.assert_array_equal(values[-1], y1)
     An, Bn = np.asarray(lg.A), np.asarray(lg.B)
@@ -128,7 +134,9 @@ def test_noise_free_nodes_are_the_flow(Langevin):
     solver = ExactGaussian(lg.A, lg.b, lg.B, h, nodes=4)
     y0 = np.array([[1.0], [1.0], [0.0]])
     y1 = scipy.linalg.expm(np.asarray(lg.A) * h) @ y0
-    values, slopes = (np.asarray(a) for a in solver.dense_nodes(m, jnp.asarray(y0), jnp.asarray(y1), h))
+    values, slopes = (
+        np.asarray(a) for a in solver.dense_nodes(m, jnp.asarray(y0), jnp.asarray(y1), h)
+    )
     for j in range(5):
         flow = scipy.linalg.expm(np.asarray(lg.A) * h * j / 4) @ y0
         np.testing.assert_allclose(values[j], flow, rtol=1e-13, atol=1e-14)

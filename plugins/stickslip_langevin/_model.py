@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import equinox as eqx
+
 from stickslip import FrictionModel, LinearGaussian, ParameterError
 from stickslip._errors import check_choice, check_nonnegative, check_positive
 from stickslip._jax import jax, jnp
@@ -85,7 +86,7 @@ class Langevin(FrictionModel):
 
     def drift(self, y):
         x, v = y[0], y[1]
-        a = -self.omega0**2 * x - self.zeta * v
+        a = -(self.omega0**2) * x - self.zeta * v
         if self.tau is None:
             return jnp.stack([v, a])
         eta = y[2]

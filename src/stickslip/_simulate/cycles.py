@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import math
 import time
 import warnings
 from typing import Any
@@ -12,11 +11,11 @@ import diffrax
 import equinox as eqx
 import numpy as np
 
-from .. import _compile, _rng
+from .. import _rng
 from .._errors import ParameterError, check_int
-from .._jax import jnp
-from .._model import FrictionModel, _to_arrays
-from .driver import _Config, _make_solver, _nodes_for, _Run, _validate
+from .._model import FrictionModel
+from .._solver import PathwiseBrownian, SlipTerm
+from .driver import _Run, _validate
 from .hybrid import INACTIVE, SLIPPING, StickSlipHybrid
 
 _CYCLE_BITS = 20  # a slot's counter is path * 2**20 + cycle
@@ -75,10 +74,8 @@ class CycleSeries:
 @eqx.filter_jit
 def _record(model, solver, cfg, X, k_stick, path, dt, step_key, bridge_key, n_steps):
     """The same solve as in `simulate`, saving the state after every step."""
-    control = _solver_control(step_key, path, dt, solver.noise_dim(model))
+    control = PathwiseBrownian(step_key, path, dt, solver.noise_dim(model))
     hybrid = StickSlipHybrid(solver, dt, bridge_key, path, 0.0, cfg.smooth, cfg.monitor)
-    from .._solver import SlipTerm
-
     sol = diffrax.diffeqsolve(
         SlipTerm(model, control),
         hybrid,
@@ -94,12 +91,6 @@ def _record(model, solver, cfg, X, k_stick, path, dt, step_key, bridge_key, n_st
         adjoint=diffrax.ForwardMode(),
     )
     return sol.ys[0]
-
-
-def _solver_control(key, path, dt, dim):
-    from .._solver import PathwiseBrownian
-
-    return PathwiseBrownian(key, path, dt, dim)
 
 
 def simulate_cycles(
@@ -123,9 +114,7 @@ def simulate_cycles(
 
     **Returns:** a `CycleSeries`.
     """
-    n_paths, dt, t_max, seed, _ = _validate(
-        model, n_paths, dt, t_max, seed, solver, monitor, 1
-    )
+    n_paths, dt, t_max, seed, _ = _validate(model, n_paths, dt, t_max, seed, solver, monitor, 1)
     if n_paths > 2 ** (32 - _CYCLE_BITS):
         raise ParameterError(
             "simulate_cycles", "n_paths", f"must be <= {2 ** (32 - _CYCLE_BITS)}", n_paths
@@ -136,28 +125,8 @@ def simulate_cycles(
             "simulate_cycles", "max_cycles", f"must be < {2**_CYCLE_BITS}", max_cycles
         )
     wall0 = time.perf_counter()
-    if solver == "auto":
-        solver = "exact" if model.linear_gaussian() is not None else "euler"
-    if solver == "exact" and model.linear_gaussian() is None:
-        raise ParameterError("simulate_cycles", "solver", "'exact' needs a linear-Gaussian model", solver)
-    cfg = _Config(
-        solver=solver,
-        monitor=monitor,
-        smooth=bool(model.crossing_is_smooth),
-        nodes=_nodes_for(model, dt) if solver == "exact" else 1,
-    )
-    n_steps = max(1, math.ceil(t_max / dt - 1e-9))
-    amodel = _to_arrays(model)
     root = _rng.stream_key(_rng.seed_key(seed), _rng.SERIES)
-    keys = {
-        "step": _rng.stream_key(root, _rng.STEP),
-        "bridge": _rng.stream_key(root, _rng.BRIDGE),
-        "z": _rng.stream_key(root, _rng.LOCATE, 0),
-        "u": _rng.stream_key(root, _rng.LOCATE, 1),
-        "onset": _rng.stream_key(root, _rng.ONSET),
-    }
-    timer = _compile.Timer()
-    run = _Run(amodel, cfg, keys, dt, n_steps, timer, None)
+    run = _Run("simulate_cycles", model, solver, monitor, dt, t_max, root)
 
     rows: list[dict[str, np.ndarray]] = []
     elapsed = np.zeros(n_paths)
@@ -167,11 +136,13 @@ def simulate_cycles(
         count = min(batch, max_cycles - first)
         ids = np.nonzero(active)[0]
         slots = (
-            (ids[:, None].astype(np.uint64) << _CYCLE_BITS) + first + np.arange(count)
-        ).ravel().astype(np.uint32)
+            ((ids[:, None].astype(np.uint64) << _CYCLE_BITS) + first + np.arange(count))
+            .ravel()
+            .astype(np.uint32)
+        )
         X0, stick_state, t_stick, _ = run.first_passages(slots, 2**16)
         next_onset = run.onsets(slots + np.uint32(1))
-        out = run.cycle_outputs(X0, stick_state, t_stick, next_onset, t_max)
+        out = run.cycle_outputs(X0, stick_state, t_stick, next_onset)
         out.update(
             path=np.repeat(ids, count),
             cycle=np.tile(np.arange(first, first + count), ids.size),
@@ -199,7 +170,7 @@ def simulate_cycles(
     table = {k: np.concatenate([r[k] for r in rows], axis=-1) for k in rows[0]}
     order = np.lexsort((table["cycle"], table["path"]))
     table = {k: v[..., order] for k, v in table.items()}
-    traces = _traces(run, amodel, cfg, keys, table, n_paths, dt, timer) if record else None
+    traces = _traces(run, table, n_paths) if record else None
     cycles = {
         k: table[k]
         for k in (
@@ -207,29 +178,19 @@ def simulate_cycles(
             "stick_time", "period", "immediate",
         )
     }  # fmt: skip
-    info = dict(
-        model=type(model).__name__,
-        params=model.params(),
-        solver=solver,
-        monitor=monitor,
-        dt=dt,
-        t_max=t_max,
-        seed=seed,
-        n_paths=n_paths,
-    )
+    info = run.info(model, seed=seed, n_paths=n_paths)
     stats = dict(
         run.stats,
         wall_seconds=time.perf_counter() - wall0,
-        compile_seconds=timer.compile_seconds,
+        compile_seconds=run.timer.compile_seconds,
     )
     return CycleSeries(cycles, traces, tuple(model.state_names), info, stats)
 
 
-def _traces(run, model, cfg, keys, table, n_paths, dt, timer):
+def _traces(run, table, n_paths):
     """Re-run every kept slip with the same noise, saving each step, and join the cycles."""
-    slots = ((table["path"].astype(np.uint64) << _CYCLE_BITS) + table["cycle"]).astype(
-        np.uint32
-    )
+    dt = run.dt
+    slots = ((table["path"].astype(np.uint64) << _CYCLE_BITS) + table["cycle"]).astype(np.uint32)
     slip_time = np.where(np.isfinite(table["slip_time"]), table["slip_time"], run.n_steps * dt)
     steps_needed = np.ceil(slip_time / dt).astype(int)
     d = table["onset"].shape[0]
@@ -247,9 +208,9 @@ def _traces(run, model, cfg, keys, table, n_paths, dt, timer):
         )
         path = np.concatenate([slots[idx], np.zeros(pad, dtype=np.uint32)])
         ys = np.asarray(
-            _compile.call(
-                _record, model, run.solver, cfg, X0, ks, path, run.dt_arr, keys["step"],
-                keys["bridge"], n_rec, timer=timer,
+            run.call(
+                _record, run.model, run.solver, run.cfg, X0, ks, path, run.dt_arr,
+                run.keys["step"], run.keys["bridge"], n_rec,
             )
         )  # fmt: skip
         for col, row in enumerate(idx):
@@ -270,9 +231,7 @@ def _traces(run, model, cfg, keys, table, n_paths, dt, timer):
                 ts.append([t0 + table["slip_time"][row]])
                 xs.append(table["stick"][:, row : row + 1])
                 flags.append([False])
-        traces.append(
-            (np.concatenate(ts), np.concatenate(xs, axis=1).T, np.concatenate(flags))
-        )
+        traces.append((np.concatenate(ts), np.concatenate(xs, axis=1).T, np.concatenate(flags)))
     return tuple(traces)
 
 

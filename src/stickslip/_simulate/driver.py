@@ -112,6 +112,12 @@ def _finish(model, stick_state, next_onset):
     return T_st, over_paths(model.position)(stick_state)
 
 
+def _repack(a, keep, pad, value):
+    """The columns `keep` of `a`, followed by `pad` columns of `value`."""
+    tail = np.full(a.shape[:-1] + (pad,), value, a.dtype)
+    return np.concatenate([a[..., keep], tail], axis=-1)
+
+
 def _next_pow2(n: int) -> int:
     return 1 << max(0, (int(n) - 1).bit_length())
 
@@ -191,66 +197,27 @@ def simulate(
         model, n_paths, dt, t_max, seed, solver, monitor, chunk_size
     )
     wall0 = time.perf_counter()
-    lg_available = model.linear_gaussian() is not None
-    if solver == "auto":
-        solver = "exact" if lg_available else "euler"
-    if solver == "exact" and not lg_available:
-        raise ParameterError(
-            "simulate", "solver", f"'exact' needs a linear-Gaussian model; "
-            f"{type(model).__name__} has none (use 'euler')", solver,
-        )
-    cfg = _Config(
-        solver=solver,
-        monitor=monitor,
-        smooth=bool(model.crossing_is_smooth),
-        nodes=_nodes_for(model, dt) if solver == "exact" else 1,
-    )
-    n_steps = max(1, math.ceil(t_max / dt - 1e-9))
-    amodel = _to_arrays(model)
-    root = _rng.seed_key(seed)
-    keys = {
-        "step": _rng.stream_key(root, _rng.STEP),
-        "bridge": _rng.stream_key(root, _rng.BRIDGE),
-        "z": _rng.stream_key(root, _rng.LOCATE, 0),
-        "u": _rng.stream_key(root, _rng.LOCATE, 1),
-        "onset": _rng.stream_key(root, _rng.ONSET),
-    }
-    timer = _compile.Timer()
+    bar = None
     if progress is None:
         progress = n_paths >= 20000 and sys.stderr.isatty()
-    bar = None
     if progress:
         from tqdm.auto import tqdm
 
         bar = tqdm(total=n_paths, desc="simulate", unit="path", leave=False)
-    run = _Run(amodel, cfg, keys, dt, n_steps, timer, bar)
     try:
-        X0, stick_state, t_stick, located = run.first_passages(
-            np.arange(n_paths, dtype=np.uint32), chunk_size
-        )
+        run = _Run("simulate", model, solver, monitor, dt, t_max, _rng.seed_key(seed), bar)
+        paths = np.arange(n_paths, dtype=np.uint32)
+        X0, stick_state, t_stick, located = run.first_passages(paths, chunk_size)
     finally:
         if bar is not None:
             bar.close()
-    paths = np.arange(n_paths, dtype=np.uint32)
-    next_onset = np.asarray(
-        _compile.call(_onset, amodel, keys["onset"], paths, jnp.uint32(1), timer=timer)
-    )
-    out = run.cycle_outputs(X0, stick_state, t_stick, next_onset, t_max)
-    info = dict(
-        model=type(model).__name__,
-        params=model.params(),
-        solver=solver,
-        monitor=monitor,
-        dt=dt,
-        t_max=t_max,
-        seed=seed,
-        chunk_size=chunk_size,
-        interpolation_nodes=cfg.nodes,
-    )
+    next_onset = run.onsets(paths, counter=1)
+    out = run.cycle_outputs(X0, stick_state, t_stick, next_onset)
+    info = run.info(model, seed=seed, chunk_size=chunk_size)
     stats = dict(
         run.stats,
         wall_seconds=time.perf_counter() - wall0,
-        compile_seconds=timer.compile_seconds,
+        compile_seconds=run.timer.compile_seconds,
         unlocated=int(np.sum(~located & out["stuck"])),
     )
     return Ensemble(
@@ -265,14 +232,55 @@ def simulate(
 
 
 class _Run:
-    """One configured run: first passages for any set of path counters."""
+    """One configured run (model, solver, monitoring, step, horizon, keys): first passages
+    for any set of path counters. `owner` names the public function in error messages."""
 
-    def __init__(self, model, cfg, keys, dt, n_steps, timer, bar):
-        self.model, self.cfg, self.keys = model, cfg, keys
-        self.dt, self.n_steps, self.timer, self.bar = dt, n_steps, timer, bar
+    def __init__(self, owner, model, solver, monitor, dt, t_max, root, bar=None):
+        has_lg = model.linear_gaussian() is not None
+        if solver == "auto":
+            solver = "exact" if has_lg else "euler"
+        if solver == "exact" and not has_lg:
+            raise ParameterError(
+                owner,
+                "solver",
+                f"'exact' needs a linear-Gaussian model; {type(model).__name__} has none "
+                "(use 'euler')",
+                solver,
+            )
+        self.cfg = _Config(
+            solver=solver,
+            monitor=monitor,
+            smooth=bool(model.crossing_is_smooth),
+            nodes=_nodes_for(model, dt) if solver == "exact" else 1,
+        )
+        self.model = _to_arrays(model)
+        self.keys = {
+            "step": _rng.stream_key(root, _rng.STEP),
+            "bridge": _rng.stream_key(root, _rng.BRIDGE),
+            "z": _rng.stream_key(root, _rng.LOCATE, 0),
+            "u": _rng.stream_key(root, _rng.LOCATE, 1),
+            "onset": _rng.stream_key(root, _rng.ONSET),
+        }
+        self.dt, self.t_max, self.bar = dt, t_max, bar
+        self.n_steps = max(1, math.ceil(t_max / dt - 1e-9))
+        self.timer = _compile.Timer()
         self.dt_arr = jnp.asarray(dt, dtype=jnp.float64)
-        self.solver = _compile.call(_make_solver, model, cfg, self.dt_arr, timer=timer)
+        self.solver = self.call(_make_solver, self.model, self.cfg, self.dt_arr)
         self.stats = {"path_steps": 0, "buffers": 0}
+
+    def info(self, model, **extra):
+        """How the run was made, for the result's `info`."""
+        cfg = self.cfg
+        return dict(
+            model=type(model).__name__,
+            params=model.params(),
+            solver=cfg.solver,
+            monitor=cfg.monitor,
+            dt=self.dt,
+            t_max=self.t_max,
+            interpolation_nodes=cfg.nodes,
+            **extra,
+        )
 
     def call(self, fn, *args):
         return _compile.call(fn, *args, timer=self.timer)
@@ -280,16 +288,16 @@ class _Run:
     def first_passages(self, paths, chunk_size):
         """Onset state, stick state, stick time (`nan` if none by the last step) and whether
         the stick was located, for the paths with counters `paths`, chunk by chunk."""
-        parts = [
-            self._chunk(paths[i : i + chunk_size]) for i in range(0, paths.size, chunk_size)
-        ]
+        parts = [self._chunk(paths[i : i + chunk_size]) for i in range(0, paths.size, chunk_size)]
         return tuple(np.concatenate([p[i] for p in parts], axis=-1) for i in range(4))
 
-    def cycle_outputs(self, X0, stick_state, t_stick, next_onset, t_max):
+    def cycle_outputs(self, X0, stick_state, t_stick, next_onset):
         """The per-path outputs of an `Ensemble` from the raw first-passage results."""
-        T_st, x_sl = (np.asarray(a) for a in self.call(_finish, self.model, stick_state, next_onset))
+        T_st, x_sl = (
+            np.asarray(a) for a in self.call(_finish, self.model, stick_state, next_onset)
+        )
         x_start = np.asarray(self.call(_finish, self.model, X0, X0)[1])
-        stuck = np.isfinite(t_stick) & (t_stick <= t_max)
+        stuck = np.isfinite(t_stick) & (t_stick <= self.t_max)
         nan = np.where(stuck, 1.0, np.nan)
         slip_time = t_stick * nan
         stick_time = T_st * nan
@@ -304,7 +312,9 @@ class _Run:
         )
 
     def onsets(self, paths, counter=0):
-        return np.asarray(self.call(_onset, self.model, self.keys["onset"], paths, jnp.uint32(counter)))
+        return np.asarray(
+            self.call(_onset, self.model, self.keys["onset"], paths, jnp.uint32(counter))
+        )
 
     def _chunk(self, paths):
         """First passages of one chunk of paths; see `simulate`."""
@@ -359,12 +369,9 @@ class _Run:
                 size = max(MIN_BUFFER, _next_pow2(alive.size))
                 pad = size - alive.size
 
-                def fill(a, value):
-                    tail = np.full(a.shape[:-1] + (pad,), value, a.dtype)
-                    return np.concatenate([a[..., alive], tail], axis=-1)
-
-                X, X_prev = fill(X, 0.0), fill(X, 0.0)
-                ks, p, slot = fill(ks, INACTIVE), fill(p, 0), fill(slot, -1)
+                X, X_prev = _repack(X, alive, pad, 0.0), _repack(X, alive, pad, 0.0)
+                ks = _repack(ks, alive, pad, INACTIVE)
+                p, slot = _repack(p, alive, pad, 0), _repack(slot, alive, pad, -1)
         # Locate each stick inside its step, in batches that bound the memory of dense nodes.
         t_stick = np.full(count, np.nan)
         stick_state = X_end[:, :count].copy()
