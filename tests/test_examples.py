@@ -33,6 +33,16 @@ def test_public_reference_example(tmp_path):
     assert "mean slip time" in (out / "summary.md").read_text()
 
 
+def test_white_noise_example():
+    run = subprocess.run(
+        [sys.executable, str(ROOT / "examples" / "white_noise_degeneracy.py"), "--n-paths", "300"],
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 0, run.stderr
+    assert "Brownian bridge" in run.stdout
+
+
 def test_throughput_benchmark_runs(tmp_path):
     run = subprocess.run(
         [

@@ -172,14 +172,14 @@ def test_stationary_noise_onset_gives_immediate_resticks(Langevin):
 
 
 def test_euler_and_exact_agree(Langevin):
-    """Euler-Maruyama at a small step against exact stepping: mean slip time within the
-    sampling error plus the O(dt) bias bound of EM measured here at 2 dt."""
+    """Euler-Maruyama at a small step against exact stepping: mean slip times within 4
+    standard errors (EM's O(dt) bias, about 0.015 here, is far below that)."""
     m = Langevin(**PUBLIC)
     ex = ss.simulate(m, 10_000, 0.01, 30.0, seed=1, solver="exact")
-    em1 = ss.simulate(m, 10_000, 0.002, 30.0, seed=1, solver="euler")
+    em = ss.simulate(m, 10_000, 0.002, 30.0, seed=1, solver="euler")
     m_ex, se_ex = ex.mean("slip_time")
-    m_em, se_em = em1.mean("slip_time")
-    assert abs(m_em - m_ex) < 4 * math.hypot(se_ex, se_em) + 0.01
+    m_em, se_em = em.mean("slip_time")
+    assert abs(m_em - m_ex) < 4 * math.hypot(se_ex, se_em)
 
 
 class _CubicDamping(ss.FrictionModel):
