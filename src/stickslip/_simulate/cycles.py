@@ -14,9 +14,8 @@ import numpy as np
 from .. import _rng
 from .._errors import ParameterError, check_int
 from .._model import FrictionModel
-from .._solver import PathwiseBrownian, SlipTerm
-from .driver import _Run, _validate
-from .hybrid import INACTIVE, SLIPPING, StickSlipHybrid
+from .driver import _Run, _validate, solve
+from .hybrid import INACTIVE, SLIPPING
 
 _CYCLE_BITS = 20  # a slot's counter is path * 2**20 + cycle
 _MAX_RECORD_FLOATS = 2**25  # memory bound of one recording solve (about 256 MB)
@@ -74,22 +73,10 @@ class CycleSeries:
 @eqx.filter_jit
 def _record(model, solver, cfg, X, k_stick, path, dt, step_key, bridge_key, n_steps):
     """The same solve as in `simulate`, saving the state after every step."""
-    control = PathwiseBrownian(step_key, path, dt, solver.noise_dim(model))
-    hybrid = StickSlipHybrid(solver, dt, bridge_key, path, 0.0, cfg.smooth, cfg.monitor)
-    sol = diffrax.diffeqsolve(
-        SlipTerm(model, control),
-        hybrid,
-        t0=0.0,
-        t1=float(n_steps),
-        dt0=1.0,
-        y0=(X, (X, k_stick)),
-        args=model,
-        saveat=diffrax.SaveAt(steps=True),
-        stepsize_controller=diffrax.ConstantStepSize(),
-        max_steps=n_steps,
-        throw=False,
-        adjoint=diffrax.ForwardMode(),
-    )
+    sol = solve(
+        model, solver, cfg, (X, (X, k_stick)), path, dt, (step_key, bridge_key), 0.0,
+        t1=float(n_steps), saveat=diffrax.SaveAt(steps=True), max_steps=n_steps,
+    )  # fmt: skip
     return sol.ys[0]
 
 
@@ -114,7 +101,9 @@ def simulate_cycles(
 
     **Returns:** a `CycleSeries`.
     """
-    n_paths, dt, t_max, seed, _ = _validate(model, n_paths, dt, t_max, seed, solver, monitor, 1)
+    n_paths, dt, t_max, seed, _ = _validate(
+        "simulate_cycles", model, n_paths, dt, t_max, seed, solver, monitor, 1
+    )
     if n_paths > 2 ** (32 - _CYCLE_BITS):
         raise ParameterError(
             "simulate_cycles", "n_paths", f"must be <= {2 ** (32 - _CYCLE_BITS)}", n_paths

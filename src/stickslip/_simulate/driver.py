@@ -62,35 +62,47 @@ def _onset_rate(model, X):
     return over_paths(model.crossing_rate)(X)
 
 
+def solve(
+    model, solver, cfg, y0, path, dt, keys, offset, *, t1, saveat, event=None, max_steps=None
+):
+    """One diffrax solve of the ensemble state `y0 = (X, (X_prev, k_stick))`, from global
+    step `offset`. The solve's own time starts at 0 and ends at the static `t1` (or at the
+    event): with static end points diffrax checks them at trace time instead of inserting a
+    host callback, and code with host callbacks cannot be kept in the persistent cache."""
+    step_key, bridge_key = keys
+    control = PathwiseBrownian(step_key, path, dt, solver.noise_dim(model), offset=offset)
+    hybrid = StickSlipHybrid(solver, dt, bridge_key, path, offset, cfg.smooth, cfg.monitor)
+    return diffrax.diffeqsolve(
+        SlipTerm(model, control),
+        hybrid,
+        t0=0.0,
+        t1=t1,
+        dt0=1.0,
+        y0=y0,
+        args=model,
+        saveat=saveat,
+        stepsize_controller=diffrax.ConstantStepSize(),
+        event=event,
+        max_steps=max_steps,
+        throw=False,
+        adjoint=diffrax.ForwardMode(),
+    )
+
+
 @eqx.filter_jit
 def _advance(
     model, solver, cfg, X, X_prev, k_stick, path, k0, k1, dt, step_key, bridge_key, stop_at
 ):
     """Run the buffer from global step k0 until step k1, or until at most `stop_at` paths
-    slip. The solve's own time runs from 0 towards a fixed far horizon and the event ends
-    it: with static end points diffrax checks them at trace time instead of inserting a
-    host callback, and code with host callbacks cannot be kept in the persistent cache."""
-    control = PathwiseBrownian(step_key, path, dt, solver.noise_dim(model), offset=k0)
-    hybrid = StickSlipHybrid(solver, dt, bridge_key, path, k0, cfg.smooth, cfg.monitor)
+    slip (the solve heads for a far horizon and the event ends it)."""
 
     def stop(t, y, args, **kwargs):
         return (jnp.sum(y[1][1] == SLIPPING) <= stop_at) | (t + k0 >= k1)
 
-    sol = diffrax.diffeqsolve(
-        SlipTerm(model, control),
-        hybrid,
-        t0=0.0,
-        t1=_HORIZON,
-        dt0=1.0,
-        y0=(X, (X_prev, k_stick)),
-        args=model,
-        saveat=diffrax.SaveAt(t1=True),
-        stepsize_controller=diffrax.ConstantStepSize(),
-        event=diffrax.Event(stop),
-        max_steps=None,
-        throw=False,
-        adjoint=diffrax.ForwardMode(),
-    )
+    sol = solve(
+        model, solver, cfg, (X, (X_prev, k_stick)), path, dt, (step_key, bridge_key), k0,
+        t1=_HORIZON, saveat=diffrax.SaveAt(t1=True), event=diffrax.Event(stop),
+    )  # fmt: skip
     X, (X_prev, k_stick) = sol.ys
     return X[0], X_prev[0], k_stick[0], k0 + sol.ts[0]
 
@@ -129,26 +141,25 @@ def _nodes_for(model: FrictionModel, dt: float) -> int:
     return min(_MAX_NODES, _next_pow2(m))
 
 
-def _validate(model, n_paths, dt, t_max, seed, solver, monitor, chunk_size):
+def _validate(owner, model, n_paths, dt, t_max, seed, solver, monitor, chunk_size):
+    """Check the arguments of `owner` (`simulate` or `simulate_cycles`); one-line errors."""
     if not isinstance(model, FrictionModel):
-        raise TypeError(
-            f"simulate: model must be a stickslip.FrictionModel instance, got {model!r}"
-        )
-    n_paths = check_int("simulate", "n_paths", n_paths, minimum=1)
-    dt = check_positive("simulate", "dt", dt)
-    t_max = check_positive("simulate", "t_max", t_max)
+        raise TypeError(f"{owner}: model must be a stickslip.FrictionModel instance, got {model!r}")
+    n_paths = check_int(owner, "n_paths", n_paths, minimum=1)
+    dt = check_positive(owner, "dt", dt)
+    t_max = check_positive(owner, "t_max", t_max)
     if t_max < dt:
-        raise ParameterError("simulate", "t_max", f"must be >= dt = {dt}", t_max)
+        raise ParameterError(owner, "t_max", f"must be >= dt = {dt}", t_max)
     if t_max / dt >= 2**30:
-        raise ParameterError("simulate", "t_max", "/ dt must be below 2**30 steps", t_max)
-    seed = check_int("simulate", "seed", seed, minimum=0)
+        raise ParameterError(owner, "t_max", "/ dt must be below 2**30 steps", t_max)
+    seed = check_int(owner, "seed", seed, minimum=0)
     if seed >= 2**64:
-        raise ParameterError("simulate", "seed", "must be < 2**64", seed)
-    check_choice("simulate", "solver", solver, ("auto", "exact", "euler"))
-    check_choice("simulate", "monitor", monitor, ("continuous", "grid"))
-    chunk_size = check_int("simulate", "chunk_size", chunk_size, minimum=1)
+        raise ParameterError(owner, "seed", "must be < 2**64", seed)
+    check_choice(owner, "solver", solver, ("auto", "exact", "euler"))
+    check_choice(owner, "monitor", monitor, ("continuous", "grid"))
+    chunk_size = check_int(owner, "chunk_size", chunk_size, minimum=1)
     if n_paths >= 2**32:
-        raise ParameterError("simulate", "n_paths", "must be < 2**32", n_paths)
+        raise ParameterError(owner, "n_paths", "must be < 2**32", n_paths)
     return n_paths, dt, t_max, seed, chunk_size
 
 
@@ -194,7 +205,7 @@ def simulate(
     **Returns:** an `Ensemble`.
     """
     n_paths, dt, t_max, seed, chunk_size = _validate(
-        model, n_paths, dt, t_max, seed, solver, monitor, chunk_size
+        "simulate", model, n_paths, dt, t_max, seed, solver, monitor, chunk_size
     )
     wall0 = time.perf_counter()
     bar = None
