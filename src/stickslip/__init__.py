@@ -29,7 +29,10 @@ _LAZY = {
     "simulate_cycles": "._simulate",
     "Ensemble": "._simulate",
     "CycleSeries": "._simulate",
+    "Upcrossings": "._simulate",
     "ExactGaussian": "._solver",
+    "CrossingEstimator": "._estimate",
+    "ApproximationWarning": "._estimate",
     "EulerMaruyama": "._solver",
 }
 

@@ -13,7 +13,17 @@ disable it. A cache directory the user configured for JAX is left alone.
 import os
 import pathlib
 
-import jax
+# XLA's CPU runtime can deadlock in its multithreaded Eigen pool on vmapped small matrix
+# products (seen here on 2 cores: the estimator's propagators hung on repeated calls; a
+# known issue, e.g. PyAutoFit #1528). Single-threaded Eigen avoids it; the simulator's hot
+# loop has no matrix products, so it costs nothing there. Must be set before JAX starts its
+# backend; a value the user set is kept.
+if "xla_cpu_multi_thread_eigen" not in os.environ.get("XLA_FLAGS", ""):
+    os.environ["XLA_FLAGS"] = (
+        os.environ.get("XLA_FLAGS", "") + " --xla_cpu_multi_thread_eigen=false"
+    ).strip()
+
+import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 

@@ -4,3 +4,4 @@ from .cycles import CycleSeries as CycleSeries
 from .cycles import simulate_cycles as simulate_cycles
 from .driver import simulate as simulate
 from .ensemble import Ensemble as Ensemble
+from .upcrossings import Upcrossings as Upcrossings

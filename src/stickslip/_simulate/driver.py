@@ -174,6 +174,7 @@ def simulate(
     monitor: str = "continuous",
     chunk_size: int = DEFAULT_CHUNK,
     progress: bool | None = None,
+    record_upcrossings: int = 0,
 ) -> Ensemble:
     r"""Simulate one slip-stick cycle for each of `n_paths` paths.
 
@@ -201,12 +202,17 @@ def simulate(
     - `chunk_size`: paths per chunk (memory bound); inside a chunk, finished paths are
       dropped by re-packing the survivors into buffers half as large.
     - `progress`: show a progress bar (default: on a terminal, for 20000 paths or more).
+    - `record_upcrossings`: if K > 0, also run every path on past its stick, without
+      absorption, until `t_max`, and record its first K upcrossings of the stick level
+      (`Ensemble.upcrossings`, for the empirical crossing statistics). The noise is the
+      same, so the first recorded upcrossing is the stick.
 
     **Returns:** an `Ensemble`.
     """
     n_paths, dt, t_max, seed, chunk_size = _validate(
         "simulate", model, n_paths, dt, t_max, seed, solver, monitor, chunk_size
     )
+    record_upcrossings = check_int("simulate", "record_upcrossings", record_upcrossings, minimum=0)
     wall0 = time.perf_counter()
     bar = None
     if progress is None:
@@ -224,6 +230,9 @@ def simulate(
             bar.close()
     next_onset = run.onsets(paths, counter=1)
     out = run.cycle_outputs(X0, stick_state, t_stick, next_onset)
+    upcrossings = None
+    if record_upcrossings:
+        upcrossings = run.upcrossings(paths, X0, out["immediate"], record_upcrossings, chunk_size)
     info = run.info(model, seed=seed, chunk_size=chunk_size)
     stats = dict(
         run.stats,
@@ -236,6 +245,7 @@ def simulate(
         onset_state=X0.T,
         stick_state=stick_state.T,
         next_onset_state=next_onset.T,
+        upcrossings=upcrossings,
         state_names=tuple(model.state_names),
         info=info,
         stats=stats,
@@ -321,6 +331,30 @@ class _Run:
             immediate=stuck & (t_stick == 0.0),
             stuck=stuck,
         )
+
+    def upcrossings(self, paths, X0, immediate, max_crossings, chunk_size):
+        """The free run (no absorption) of the paths, recording their upcrossings."""
+        from .upcrossings import Upcrossings, record
+
+        n = paths.size
+        times = np.full((n, max_crossings), np.nan)
+        positions = np.full((n, max_crossings), np.nan)
+        count = np.zeros(n, dtype=np.int64)
+        for start in range(0, n, chunk_size):
+            rows = np.arange(start, min(start + chunk_size, n))
+            size = max(MIN_BUFFER, _next_pow2(rows.size))
+            pad = size - rows.size
+            X = np.concatenate([X0[:, rows], np.repeat(X0[:, rows[:1]], pad, axis=1)], axis=1)
+            p = np.concatenate([paths[rows], np.repeat(paths[rows[:1]], pad)])
+            c, t, x = self.call(
+                record, self.model, self.solver, self.cfg, X, p, self.dt_arr,
+                self.keys["step"], self.keys["bridge"], self.n_steps, max_crossings,
+            )  # fmt: skip
+            count[rows] = np.asarray(c)[: rows.size].astype(np.int64)
+            times[rows] = np.asarray(t)[:, : rows.size].T
+            positions[rows] = np.asarray(x)[:, : rows.size].T
+        pos = np.asarray(self.call(_finish, self.model, X0, X0)[1])
+        return Upcrossings(times, positions, count, immediate.copy(), pos, self.t_max, self.dt)
 
     def onsets(self, paths, counter=0):
         return np.asarray(

@@ -23,6 +23,9 @@ class Ensemble:
     - `stuck`: True where the path stuck before `t_max`;
     - `onset_state`, `stick_state`, `next_onset_state`: full states, shape `(n_paths, d)`.
 
+    `upcrossings` (with `simulate(record_upcrossings=K)`): every upcrossing of the free
+    slip-phase process, for the empirical crossing statistics (`Upcrossings`).
+
     `info` records how the run was made (model, solver, monitor, dt, t_max, seed, chunk size)
     and `stats` what it cost (wall and compile time, path-steps computed).
     """
@@ -40,6 +43,7 @@ class Ensemble:
     state_names: tuple[str, ...]
     info: dict[str, Any]
     stats: dict[str, Any]
+    upcrossings: Any = None
 
     @property
     def n_paths(self) -> int:

@@ -6,6 +6,7 @@ import diffrax
 import equinox as eqx
 
 from .._jax import jax, jnp
+from .._linear import propagators
 from .base import AbstractSlipSolver
 
 # Above this state dimension the transition uses a matrix product; below it, an unrolled sum
@@ -18,17 +19,9 @@ def transition(A, b, B, h):
 
     Returns `(Phi, c, Sigma)` with $X(h) \sim \mathcal N(\Phi X(0) + c, \Sigma)$:
     $\Phi = e^{Ah}$, $c = \int_0^h e^{As} b\,ds$ and
-    $\Sigma = \int_0^h e^{As} B B^\top e^{A^\top s} ds$ (Van Loan's block exponential).
+    $\Sigma = \int_0^h e^{As} B B^\top e^{A^\top s} ds$ (see `stickslip._linear`).
     """
-    d = A.shape[0]
-    Q = B @ B.T
-    vl = jnp.block([[-A, Q], [jnp.zeros((d, d)), A.T]]) * h
-    E = jax.scipy.linalg.expm(vl)
-    Phi = E[d:, d:].T
-    Sigma = Phi @ E[:d, d:]
-    Sigma = 0.5 * (Sigma + Sigma.T)
-    aug = jnp.zeros((d + 1, d + 1)).at[:d, :d].set(A).at[:d, d].set(b) * h
-    c = jax.scipy.linalg.expm(aug)[:d, d]
+    Phi, _, c, Sigma = propagators(A, b, B, h)
     return Phi, c, Sigma
 
 

@@ -1,0 +1,423 @@
+"""`CrossingEstimator`: first-passage statistics from level-crossing series."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+
+from .._errors import ParameterError, check_choice, check_int, check_positive
+from .._jax import jnp
+from .._model import FrictionModel, _to_arrays
+from . import gaussian as G
+from . import series
+from .sources import EmpiricalSource, GaussianSource
+
+METHODS = ("truncation", "decoupling")
+
+
+class ApproximationWarning(UserWarning):
+    """A level-crossing approximation left its range of validity (a negative density or
+    escape rate, a truncation that never normalises): values are returned unclipped."""
+
+
+class CrossingEstimator:
+    r"""Level-crossing (Rice-Stratonovich) statistics of a stick-slip model.
+
+    The slip ends at the first upcrossing of the crossing variable $v$ through the stick level
+    $v_b$. Its density $\mathcal F(t)$ is the series (6) of the upcrossing densities $n_k$;
+    `first_passage` gives the truncations $\mathcal F_n^{(k)}$ and the cumulant (decoupling)
+    approximations $\mathcal F_g^{(k)}$, $k = 1, 2$; the densities of slip times (eq. 3),
+    slip distances (eq. 4) and periods (eq. 2) follow from the joint $\mathcal F(x, t)$.
+
+    **From a linear-Gaussian model** (`ensemble=None`) the $n_k$ are closed-form Gaussian
+    integrals (`n2` with the bivariate normal distribution function):
+
+    - `exact` is True when no noise enters $\dot v$ directly (Ornstein-Uhlenbeck friction
+      noise, or $D = 0$): $a = \dot v$ has finite variance and Rice's formula is exact;
+    - with white noise in $\dot v$ (the paper's eq. 8) $v$ has no derivative, its upcrossing
+      rate is infinite, and the paper's $n_1$ rests on a closure, $a \mid x, v$ normal with
+      variance $\sigma_a^2$ (`closure_variance`, default $2D$, the noise intensity of $\dot
+      v$); `exact` is then False. The closure uses $E[a^+]$: the paper's eq. (12) as printed
+      equals $E[a^-]$, a sign slip (see the docs).
+
+    A random onset (e.g. `eta0="stationary"`) is handled by Gauss-Legendre quadrature over the
+    initial rate $a(0)$: the slip ends at once with probability $p_0 = P(a(0) \ge 0)$
+    (`immediate_probability`) and every other onset is a Gaussian component; each
+    approximation is applied per component and the results are mixed. The densities are the
+    continuous part: they carry mass $1 - p_0$ at most.
+
+    **From simulation** (`ensemble=` an `Ensemble` made with `record_upcrossings=K`, any
+    model): $n_1$ and $\int_0^t n_2(t, s)\,ds$ are histograms of the recorded upcrossings
+    of the free slip process, fed to the same series. `exact` is False. The estimates are
+    complete up to `t_complete` (no path had more than K upcrossings before it).
+
+    **Arguments:**
+
+    - `model`: a `FrictionModel` (with a linear-Gaussian description unless `ensemble` is
+      given).
+    - `ensemble`: simulated upcrossings for the empirical estimator.
+    - `closure_variance`: $\sigma_a^2$ of the white-noise closure.
+    - `dt`: step of the time grid on which the series are summed (default 0.01; 0.05 for the
+      empirical estimator, whose histograms need counts).
+    - `horizon`: end of the time grid for the position-resolved densities (slip distance,
+      period); default: where the first-order survival $e^{-\int n_1}$ falls below 1e-4.
+    - `quadrature_nodes`: Gauss-Legendre nodes over a random onset.
+    - `x_points`: Gauss-Hermite nodes in position at each grid time (position-resolved
+      densities).
+    - `joint_dt`: time step of the second-order position-resolved correction (default
+      `horizon / 300`; its cost grows as `x_points * (horizon / joint_dt)**2`).
+    """
+
+    def __init__(
+        self,
+        model: FrictionModel,
+        ensemble=None,
+        *,
+        closure_variance: float | None = None,
+        dt: float | None = None,
+        horizon: float | None = None,
+        quadrature_nodes: int = 16,
+        x_points: int = 32,
+        joint_dt: float | None = None,
+    ):
+        owner = "CrossingEstimator"
+        if not isinstance(model, FrictionModel):
+            raise TypeError(f"{owner}: model must be a FrictionModel instance, got {model!r}")
+        self.model = model
+        self.horizon = check_positive(owner, "horizon", horizon, allow_none=True)
+        self.joint_dt = check_positive(owner, "joint_dt", joint_dt, allow_none=True)
+        quadrature_nodes = check_int(owner, "quadrature_nodes", quadrature_nodes, minimum=1)
+        x_points = check_int(owner, "x_points", x_points, minimum=4)
+        self.level = float(np.asarray(model.stick_level))
+        if ensemble is not None:
+            up = getattr(ensemble, "upcrossings", ensemble)
+            if up is None or not hasattr(up, "times"):
+                raise ParameterError(
+                    owner, "ensemble", "must carry upcrossings: simulate(..., record_upcrossings=K)"
+                )
+            if closure_variance is not None:
+                raise ParameterError(
+                    owner, "closure_variance", "does not apply to simulated crossings"
+                )
+            self.dt = check_positive(owner, "dt", 0.05 if dt is None else dt)
+            self.exact = False
+            self.closure_variance = None
+            self._source = EmpiricalSource(up)
+            self.t_complete = self._source.t_complete
+        else:
+            self.dt = check_positive(owner, "dt", 0.01 if dt is None else dt)
+            self._source = self._gaussian(model, closure_variance, quadrature_nodes, x_points)
+            self.t_complete = math.inf
+        self.immediate_probability = self._source.immediate_probability
+        self._cache: dict = {}
+
+    def _gaussian(self, model, closure_variance, quadrature_nodes, x_points):
+        owner = "CrossingEstimator"
+        if model.linear_gaussian() is None:
+            raise ParameterError(
+                owner, "model",
+                f"{type(model).__name__} has no linear-Gaussian description; pass a simulated "
+                "ensemble (simulate(..., record_upcrossings=K)) for the empirical estimator",
+            )  # fmt: skip
+        lg = _to_arrays(model).linear_gaussian()
+        g, B = np.asarray(lg.crossing, float), np.asarray(lg.B, float)
+        noise = float(g @ B @ B.T @ g)
+        self.exact = bool(model.crossing_is_smooth) and noise == 0.0
+        if self.exact:
+            if closure_variance is not None:
+                raise ParameterError(
+                    owner, "closure_variance",
+                    "applies only when noise enters the crossing variable (here the formulas are exact)",
+                )  # fmt: skip
+            cvar = 0.0
+        elif closure_variance is None:
+            cvar = noise
+        else:
+            cvar = check_positive(owner, "closure_variance", closure_variance)
+        self.closure_variance = cvar
+        cr = G.Crossing(
+            jnp.asarray(lg.A), jnp.asarray(lg.b), jnp.asarray(lg.B), jnp.asarray(lg.crossing),
+            jnp.asarray(lg.position), jnp.asarray(self.level), jnp.asarray(cvar),
+        )  # fmt: skip
+        return GaussianSource(
+            cr, np.asarray(lg.m0, float), np.asarray(lg.P0, float),
+            exact=self.exact, quadrature_nodes=quadrature_nodes, x_points=x_points,
+        )  # fmt: skip
+
+    @property
+    def n_components(self) -> int:
+        return self._source.n_components
+
+    # -- upcrossing densities ------------------------------------------------------------------
+    def _times(self, t, name):
+        t = np.asarray(t, float)
+        if not np.all(np.isfinite(t)) or np.any(t < 0):
+            raise ParameterError(name, "t", "must be finite and >= 0")
+        return t
+
+    def n1(self, t):
+        """Upcrossing density $n_1(t)$ of the crossing variable through the stick level
+        (eq. 13), for the slip process continued without absorption (mixed over the slipping
+        onsets, so its weight is $1 - p_0$)."""
+        t = self._times(t, "n1")
+        if isinstance(self._source, EmpiricalSource):
+            entry = self._source.grid(max(float(t.max(initial=0.0)), self.dt), self.dt)
+            grid = np.arange(entry["n"]) * self.dt
+            return np.interp(t, grid, self._source.w[0] * entry["n1"][0])
+        return self._source.n1(t.ravel()).reshape(t.shape)
+
+    def n1_joint(self, x, t):
+        """$n_1(x, t)$ (eq. 11): density of an upcrossing at time `t` and position `x`, shape
+        `(len(x), len(t))`. Empirical: a histogram on cells centred at evenly spaced x, t."""
+        x, t = np.atleast_1d(np.asarray(x, float)), np.atleast_1d(self._times(t, "n1_joint"))
+        src = self._source
+        if isinstance(src, EmpiricalSource):
+            ex, et = _edges(x, "x"), _edges(t, "t")
+            H, _, _ = np.histogram2d(src.x, src.t, bins=(ex, et))
+            return src.w[0] * H / (src.n_slip * np.diff(ex)[:, None] * np.diff(et)[None, :])
+        return src.n1_joint(x, t)
+
+    def n2(self, t1, t2):
+        """Joint density $n_2(t_1, t_2)$ of upcrossings at two times, on the grid of all
+        pairs: shape `(len(t1), len(t2))`, symmetric. On the diagonal: the limit
+        $t_2 \\to t_1$, finite when `exact`, infinite for the white-noise closure."""
+        t1 = np.atleast_1d(self._times(t1, "n2"))
+        t2 = np.atleast_1d(self._times(t2, "n2"))
+        if isinstance(self._source, EmpiricalSource):
+            raise NotImplementedError(
+                "n2 of simulated crossings is used through its integral in the series; "
+                "point values are not estimated"
+            )
+        T1, T2 = np.meshgrid(t1, t2, indexing="ij")
+        lo, lag = np.minimum(T1, T2).ravel(), np.abs(T2 - T1).ravel()
+        diag = lag == 0
+        lag = np.where(diag, 1e-7 * self.dt, lag)  # the diagonal as a limit
+        out = self._source.n2(lo, lag)
+        if not self.exact:
+            out = np.where(diag, np.inf, out)
+        return np.where(lo > 0, out, 0.0).reshape(T1.shape)
+
+    @property
+    def stationary_rate(self) -> float:
+        """The large-t limit of $n_1$ (for one slipping onset): the upcrossing rate of the
+        stationary process. Exact case: Rice's
+        $\\frac{1}{2\\pi}\\sqrt{\\lambda_2/\\lambda_0}\\,e^{-(v_b - \\bar v)^2/2\\lambda_0}$,
+        $\\lambda_0 = \\mathrm{var}\\,v$, $\\lambda_2 = \\mathrm{var}\\,\\dot v$."""
+        if isinstance(self._source, EmpiricalSource):
+            raise NotImplementedError("the stationary rate needs the Gaussian description")
+        return self._source.stationary_rate()
+
+    # -- series on the grid ----------------------------------------------------------------------
+    def _series(self, t_end, method, order, normalized):
+        """The first-passage density on t_k = k dt up to t_end, and diagnostics."""
+        key = ("series", method, order, normalized, t_end)
+        if key in self._cache:
+            return self._cache[key]
+        h, src = self.dt, self._source
+        entry = src.grid(t_end, h)
+        n = int(round(t_end / h)) + 1
+        n1 = entry["n1"][:, :n]
+        K = src.second_order(entry)[:, :n] if order == 2 else np.zeros_like(n1)
+        F = np.zeros(n)
+        info = {"escape_rate_min": math.inf, "t_n": None, "S": [], "I1": []}
+        for c in range(src.n_components):
+            if method == "truncation":
+                Fc = series.truncation(n1[c], K[c], order)
+            else:
+                Fc, rate = series.decoupling(n1[c], K[c], order, h)
+                if n > 1:
+                    info["escape_rate_min"] = min(info["escape_rate_min"], float(rate[1:].min()))
+            F += src.w[c] * Fc
+        if normalized:
+            total = src.w.sum()
+            F, k = series.normalise_truncation(F / max(total, 1e-300), h)
+            F *= total
+            info["t_n"] = None if k is None else k * h
+        out = (np.arange(n) * h, F, info)
+        self._cache[key] = out
+        return out
+
+    def first_passage(
+        self, t, method: str = "decoupling", order: int = 1, normalized: bool = False
+    ):
+        r"""First-passage (slip-time) density $\mathcal F(t)$ by a level-crossing approximation.
+
+        - `method="truncation"`: partial sums $\mathcal F_n^{(k)}$ of eq. (6); with
+          `normalized=True`, cut where the integral reaches 1 ($\hat{\mathcal F}_n^{(k)}$;
+          the paper prints $\Theta(t - t_n)$ where $\Theta(t_n - t)$ is meant).
+        - `method="decoupling"`: cumulant approximations $\mathcal F_g^{(k)}$ (eq. 7).
+
+        `order` is 1 or 2. Computed on a grid of step `dt` and interpolated. A density or
+        escape rate that goes negative is returned as is, with an `ApproximationWarning`
+        that says where; so is a normalised truncation that never reaches 1.
+        """
+        self._check(method, order, normalized)
+        t = self._times(t, "first_passage")
+        if t.size == 0:
+            return t.copy()
+        t_end = self._grid_end(float(t.max()))
+        grid, F, info = self._series(t_end, method, order, normalized)
+        self._report(grid, F, info, method, order, normalized)
+        return np.interp(t, grid, F)
+
+    slip_time_density = first_passage
+
+    def _grid_end(self, t_max):
+        t_end = self.dt * math.ceil(max(t_max, self.dt) / self.dt - 1e-9)
+        if t_end > self.t_complete:
+            warnings.warn(
+                f"the recorded upcrossings are complete only up to t = {self.t_complete:.4g} "
+                f"(some paths reached the cap); estimates beyond it are biased low",
+                ApproximationWarning,
+                stacklevel=3,
+            )
+        return t_end
+
+    def _report(self, grid, F, info, method, order, normalized):
+        name = f"{method} order {order}"
+        scale = max(1.0, float(np.max(np.abs(F)))) if F.size else 1.0
+        neg = F < -1e-12 * scale
+        if neg.any():
+            warnings.warn(
+                f"{name}: density negative on t in [{grid[neg][0]:.4g}, {grid[neg][-1]:.4g}] "
+                f"(min {F.min():.4g}); returned unclipped",
+                ApproximationWarning,
+                stacklevel=3,
+            )
+        if method == "decoupling" and info["escape_rate_min"] < 0:
+            warnings.warn(
+                f"{name}: negative escape rate (min {info['escape_rate_min']:.4g}); the "
+                "approximation is not a density there",
+                ApproximationWarning,
+                stacklevel=3,
+            )
+        if normalized and info["t_n"] is None:
+            mass = float(series.cumulative(F, grid[1] - grid[0])[-1]) if F.size > 1 else 0.0
+            warnings.warn(
+                f"normalised truncation (order {order}): the density integrates to only "
+                f"{mass:.4g} by t = {grid[-1]:.4g}, so it is not cut",
+                ApproximationWarning,
+                stacklevel=3,
+            )
+
+    def diagnostics(self, t_max: float, method="decoupling", order=1, normalized=False) -> dict:
+        """Validity checks of one approximation on [0, t_max]: its mass, most negative
+        value, lowest escape rate (decoupling) and the cut time t_n (normalised truncation)."""
+        self._check(method, order, normalized)
+        grid, F, info = self._series(self._grid_end(t_max), method, order, normalized)
+        return dict(
+            mass=float(series.cumulative(F, self.dt)[-1]),
+            min_density=float(F.min()),
+            escape_rate_min=info["escape_rate_min"],
+            t_n=info["t_n"],
+        )
+
+    # -- position-resolved densities (eqs. 2 and 4) ---------------------------------------------
+    def _horizon(self):
+        """End of the time grid for position-resolved densities: given, or where the
+        first-order survival exp(-int n1) falls below 1e-4 (at most 1000)."""
+        if self.horizon is not None:
+            return self.horizon
+        if isinstance(self._source, EmpiricalSource):
+            return min(self._source.t_max, self._source.t_complete)
+        t_end = 8.0
+        while t_end < 1000.0:
+            grid, F, _ = self._series(self._grid_end(t_end), "decoupling", 1, False)
+            if series.cumulative(F, self.dt)[-1] > (1 - 1e-4) * self._source.w.sum():
+                return t_end
+            t_end *= 2
+        return t_end
+
+    def _points(self, method, order, normalized):
+        """Point masses of F(x, t) dx dt: times, positions and masses (K, P)."""
+        t_end = self._grid_end(self._horizon())
+        key = ("points", method, order, normalized, t_end)
+        if key in self._cache:
+            return self._cache[key]
+        h, src = self.dt, self._source
+        coarse = self.joint_dt or max(h, t_end / 300)
+        T, X, n1w, K2w = src.points(t_end, h, order, coarse)
+        entry = src.grid(t_end, h)
+        n = int(round(t_end / h)) + 1
+        grid = np.arange(n) * h
+        n1 = entry["n1"][:, :n]
+        K = src.second_order(entry)[:, :n] if order == 2 else np.zeros_like(n1)
+        mass = np.zeros_like(n1w)
+        for c in range(src.n_components):
+            Tc = T[c]
+            if method == "truncation":
+                mass[c] = n1w[c] if order == 1 else n1w[c] - K2w[c]
+                if normalized:
+                    marg = series.truncation(n1[c], K[c], order)
+                    _, k = series.normalise_truncation(marg, h)
+                    if k is not None:
+                        mass[c] = np.where(Tc <= grid[k] + 0.5 * h, mass[c], 0.0)
+            else:
+                I1 = series.cumulative(n1[c], h)
+                if order == 1:
+                    mass[c] = n1w[c] * np.exp(-np.interp(Tc, grid, I1))
+                else:
+                    G_ = K[c] - n1[c] * I1
+                    S = I1 - series.cumulative(G_, h)
+                    rate = n1w[c] - (K2w[c] - n1w[c] * np.interp(Tc, grid, I1))
+                    mass[c] = rate * np.exp(-np.interp(Tc, grid, S))
+            mass[c] *= src.w[c]
+        out = (T, X, mass)
+        self._cache[key] = out
+        return out
+
+    def slip_distance_density(self, d, method="decoupling", order=1, normalized=False):
+        r"""Density of the slip distance $d = x_0 - x_{sl}$ (eq. 4),
+        $p(d) = \int_0^\infty \mathcal F(x_0 - d, t)\,dt$, over $t \le$ `horizon`.
+
+        `d` must be evenly spaced: each value is the density averaged over the cell of width
+        $\Delta d$ centred on it, as a histogram on those cells would give."""
+        return self._histogram(d, "slip_distance", method, order, normalized)
+
+    def period_density(self, T, method="decoupling", order=1, normalized=False):
+        r"""Density of the period $T = T_{sl} + T_{st}$ (eq. 2), with the stick time
+        $T_{st} = \max(0, (x_0 - x_{sl})/v_b)$: eq. (2) integrates over the sticks behind the
+        threshold; the sticks beyond it release at once ($T = T_{sl}$), a term the paper
+        leaves out, so that here $p(T)$ has the mass of $\mathcal F$.
+
+        `T` must be evenly spaced: cell averages, as for `slip_distance_density`."""
+        return self._histogram(T, "period", method, order, normalized)
+
+    def _histogram(self, points, kind, method, order, normalized):
+        self._check(method, order, normalized)
+        points = np.asarray(points, float)
+        edges = _edges(np.atleast_1d(points), kind)
+        T, X, mass = self._points(method, order, normalized)
+        d = self._source.x0[:, None] - X
+        values = d if kind == "slip_distance" else T + np.maximum(d, 0.0) / self.level
+        hist, _ = np.histogram(values.ravel(), bins=edges, weights=mass.ravel())
+        out = hist / np.diff(edges)
+        if (out < 0).any():
+            warnings.warn(
+                f"{method} order {order}: {kind} density negative in places "
+                f"(min {out.min():.4g}); returned unclipped",
+                ApproximationWarning,
+                stacklevel=3,
+            )
+        return out.reshape(points.shape)
+
+    def _check(self, method, order, normalized):
+        check_choice("first_passage", "method", method, METHODS)
+        if order not in (1, 2):
+            raise ParameterError("first_passage", "order", "must be 1 or 2", order)
+        if normalized and method != "truncation":
+            raise ParameterError(
+                "first_passage", "normalized", "applies to method='truncation' only", normalized
+            )
+
+
+def _edges(points, name):
+    """Cell edges around evenly spaced points."""
+    if points.size < 2:
+        raise ParameterError(name, name, "needs at least 2 evenly spaced values")
+    step = points[1] - points[0]
+    if step <= 0 or not np.allclose(np.diff(points), step, rtol=1e-6, atol=0):
+        raise ParameterError(name, name, "must be evenly spaced and increasing")
+    return np.append(points - step / 2, points[-1] + step / 2)
