@@ -58,3 +58,13 @@ def test_throughput_benchmark_runs(tmp_path):
     )
     assert run.returncode == 0, run.stderr
     assert "numpy_exact_dropping / stickslip_exact_continuous" in run.stdout
+
+
+def test_estimator_benchmark_runs():
+    run = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "estimator.py"), "--quick"],
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 0, run.stderr
+    assert "decoupling order 1" in run.stdout

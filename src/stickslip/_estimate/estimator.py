@@ -64,8 +64,8 @@ class CrossingEstimator:
     - `horizon`: end of the time grid for the position-resolved densities (slip distance,
       period); default: where the first-order survival $e^{-\int n_1}$ falls below 1e-4.
     - `quadrature_nodes`: Gauss-Legendre nodes over a random onset.
-    - `x_points`: Gauss-Hermite nodes in position at each grid time (position-resolved
-      densities).
+    - `x_points`: positions per grid time (uniform in the standardised position) for the
+      position-resolved densities.
     - `joint_dt`: time step of the second-order position-resolved correction (default
       `horizon / 300`; its cost grows as `x_points * (horizon / joint_dt)**2`).
     """
@@ -78,8 +78,8 @@ class CrossingEstimator:
         closure_variance: float | None = None,
         dt: float | None = None,
         horizon: float | None = None,
-        quadrature_nodes: int = 16,
-        x_points: int = 32,
+        quadrature_nodes: int = 32,
+        x_points: int = 96,
         joint_dt: float | None = None,
     ):
         owner = "CrossingEstimator"
@@ -128,9 +128,11 @@ class CrossingEstimator:
         if self.exact:
             if closure_variance is not None:
                 raise ParameterError(
-                    owner, "closure_variance",
-                    "applies only when noise enters the crossing variable (here the formulas are exact)",
-                )  # fmt: skip
+                    owner,
+                    "closure_variance",
+                    "applies only when noise enters the crossing variable "
+                    "(here the formulas are exact)",
+                )
             cvar = 0.0
         elif closure_variance is None:
             cvar = noise
@@ -338,7 +340,7 @@ class CrossingEstimator:
             return self._cache[key]
         h, src = self.dt, self._source
         coarse = self.joint_dt or max(h, t_end / 300)
-        T, X, n1w, K2w = src.points(t_end, h, order, coarse)
+        T, X, W, n1w, K2w = src.points(t_end, h, order, coarse)
         entry = src.grid(t_end, h)
         n = int(round(t_end / h)) + 1
         grid = np.arange(n) * h
@@ -364,7 +366,7 @@ class CrossingEstimator:
                     rate = n1w[c] - (K2w[c] - n1w[c] * np.interp(Tc, grid, I1))
                     mass[c] = rate * np.exp(-np.interp(Tc, grid, S))
             mass[c] *= src.w[c]
-        out = (T, X, mass)
+        out = (T, X, W, mass)
         self._cache[key] = out
         return out
 
@@ -389,11 +391,24 @@ class CrossingEstimator:
         self._check(method, order, normalized)
         points = np.asarray(points, float)
         edges = _edges(np.atleast_1d(points), kind)
-        T, X, mass = self._points(method, order, normalized)
-        d = self._source.x0[:, None] - X
-        values = d if kind == "slip_distance" else T + np.maximum(d, 0.0) / self.level
-        hist, _ = np.histogram(values.ravel(), bins=edges, weights=mass.ravel())
-        out = hist / np.diff(edges)
+        T, X, W, mass = self._points(method, order, normalized)
+        x0 = self._source.x0.reshape((-1,) + (1,) * (X.ndim - 1))
+        lo, hi = (x0 - X - W / 2).ravel(), (x0 - X + W / 2).ravel()  # boxes in d
+        mass, T = mass.ravel(), np.broadcast_to(T, X.shape).ravel()
+        if kind == "slip_distance":
+            cells = _deposit(edges, lo, hi, mass)
+        else:
+            # T = t + max(0, d) / v_b: the part of a box at d <= 0 sticks at T = t. Each grid
+            # time stands for [t - h/2, t + h/2] (its trapezoid cell): spread it over that,
+            # or whole rows of mass would fall on one side of a cell edge.
+            half = 0.5 * self.dt if isinstance(self._source, GaussianSource) else 0.0
+            span = np.where(hi > lo, hi - lo, 1.0)
+            neg = np.where(hi > lo, np.clip(-lo, 0.0, span) / span, (hi <= 0).astype(float))
+            a = T + np.maximum(lo, 0.0) / self.level
+            b = T + np.maximum(hi, 0.0) / self.level
+            cells = _deposit(edges, T - half, T + half, mass * neg)
+            cells += _deposit(edges, a - half, b + half, mass * (1 - neg))
+        out = cells / np.diff(edges)
         if (out < 0).any():
             warnings.warn(
                 f"{method} order {order}: {kind} density negative in places "
@@ -411,6 +426,26 @@ class CrossingEstimator:
             raise ParameterError(
                 "first_passage", "normalized", "applies to method='truncation' only", normalized
             )
+
+
+def _deposit(edges, lo, hi, mass):
+    """Mass of uniform boxes [lo, hi] (points where lo == hi) falling in each cell of
+    `edges`: the cumulative mass at each edge is a sum of ramps (for boxes) and steps (for
+    points), evaluated through sorted breakpoints."""
+    box = hi > lo
+    density = np.where(box, mass / np.where(box, hi - lo, 1.0), 0.0)
+    # sum_i density_i ((e - lo_i)^+ - (e - hi_i)^+): breakpoints with slopes +-density
+    p = np.concatenate([lo[box], hi[box]])
+    c = np.concatenate([density[box], -density[box]])
+    order = np.argsort(p)
+    p, c = p[order], c[order]
+    cum_c, cum_cp = np.concatenate([[0], np.cumsum(c)]), np.concatenate([[0], np.cumsum(c * p)])
+    k = np.searchsorted(p, edges, side="right")
+    ramps = cum_c[k] * edges - cum_cp[k]
+    pts = np.sort(lo[~box])
+    w = mass[~box][np.argsort(lo[~box])]
+    steps = np.concatenate([[0], np.cumsum(w)])[np.searchsorted(pts, edges, side="right")]
+    return np.diff(ramps + steps)
 
 
 def _edges(points, name):

@@ -3,8 +3,9 @@ simulated upcrossings. Both give, on a uniform time grid t_k = k h, per componen
 
 - `n1` (K, n) and `K2` (K, n), with K2(t) = int_0^t n2(t, s) ds (the density of an
   upcrossing at t times the expected number of earlier ones);
-- point masses of the position-resolved densities: positions `X` (K, P), times `T` (K, P),
-  and the weights of n1(x, t) dx dt and of K2(x, t) dx dt at those points,
+- the position-resolved densities as boxes: times `T`, positions `X` and widths in x (all
+  (K, P); width 0 for point masses) with the weights of n1(x, t) dx dt and of
+  K2(x, t) dx dt they carry,
 
 and the component weights `w` (K,) (their sum is the probability that the slip has
 non-zero length) and onset positions `x0` (K,).
@@ -22,6 +23,8 @@ from .._linear import stationary
 from . import gaussian as G
 from . import kernels, series
 
+_XI_MAX = 8.5  # standardised positions covered (the rest of a normal law is below 1e-16)
+_XI_COARSE = 33  # xi points of the second-order position-resolved correction
 _FIRST_PANEL = 1e-6  # the innermost panels: their share of the integral is negligible
 _GL_NODES = 8  # Gauss-Legendre nodes per panel
 
@@ -69,17 +72,20 @@ class GaussianSource:
             self.m0s, self.P0s = m0[None], P0[None]
             self.w = np.array([1.0 - self.immediate_probability])
         else:
-            # Quadrature over the initial rate a(0) < 0, uniform in its distribution function.
+            # Gauss-Legendre over the initial rate a(0) in [mu - 8.5 sd, 0] with its normal
+            # density as part of the integrand (smooth: the rule converges exponentially,
+            # where a rule uniform in the distribution function met a log singularity).
             sd = math.sqrt(var)
-            p_slip = float(special.ndtr(-mu / sd))
-            self.immediate_probability = 1.0 - p_slip
+            self.immediate_probability = float(special.ndtr(mu / sd))
+            lo = min(mu - 8.5 * sd, -1e-12 * sd)
             x, wq = np.polynomial.legendre.leggauss(quadrature_nodes)
-            a0 = mu + sd * special.ndtri(0.5 * (x + 1.0) * p_slip)
+            a0 = 0.5 * lo * (1.0 - x)  # from lo to 0
             k = P0 @ h / var
             self.m0s = m0[None] + np.outer(a0 - mu, k)
             P_cond = P0 - np.outer(k, h @ P0)
             self.P0s = np.repeat(0.5 * (P_cond + P_cond.T)[None], a0.size, axis=0)
-            self.w = 0.5 * wq * p_slip
+            density = np.exp(-0.5 * ((a0 - mu) / sd) ** 2) / (sd * math.sqrt(2 * math.pi))
+            self.w = 0.5 * (-lo) * wq * density
         self.x0 = self.m0s @ p
         self._grids: dict = {}
 
@@ -170,11 +176,13 @@ class GaussianSource:
                     out[c, ix] = np.bincount(k, weights=wts * vals[:, ix], minlength=n)
         return out
 
-    def nodes(self, entry, n_t):
-        """Gauss-Hermite nodes of the position at an upcrossing, per component and grid
-        time, from the Gaussian law of x given v = L; its width shrinks to nothing as t -> 0
-        (short slips stick on a thin ridge x ~ x0 + v_b t that no fixed grid resolves).
-        Returns positions and cell widths, shape (K, J, n_t)."""
+    def positions(self, entry, n_t, n_xi):
+        """Positions at an upcrossing on a uniform grid of the standardised position
+        xi in [-8.5, 8.5] under the Gaussian law of x given v = L, per component and grid
+        time, as boxes: centres X and widths (K, n_xi, n_t). The law is narrow at short
+        times (short slips stick on a thin ridge x ~ x0 + v_b t that no fixed grid
+        resolves) and wide later; boxes rather than points keep histograms free of
+        aliasing at any cell size."""
         ms, Ps = np.asarray(entry["ms"][:, :n_t]), np.asarray(entry["Ps"][:, :n_t])
         g, p = self._g, self._p
         svv = np.einsum("i,knij,j->kn", g, Ps, g)
@@ -184,46 +192,46 @@ class GaussianSource:
         ratio = np.where(ok, sxv / np.where(ok, svv, 1.0), 0.0)
         mu = ms @ p + ratio * (self.level - ms @ g)
         sd = np.sqrt(np.maximum(sxx - ratio * sxv, 0.0))
-        xi, wt = np.polynomial.hermite.hermgauss(self.x_points)
-        X = mu[:, None, :] + math.sqrt(2.0) * sd[:, None, :] * xi[None, :, None]
-        width = math.sqrt(2.0) * sd[:, None, :] * (wt * np.exp(xi**2))[None, :, None]
+        xi = np.linspace(-_XI_MAX, _XI_MAX, n_xi)
+        X = mu[:, None, :] + sd[:, None, :] * xi[None, :, None]
+        width = np.broadcast_to(sd[:, None, :] * (xi[1] - xi[0]), X.shape)
         return X, width
 
     def points(self, t_end, h, order, coarse_h):
-        """Point masses of n1(x, t) dx dt and K2(x, t) dx dt at the position nodes of every
-        grid time. The second-order K2(x, t) is computed on a coarser grid and interpolated
-        in t at fixed standardised node (it varies slowly; n1(x, t), which carries the thin
-        short-slip ridge, is exact on the fine grid)."""
+        """Boxes of n1(x, t) dx dt and K2(x, t) dx dt at the positions of every grid time.
+
+        K2(x, t) is computed on a coarser grid, in time (`coarse_h`) and in xi
+        (`_XI_COARSE` points): its profile over xi is interpolated onto the fine grid and
+        scaled to K2(t) on the fine grid, so that it sums to the marginal term exactly
+        (n1(x, t), which carries the thin short-slip ridge, is exact on the fine grid)."""
         entry = self.grid(t_end, h)
         n_t = int(round(t_end / h)) + 1
         t = np.arange(n_t) * h
-        X, width = self.nodes(entry, n_t)
-        n1x = np.array(
-            kernels.n1_joint_nodes(
-                self.cr, entry["ms"][:, :n_t], entry["Ps"][:, :n_t], jnp.asarray(X)
-            )
-        )
+        X, width = self.positions(entry, n_t, self.x_points)
+        ms, Ps = entry["ms"][:, :n_t], entry["Ps"][:, :n_t]
+        n1x = np.array(kernels.n1_joint_nodes(self.cr, ms, Ps, jnp.asarray(X)))
         n1x[:, :, 0] = 0.0
         dt_w = series.trapezoid_weights(n_t, h)
         K2x = None
         if order == 2:
             coarse = self.grid(t_end, coarse_h)
             n_c = int(round(t_end / coarse_h)) + 1
-            Xc, wc = self.nodes(coarse, n_c)
             tc = np.arange(n_c) * coarse_h
-            # Interpolate in t each node's fraction of K2 (density times cell width, over
-            # their sum) and scale it by K2(t) on the fine grid: the position-resolved term
-            # then sums to the marginal one exactly. (The density itself scales like
-            # 1 / width, which changes fast at short times.)
-            share = self.K2(tc, Xc) * wc
-            total = share.sum(axis=1, keepdims=True)
-            frac = np.where(total > 0, share / np.where(total > 0, total, 1.0), 1.0 / X.shape[1])
-            frac = np.array([[np.interp(t, tc, row) for row in fc] for fc in frac])
-            frac /= np.maximum(frac.sum(axis=1, keepdims=True), 1e-300)
+            Xc, _ = self.positions(coarse, n_c, _XI_COARSE)
+            profile = self.K2(tc, Xc)  # (K, coarse xi, n_c), per unit x
+            xi_c = np.linspace(-_XI_MAX, _XI_MAX, _XI_COARSE)
+            xi_f = np.linspace(-_XI_MAX, _XI_MAX, self.x_points)
             K_fine = self.second_order(entry)[:, :n_t]
-            K2x = frac * K_fine[:, None, :] * dt_w
+            K2x = np.zeros_like(n1x)
+            for c in range(self.n_components):
+                # per unit xi at coarse times -> fine times -> fine xi
+                over_t = np.array([np.interp(t, tc, row) for row in profile[c]])
+                fine = np.array([np.interp(xi_f, xi_c, col) for col in over_t.T]).T
+                total = fine.sum(axis=0)
+                share = np.where(total > 0, fine / np.where(total > 0, total, 1.0), 0.0)
+                K2x[c] = share * K_fine[c] * dt_w
         T = np.broadcast_to(t, X.shape)
-        return T, X, n1x * width * dt_w, K2x
+        return T, X, width, n1x * width * dt_w, K2x
 
 
 class EmpiricalSource:
@@ -273,4 +281,5 @@ class EmpiricalSource:
         keep = self.t <= t_end
         w = np.full(keep.sum(), 1.0 / self.n_slip)
         K2 = (self.index[keep] / self.n_slip)[None] if order == 2 else None
-        return self.t[keep][None], self.x[keep][None], w[None], K2
+        zero = np.zeros((1, keep.sum()))
+        return self.t[keep][None], self.x[keep][None], zero, w[None], K2

@@ -1,0 +1,365 @@
+"""The crossing-statistics estimator, against independent implementations and simulation."""
+
+import math
+
+import numpy as np
+import pytest
+import scipy.integrate as si
+import scipy.linalg as sl
+from scipy.special import erfc
+from scipy.stats import multivariate_normal, norm
+
+import stickslip as ss
+from stickslip._estimate.bvn import positive_part_mean
+
+PUBLIC = dict(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=0.1)
+WHITE = dict(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0)
+
+
+@pytest.fixture(scope="module")
+def exact(Langevin):
+    return ss.CrossingEstimator(Langevin(**PUBLIC))
+
+
+@pytest.fixture(scope="module")
+def upcrossings(Langevin):
+    """Free-run upcrossings of 40000 OU paths up to t = 8 (fixed seed)."""
+    return ss.simulate(Langevin(**PUBLIC), 40_000, 0.005, 8.0, seed=21, record_upcrossings=16)
+
+
+# -- independent NumPy/SciPy implementation of the Gaussian moments -------------------------
+def _matrices(params):
+    w2, z, D = params["omega0"] ** 2, params["zeta"], params["D"]
+    if params.get("tau") is None:
+        A = np.array([[0.0, 1.0], [-w2, -z]])
+        B = np.array([[0.0], [math.sqrt(2 * D)]])
+        m0 = np.array([params["x0"], params["v_b"]])
+    else:
+        tau = params["tau"]
+        A = np.array([[0.0, 1.0, 0.0], [-w2, -z, 1.0], [0.0, 0.0, -1.0 / tau]])
+        B = np.array([[0.0], [0.0], [math.sqrt(2 * D) / tau]])
+        m0 = np.array([params["x0"], params["v_b"], 0.0])
+    return A, B, m0
+
+
+def _cov(A, B, t):
+    """Sigma(t) by adaptive quadrature of the defining integral (no matrix-exponential tricks)."""
+    f = lambda s: sl.expm(A * s) @ B @ B.T @ sl.expm(A * s).T
+    return si.quad_vec(f, 0, t, epsabs=1e-16, epsrel=1e-13, limit=4000)[0]
+
+
+def test_n1_equals_the_reference(exact, reference):
+    """Exact Rice n1 against the reference data's (independent implementation) to 1e-6."""
+    n1 = exact.n1(reference["t"])
+    assert np.max(np.abs(n1 - reference["n1"]) / reference["n1"]) < 1e-6
+
+
+@pytest.mark.parametrize("t1, t2", [(0.5, 3.0), (1.0, 1.5), (2.0, 2.02), (3.0, 6.5)])
+def test_n2_equals_an_independent_implementation(exact, t1, t2):
+    """n2 from the direct covariance of (v1, v2, a1, a2) and 2-D quadrature of
+    E[a1+ a2+ | v1 = v2 = v_b], against the estimator's closed form, to 1e-6."""
+    A, B, m0 = _matrices(PUBLIC)
+    g = np.eye(3)[1]
+    h = A.T @ g
+    P1 = _cov(A, B, t1)
+    m1 = sl.expm(A * t1) @ m0
+    Phi = sl.expm(A * (t2 - t1))
+    m2, P2, C21 = Phi @ m1, Phi @ P1 @ Phi.T + _cov(A, B, t2 - t1), Phi @ P1
+    U = np.stack([g, h])
+    mean = np.concatenate([U @ m1, U @ m2])[[0, 2, 1, 3]]  # v1 v2 a1 a2
+    C = np.block([[U @ P1 @ U.T, U @ C21.T @ U.T], [U @ C21 @ U.T, U @ P2 @ U.T]])
+    C = C[np.ix_([0, 2, 1, 3], [0, 2, 1, 3])]
+    So = C[:2, :2]
+    density = multivariate_normal(mean[:2], So).pdf([1.0, 1.0])
+    K = C[2:, :2] @ np.linalg.inv(So)
+    mu = mean[2:] + K @ (np.array([1.0, 1.0]) - mean[:2])
+    V = C[2:, 2:] - K @ C[:2, 2:]
+    mvn = multivariate_normal(mu, V)
+    top = mu + 12 * np.sqrt(np.diag(V))
+    integral = si.dblquad(
+        lambda y, x: x * y * mvn.pdf([x, y]), 0, top[0], 0, top[1], epsabs=1e-14, epsrel=1e-10
+    )[0]
+    expected = density * integral
+    ours = exact.n2(np.array([t1]), np.array([t2]))[0, 0]
+    assert abs(ours - expected) / expected < 1e-6
+    assert exact.n2(np.array([t2]), np.array([t1]))[0, 0] == pytest.approx(ours, rel=1e-14)
+
+
+def test_n2_near_and_on_the_diagonal(exact, Langevin):
+    lags = np.array([1e-3, 1e-4, 1e-5, 1e-6])
+    vals = np.array([exact.n2(np.array([3.0]), np.array([3.0 + s]))[0, 0] for s in lags])
+    assert np.all(np.isfinite(vals)) and np.all(vals > 0)
+    # a finite limit approached like sqrt(lag): successive differences over decades of lag
+    # shrink by a factor near sqrt(10) = 3.16 (3.66 and 3.33 at larger lags)
+    ratios = np.diff(vals)[:-1] / np.diff(vals)[1:]
+    assert np.all((ratios > 2.9) & (ratios < 3.5))
+    diag = exact.n2(np.array([3.0]), np.array([3.0]))[0, 0]
+    assert diag == pytest.approx(vals[-1], rel=2e-2)
+    closure = ss.CrossingEstimator(Langevin(**WHITE))
+    assert np.isinf(closure.n2(np.array([3.0]), np.array([3.0]))[0, 0])
+
+
+def test_closure_n1_equals_eq13_integrated_numerically(Langevin):
+    """White noise: the paper's closure n1(t) = int dx P10(x, v_b, t) I_a(x, v_b) (eqs. 11-13,
+    with I_a = E[a+]), integrated over x by quadrature, against the estimator, to 1e-6."""
+    est = ss.CrossingEstimator(Langevin(**WHITE))
+    assert not est.exact and est.closure_variance == pytest.approx(2 * 0.4)
+    A, B, m0 = _matrices(WHITE)
+    sigma = math.sqrt(2 * 0.4)
+    for t in (0.3, 2.0, 6.0, 15.0):
+        m = sl.expm(A * t) @ m0
+        P = _cov(A, B, t)
+        P10 = multivariate_normal(m, P)
+
+        def integrand(x, P10=P10):
+            mu_a = -(WHITE["omega0"] ** 2) * x - WHITE["zeta"] * WHITE["v_b"]
+            Ia = sigma * norm.pdf(mu_a / sigma) + mu_a * norm.cdf(mu_a / sigma)
+            return P10.pdf([x, WHITE["v_b"]]) * Ia
+
+        sd = math.sqrt(P[0, 0])
+        expected = si.quad(
+            integrand, m[0] - 12 * sd, m[0] + 12 * sd, epsabs=1e-14, epsrel=1e-11, limit=500
+        )[0]
+        assert est.n1(t) == pytest.approx(expected, rel=1e-6)
+
+
+def _n1_with(Ia, model):
+    """n1(t) of the exact OU model with E[a+ | v = v_b] replaced by `Ia(mu, s)`."""
+    lg = model.linear_gaussian()
+    g, h = np.asarray(lg.crossing), np.asarray(lg.A).T @ np.asarray(lg.crossing)
+    A, B, m0 = (np.asarray(a) for a in (lg.A, lg.B, lg.m0))
+
+    def n1(t):
+        m, P = sl.expm(A * t) @ m0, _cov(A, B, t)
+        svv, sva, saa = g @ P @ g, g @ P @ h, h @ P @ h
+        pv = norm.pdf(1.0, g @ m, math.sqrt(svv))
+        mu = h @ m + sva / svv * (1.0 - g @ m)
+        return pv * Ia(mu, math.sqrt(saa - sva**2 / svv))
+
+    return n1
+
+
+def test_eq12_as_printed_is_E_minus_and_simulation_picks_E_plus(upcrossings, Langevin):
+    """Eq. (12) as printed, sqrt(s^2/2pi) exp(-mu^2/2s^2) - (mu/2) erfc(mu/(sqrt2 s)), equals
+    E[a^-]; the upcrossing density needs E[a^+]. Simulated upcrossings decide: n1 with E[a^+]
+    agrees with them within sampling error, n1 with the printed formula does not."""
+    printed = lambda mu, s: (
+        s / math.sqrt(2 * math.pi) * math.exp(-(mu**2) / (2 * s * s))
+        - mu / 2 * erfc(mu / (math.sqrt(2) * s))
+    )
+    e_minus = lambda mu, s: float(positive_part_mean(-mu, s))
+    e_plus = lambda mu, s: float(positive_part_mean(mu, s))
+    for mu, s in [(-1.0, 0.5), (0.3, 2.0), (2.0, 0.7)]:
+        assert printed(mu, s) == pytest.approx(e_minus(mu, s), rel=1e-12)
+    model = Langevin(**PUBLIC)
+    u = upcrossings.upcrossings
+    # from t = 0.5: n1 peaks sharply near t = 0.02, finer than the bin averages below resolve
+    edges = np.arange(0.5, 8.0001, 0.5)
+    counts = np.histogram(u.times[~u.immediate].ravel(), bins=edges)[0]
+    emp = counts / u.n_paths / 0.5
+    se = np.sqrt(counts) / u.n_paths / 0.5
+
+    # bin averages of each candidate n1 (Simpson on 9 points per bin)
+    def binned(fn):
+        out = []
+        for a, b in zip(edges[:-1], edges[1:], strict=True):
+            ts = np.linspace(a + 1e-9, b, 9)
+            out.append(si.simpson([fn(t) for t in ts], x=ts) / (b - a))
+        return np.array(out)
+
+    z_plus = (binned(_n1_with(e_plus, model)) - emp) / se
+    z_printed = (binned(_n1_with(printed, model)) - emp) / se
+    assert np.mean(z_plus**2) < 2.0  # chi-square per bin near 1
+    assert np.max(np.abs(z_printed)) > 20
+
+
+def test_empirical_n1_agrees_with_exact(upcrossings, exact, Langevin):
+    emp = ss.CrossingEstimator(Langevin(**PUBLIC), ensemble=upcrossings, dt=0.1)
+    assert not emp.exact
+    t = np.arange(0.1, 7.91, 0.1)
+    counts = emp.n1(t) * upcrossings.n_paths * 0.1
+    se = np.sqrt(np.maximum(counts, 1)) / upcrossings.n_paths / 0.1
+    # the exact n1 averaged over the same cells
+    fine = np.linspace(0.05, 7.95, 7901)
+    cell = np.add.reduceat(exact.n1(fine)[:-1], np.arange(0, 7900, 100)) * 0.001 / 0.1
+    z = (emp.n1(t) - cell[: t.size]) / se
+    assert np.mean(z**2) < 1.6 and np.max(np.abs(z)) < 4.5
+
+
+def test_stationary_rate_is_rice(exact, Langevin):
+    """Large-t n1 = Rice's (1/2pi) sqrt(lambda2/lambda0) exp(-v_b^2/2 lambda0) with the
+    stationary variances of v and a (Lyapunov equation solved by SciPy)."""
+    A, B, _ = _matrices(PUBLIC)
+    P = sl.solve_continuous_lyapunov(A, -B @ B.T)
+    g = np.eye(3)[1]
+    l0, l2 = g @ P @ g, (A.T @ g) @ P @ (A.T @ g)
+    rice = math.sqrt(l2 / l0) / (2 * math.pi) * math.exp(-1.0 / (2 * l0))
+    assert exact.stationary_rate == pytest.approx(rice, rel=1e-9)
+    assert exact.n1(300.0) == pytest.approx(rice, rel=1e-6)
+
+
+def test_the_papers_rice_frequency(Langevin):
+    """The paper's n0 = (omega0/2pi) exp(-v_b zeta/2D) is Rice's formula for the stationary
+    velocity of the white-noise model (lambda0 = D/zeta) with lambda2 = omega0^2 lambda0, the
+    acceleration without its noise, and with v_b where v_b^2 belongs: it agrees only at
+    v_b = 1. The closure's own large-t rate differs from it."""
+
+    def paper(p):
+        return p["omega0"] / (2 * math.pi) * math.exp(-p["v_b"] * p["zeta"] / (2 * p["D"]))
+
+    def rice(p):
+        l0 = p["D"] / p["zeta"]
+        return p["omega0"] / (2 * math.pi) * math.exp(-(p["v_b"] ** 2) / (2 * l0))
+
+    assert paper(WHITE) == pytest.approx(rice(WHITE), rel=1e-12)
+    other = WHITE | {"v_b": 1.3}
+    assert abs(paper(other) / rice(other) - 1) > 0.02
+    est = ss.CrossingEstimator(Langevin(**WHITE))
+    l0 = WHITE["D"] / WHITE["zeta"]
+    s_a = math.sqrt(WHITE["omega0"] ** 2 * l0 + 2 * WHITE["D"])  # omega^4 var(x) + closure
+    mu_a = -WHITE["zeta"] * WHITE["v_b"]
+    closure = norm.pdf(1.0, 0, math.sqrt(l0)) * (
+        s_a * norm.pdf(mu_a / s_a) + mu_a * norm.cdf(mu_a / s_a)
+    )
+    assert est.stationary_rate == pytest.approx(closure, rel=1e-9)
+    assert abs(est.stationary_rate / paper(WHITE) - 1) > 0.02
+
+
+def _binned(est, method, order, edges, **kw):
+    fine = np.linspace(edges[0], edges[-1], (edges.size - 1) * 100 + 1)
+    F = est.first_passage(fine, method, order, **kw)
+    return np.array(
+        [
+            np.trapezoid(F[i * 100 : (i + 1) * 100 + 1], fine[i * 100 : (i + 1) * 100 + 1])
+            for i in range(edges.size - 1)
+        ]
+    ) / np.diff(edges)
+
+
+def test_second_order_decoupling_against_the_reference_histogram(exact, reference):
+    """L1 distance to the reference Monte Carlo histogram over t in [0, 7], bins of 0.1 (bin
+    averages of the density): F_g^(2) within 0.10; the approximations rank as expected."""
+    hist = reference["T_counts"] / reference["T_counts"].sum() / 0.1
+    edges = reference["T_edges"][:71]
+    L1 = {}
+    for method, order in [
+        ("truncation", 1),
+        ("decoupling", 1),
+        ("truncation", 2),
+        ("decoupling", 2),
+    ]:
+        L1[(method, order)] = np.sum(np.abs(_binned(exact, method, order, edges) - hist[:70])) * 0.1
+    assert L1[("decoupling", 2)] <= 0.10
+    assert (
+        L1[("decoupling", 2)]
+        < L1[("decoupling", 1)]
+        < L1[("truncation", 2)]
+        < L1[("truncation", 1)]
+    )
+
+
+def test_orderings_that_must_hold(exact):
+    t = np.linspace(0, 6, 601)
+    n1 = exact.n1(t)
+    assert np.all(exact.first_passage(t, "decoupling", 1) <= n1 + 1e-15)
+    assert np.all(exact.first_passage(t, "truncation", 2) <= n1 + 1e-15)  # K >= 0
+    np.testing.assert_allclose(exact.first_passage(t, "truncation", 1), n1, rtol=1e-12)
+
+
+def test_normalisation(exact):
+    t = np.linspace(0, 30, 3001)
+    n1 = exact.n1(t)
+    I1 = np.concatenate([[0], np.cumsum(0.5 * 0.01 * (n1[1:] + n1[:-1]))])
+    Fg1 = exact.first_passage(t, "decoupling", 1)
+    # int_0^T F_g^(1) = 1 - exp(-int_0^T n1), an identity of the approximation, here up to
+    # the trapezoid rule's error on the 0.01 grid where n1 peaks sharply near t = 0.02
+    assert np.trapezoid(Fg1, t) == pytest.approx(1 - math.exp(-I1[-1]), abs=1e-4)
+    Fg2 = exact.first_passage(t, "decoupling", 2)
+    assert np.trapezoid(Fg2, t) == pytest.approx(1.0, abs=1e-3)
+    Fhat = exact.first_passage(t, "truncation", 1, normalized=True)
+    assert np.trapezoid(Fhat, t) == pytest.approx(1.0, abs=0.02)  # cut within one grid step
+    assert exact.diagnostics(30.0, "truncation", 1, normalized=True)["t_n"] < 30
+
+
+def test_negative_truncation_is_reported_not_clipped(exact):
+    with pytest.warns(
+        ss.ApproximationWarning, match=r"truncation order 2: density negative on t in \["
+    ):
+        F = exact.first_passage(np.linspace(0, 20, 201), "truncation", 2)
+    assert F.min() < 0
+    d = exact.diagnostics(20.0, "truncation", 2)
+    assert d["min_density"] < 0
+
+
+def test_densities_carry_the_mass_of_F(Langevin):
+    est = ss.CrossingEstimator(Langevin(**PUBLIC), horizon=30.0)
+    d = np.arange(-3.0, 9.0, 0.05) + 0.025
+    T = np.arange(0.0, 60.0, 0.1) + 0.05
+    for order in (1, 2):
+        F = est.first_passage(np.linspace(0, 30, 3001), "decoupling", order)
+        mass = np.trapezoid(F, np.linspace(0, 30, 3001))
+        assert est.period_density(T, "decoupling", order).sum() * 0.1 == pytest.approx(
+            mass, abs=2e-3
+        )
+        assert est.slip_distance_density(d, "decoupling", order).sum() * 0.05 == pytest.approx(
+            mass, abs=2e-3
+        )
+
+
+def test_position_densities_against_simulated_upcrossings(upcrossings, Langevin):
+    """First-order truncation counts every upcrossing: its slip-distance 'density' is the
+    histogram of x0 - x over all upcrossings before the horizon, which the simulation gives
+    directly. Exact and empirical estimators agree within sampling error."""
+    model = Langevin(**PUBLIC)
+    exact = ss.CrossingEstimator(model, horizon=6.0)
+    emp = ss.CrossingEstimator(model, ensemble=upcrossings, horizon=6.0, dt=0.01)
+    d = np.arange(-1.0, 4.0, 0.1) + 0.05
+    a = exact.slip_distance_density(d, "truncation", 1)
+    b = emp.slip_distance_density(d, "truncation", 1)
+    se = np.sqrt(np.maximum(b * 0.1 * upcrossings.n_paths, 1)) / upcrossings.n_paths / 0.1
+    z = (a - b) / se
+    assert np.mean(z**2) < 2.0
+
+
+def test_stationary_onset_is_a_mixture_with_an_atom(Langevin):
+    """eta0 = 'stationary': p0 = P(a(0) >= 0) re-sticks at once; the rest is a quadrature over
+    a(0) < 0 that converges (32 against 64 nodes) and matches simulated upcrossings."""
+    model = Langevin(**PUBLIC, eta0="stationary")
+    est = ss.CrossingEstimator(model)
+    p0 = norm.sf((1.0 + 0.1) / math.sqrt(0.4 / 0.1))
+    assert est.immediate_probability == pytest.approx(p0, rel=1e-12)
+    fine = ss.CrossingEstimator(model, quadrature_nodes=64)
+    t = np.linspace(0.02, 8, 200)
+    np.testing.assert_allclose(est.n1(t), fine.n1(t), rtol=1e-6)
+    assert est.n_components == 32
+    F = est.first_passage(np.linspace(0, 60, 6001), "decoupling", 1)
+    assert np.trapezoid(F, np.linspace(0, 60, 6001)) == pytest.approx(1 - p0, abs=1e-3)
+    sim = ss.simulate(model, 30_000, 0.005, 6.0, seed=5, record_upcrossings=8)
+    emp = ss.CrossingEstimator(model, ensemble=sim, dt=0.25)
+    assert emp.immediate_probability == pytest.approx(p0, abs=4 * math.sqrt(p0 * (1 - p0) / 30_000))
+    tc = np.arange(0.25, 5.8, 0.25)
+    cell = np.array([np.mean(est.n1(np.linspace(c - 0.125, c + 0.125, 51))) for c in tc])
+    counts = emp.n1(tc) * 30_000 * 0.25
+    z = (emp.n1(tc) - cell) / (np.sqrt(np.maximum(counts, 1)) / 30_000 / 0.25)
+    assert np.mean(z**2) < 2.0
+
+
+def test_bad_arguments(exact, Langevin):
+    with pytest.raises(ss.ParameterError, match="'method' must be one of"):
+        exact.first_passage([1.0], "decouple")
+    with pytest.raises(ss.ParameterError, match="'order' must be 1 or 2"):
+        exact.first_passage([1.0], "decoupling", 3)
+    with pytest.raises(ss.ParameterError, match="'normalized' applies to method='truncation' only"):
+        exact.first_passage([1.0], "decoupling", 1, normalized=True)
+    with pytest.raises(ss.ParameterError, match="'t' must be finite and >= 0"):
+        exact.first_passage([-1.0])
+    with pytest.raises(ss.ParameterError, match="evenly spaced"):
+        exact.slip_distance_density(np.array([0.0, 0.1, 0.3]))
+    with pytest.raises(ss.ParameterError, match="'closure_variance' applies only"):
+        ss.CrossingEstimator(Langevin(**PUBLIC), closure_variance=1.0)
+    with pytest.raises(ss.ParameterError, match="'ensemble' must carry upcrossings"):
+        ss.CrossingEstimator(
+            Langevin(**PUBLIC), ensemble=ss.simulate(Langevin(**PUBLIC), 10, 0.01, 1.0)
+        )
+    with pytest.raises(ss.ParameterError, match="'dt' must be > 0"):
+        ss.CrossingEstimator(Langevin(**PUBLIC), dt=0.0)
