@@ -29,29 +29,32 @@ _FIRST_PANEL = 1e-6  # the innermost panels: their share of the integral is negl
 _GL_NODES = 8  # Gauss-Legendre nodes per panel
 
 
-def _graded(length):
+def _graded(length, first):
     """Panel edges 0, p, 2p, 4p, ... up to `length` (geometric grading from 0)."""
-    n = max(1, int(math.ceil(math.log2(max(length, _FIRST_PANEL) / _FIRST_PANEL))) + 1)
-    edges = np.minimum(np.concatenate([[0.0], _FIRST_PANEL * 2.0 ** np.arange(n)]), length)
+    n = max(1, int(math.ceil(math.log2(max(length, first) / first))) + 1)
+    edges = np.minimum(np.concatenate([[0.0], first * 2.0 ** np.arange(n)]), length)
     return edges[np.concatenate([[True], np.diff(edges) > 0])]
+
+
+def _gauss(edges):
+    x, w = np.polynomial.legendre.leggauss(_GL_NODES)
+    a, b = edges[:-1, None], edges[1:, None]
+    return (0.5 * (b - a) * (x + 1.0) + a).ravel(), (0.5 * (b - a) * w).ravel()
 
 
 def lag_rule(t):
     """Quadrature over the lag tau in (0, t] for int_0^t n2(t, t - tau) dtau.
 
-    Gauss-Legendre on panels graded geometrically towards both ends: towards tau = 0, where
-    n2 varies on the noise's correlation time (with a sqrt(tau) cusp, or the closure's
-    integrable tau^-1/2 singularity), and towards the onset s = t - tau = 0, where the first
-    upcrossings cluster. Returns (tau, weight) arrays."""
+    Gauss-Legendre on panels graded geometrically towards both ends. Near the diagonal
+    (tau -> 0) n2 varies on the noise's correlation time and behaves like
+    alpha + beta sqrt(tau) (exact case) or alpha tau^-1/2 + beta (the closure's integrable
+    singularity): with tau = u^2 both are smooth in u, so that half is integrated in u. Near
+    the onset (s = t - tau -> 0) the first upcrossings cluster. Returns (tau, weight)."""
     if t <= 0:
         return np.zeros(0), np.zeros(0)
-    half = _graded(0.5 * t)
-    edges = np.unique(np.concatenate([half, t - half]))
-    x, w = np.polynomial.legendre.leggauss(_GL_NODES)
-    a, b = edges[:-1, None], edges[1:, None]
-    tau = (0.5 * (b - a) * (x + 1.0) + a).ravel()
-    weight = (0.5 * (b - a) * w).ravel()
-    return tau, weight
+    u, wu = _gauss(_graded(math.sqrt(0.5 * t), math.sqrt(_FIRST_PANEL)))
+    s, ws = _gauss(_graded(0.5 * t, _FIRST_PANEL))
+    return np.concatenate([u * u, t - s]), np.concatenate([2.0 * u * wu, ws])
 
 
 class GaussianSource:
