@@ -371,8 +371,8 @@ def test_joint_density_integrates_to_n1(exact, upcrossings, Langevin):
         joint = exact.n1_joint(x, np.array([t]))[:, 0]
         assert np.trapezoid(joint, x) == pytest.approx(exact.n1(t), rel=1e-6)
     emp = ss.CrossingEstimator(Langevin(**PUBLIC), ensemble=upcrossings, dt=0.5)
-    cells_x = np.arange(-6.0, 6.0, 0.25) + 0.125
-    cells_t = np.arange(0.25, 7.0, 0.5)
+    cells_x = np.arange(-12.0, 12.0, 0.25) + 0.125  # covers every recorded position
+    cells_t = np.arange(0.5, 7.0, 0.5)  # the grid times: n1 there is the cell average
     joint = emp.n1_joint(cells_x, cells_t)
     np.testing.assert_allclose(joint.sum(axis=0) * 0.25, emp.n1(cells_t), rtol=1e-9)
 
