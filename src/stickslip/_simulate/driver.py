@@ -63,15 +63,17 @@ def _onset_rate(model, X):
 
 
 def solve(
-    model, solver, cfg, y0, path, dt, keys, offset, *, t1, saveat, event=None, max_steps=None
-):
-    """One diffrax solve of the ensemble state `y0 = (X, (X_prev, k_stick))`, from global
-    step `offset`. The solve's own time starts at 0 and ends at the static `t1` (or at the
-    event): with static end points diffrax checks them at trace time instead of inserting a
-    host callback, and code with host callbacks cannot be kept in the persistent cache."""
+    model, solver, cfg, y0, path, dt, keys, offset, *, t1, saveat, event=None, max_steps=None,
+    wrapper=StickSlipHybrid,
+):  # fmt: skip
+    """One diffrax solve of the ensemble state `y0` with the crossing solver `wrapper`
+    around the slip solver (the stick/slip hybrid by default), from global step `offset`.
+    The solve's own time starts at 0 and ends at the static `t1` (or at the event): with
+    static end points diffrax checks them at trace time instead of inserting a host
+    callback, and code with host callbacks cannot be kept in the persistent cache."""
     step_key, bridge_key = keys
     control = PathwiseBrownian(step_key, path, dt, solver.noise_dim(model), offset=offset)
-    hybrid = StickSlipHybrid(solver, dt, bridge_key, path, offset, cfg.smooth, cfg.monitor)
+    hybrid = wrapper(solver, dt, bridge_key, path, offset, cfg.smooth, cfg.monitor)
     return diffrax.diffeqsolve(
         SlipTerm(model, control),
         hybrid,

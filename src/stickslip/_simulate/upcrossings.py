@@ -5,17 +5,15 @@ they have `max_crossings` upcrossings."""
 from __future__ import annotations
 
 import dataclasses
-from typing import ClassVar
 
 import diffrax
 import equinox as eqx
 import numpy as np
 
-from .. import _rng
 from .._jax import jax, jnp
 from .._solver import AbstractSlipSolver
-from .._solver.base import global_step, over_paths, steps
-from . import localise
+from .._solver.base import over_paths
+from .hybrid import AbstractCrossingSolver
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -57,13 +55,11 @@ class Upcrossings:
         return float(np.min(self.times[full, -1]))
 
 
-class UpcrossingRecorder(diffrax.AbstractItoSolver):
-    """Advance every path with `inner` and log its upcrossings (no stick, no freezing).
-
-    An upcrossing in a step: the crossing variable goes from below the level to at or above
-    it; with continuous monitoring also an excursion above the level inside the step (the
-    cubic check, or the Brownian-bridge test), placed at mid-step.
-    """
+class UpcrossingRecorder(AbstractCrossingSolver):
+    """Advance every path and log its upcrossings (no stick, no freezing): from below the
+    level (or from it, at the slip onset) to at or above it; with continuous monitoring also
+    an excursion above the level inside the step, placed at mid-step (see
+    `AbstractCrossingSolver` for the tests)."""
 
     inner: AbstractSlipSolver
     dt: jax.Array
@@ -73,55 +69,20 @@ class UpcrossingRecorder(diffrax.AbstractItoSolver):
     smooth: bool = eqx.field(static=True)
     monitor: str = eqx.field(static=True)
 
-    term_structure: ClassVar = diffrax.AbstractTerm
-    interpolation_cls: ClassVar = diffrax.LocalLinearInterpolation
-
-    def order(self, terms):
-        return self.inner.order(terms)
-
-    def strong_order(self, terms):
-        return self.inner.strong_order(terms)
-
-    def func(self, terms, t0, y0, args):
-        return self.inner.func(terms, t0, y0, args)
-
-    def init(self, terms, t0, t1, y0, args):
-        return self.inner.init(terms, t0, t1, y0, args), self._uniforms(t0)
-
-    def _uniforms(self, t):
-        if self.monitor == "continuous" and not self.smooth:
-            return _rng.uniforms(self.bridge_key, self.path, global_step(t, self.offset), 1)[0]
-        return None
-
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
         model = args
         X, (count, times, positions) = y0
-        inner_state, u = solver_state
-        (X1, _), _, _, inner_state, result = self.inner.step(
-            terms, t0, t1, y0, args, inner_state, made_jump
-        )
+        X1, inner_state, result, u = self.advance(terms, t0, t1, y0, args, solver_state, made_jump)
+        c0, c1, at_end, inside = self.crossing_tests(model, X, X1, t0, t1, u)
         level = model.stick_level
-        cross = over_paths(model.crossing)
-        c0, c1 = cross(X), cross(X1)
-        below = c0 < level
         # c0 == level only at the slip onset: a path that dips and is back above the level at
         # the end of the first step has crossed upwards (as the stick detector says).
-        through = (c0 <= level) & (c1 >= level)
-        inside = jnp.zeros_like(through)
-        h = self.dt * steps(t0, t1)
-        if self.monitor == "continuous":
-            if self.smooth:
-                rate = over_paths(model.crossing_rate)
-                reach = localise.interior_reaches(c0, c1, h * rate(X), h * rate(X1), level)
-                inside = (c0 <= level) & (c1 < level) & reach
-            else:
-                var = over_paths(model.crossing_noise)(X)
-                expo = -2.0 * (level - c0) * (level - c1) / jnp.where(var > 0, var * h, 1.0)
-                p = jnp.where(var > 0, jnp.exp(jnp.minimum(expo, 0.0)), 0.0)
-                inside = below & (c1 < level) & (u < p)
-        up = through | inside
-        linear = (level - c0) / jnp.where(through & below, c1 - c0, 1.0)
-        frac = jnp.where(through & below, linear, 0.5)
+        from_below = c0 <= level
+        through = from_below & at_end
+        up = through | (from_below & ~at_end & inside)
+        strictly = c0 < level
+        linear = (level - c0) / jnp.where(through & strictly, c1 - c0, 1.0)
+        frac = jnp.where(through & strictly, linear, 0.5)
         t_cross = (jnp.round(t0) + self.offset + frac) * self.dt
         pos = over_paths(model.position)
         x_cross = pos(X) + frac * (pos(X1) - pos(X))
@@ -136,31 +97,18 @@ class UpcrossingRecorder(diffrax.AbstractItoSolver):
 @eqx.filter_jit
 def record(model, solver, cfg, X, path, dt, step_key, bridge_key, n_steps, max_crossings):
     """Run the free process from the onset states X for n_steps, logging upcrossings."""
-    from .._solver import PathwiseBrownian, SlipTerm
+    from .driver import solve
 
     n = X.shape[1]
-    control = PathwiseBrownian(step_key, path, dt, solver.noise_dim(model), offset=0.0)
-    recorder = UpcrossingRecorder(solver, dt, bridge_key, path, 0.0, cfg.smooth, cfg.monitor)
     empty = jnp.full((max_crossings, n), jnp.nan)
-    y0 = (X, (jnp.zeros(n), empty, empty))
 
     def full(t, y, args, **kwargs):
         return jnp.all(y[1][0] >= max_crossings)
 
-    sol = diffrax.diffeqsolve(
-        SlipTerm(model, control),
-        recorder,
-        t0=0.0,
-        t1=n_steps,
-        dt0=1.0,
-        y0=y0,
-        args=model,
-        saveat=diffrax.SaveAt(t1=True),
-        stepsize_controller=diffrax.ConstantStepSize(),
-        event=diffrax.Event(full),
-        max_steps=None,
-        throw=False,
-        adjoint=diffrax.ForwardMode(),
-    )
+    sol = solve(
+        model, solver, cfg, (X, (jnp.zeros(n), empty, empty)), path, dt, (step_key, bridge_key),
+        0.0, t1=float(n_steps), saveat=diffrax.SaveAt(t1=True), event=diffrax.Event(full),
+        wrapper=UpcrossingRecorder,
+    )  # fmt: skip
     _, (count, times, positions) = sol.ys
     return count[0], times[0], positions[0]
