@@ -32,6 +32,8 @@ _LAZY = {
     "Upcrossings": "._simulate",
     "ExactGaussian": "._solver",
     "CrossingEstimator": "._estimate",
+    "FrictionLaw": ".friction",
+    "get_friction_law": ".friction",
     "ApproximationWarning": "._estimate",
     "EulerMaruyama": "._solver",
 }

@@ -26,6 +26,11 @@ if "xla_cpu_multi_thread_eigen" not in os.environ.get("XLA_FLAGS", ""):
 import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
+# The CPU client's asynchronous dispatch can also lose a completion: a call then waits
+# forever in BlockUntilReady with every worker idle (seen here on 2 cores in the estimator's
+# vmapped kernels, with single-threaded Eigen already set; jax-ml/jax#25861). Every result
+# here is fetched at once, so synchronous dispatch costs nothing measurable.
+jax.config.update("jax_cpu_enable_async_dispatch", False)
 
 
 def _enable_compilation_cache() -> None:

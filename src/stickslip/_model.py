@@ -130,6 +130,18 @@ class FrictionModel(eqx.Module):
         """The linear-Gaussian description of the slip phase, or None (the default)."""
         return None
 
+    def onset_mixture(self, nodes: int = 32):
+        """The law of the onset state as a mixture of Gaussians, for the exact estimator:
+        `(m0s (K, d), P0s (K, d, d), weights (K,))`, weights summing to 1. The default is the
+        single Gaussian `N(m0, P0)` of `linear_gaussian()`; a model with a non-Gaussian random
+        onset (a random threshold) gives quadrature nodes of it, `nodes` of them."""
+        lg = self.linear_gaussian()
+        if lg is None:
+            return None
+        m0 = np.asarray(lg.m0, dtype=float)
+        P0 = np.asarray(lg.P0, dtype=float)
+        return m0[None], P0[None], np.ones(1)
+
     # -- conveniences --------------------------------------------------------------------
     @classmethod
     def example(cls) -> FrictionModel | None:

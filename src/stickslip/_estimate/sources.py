@@ -60,37 +60,56 @@ def lag_rule(t):
 class GaussianSource:
     """Closed-form densities of a linear-Gaussian slip (see `gaussian.py`)."""
 
-    def __init__(self, cr, m0, P0, *, exact, quadrature_nodes, x_points):
+    def __init__(self, cr, mixture, *, exact, quadrature_nodes, x_points):
+        """`mixture`: the onset law as Gaussian components `(m0s, P0s, weights)`."""
         self.cr, self.exact, self.x_points = cr, exact, x_points
-        A, b = np.asarray(cr.A), np.asarray(cr.b)
         g, p = np.asarray(cr.g), np.asarray(cr.p)
         self._g, self._p, self.level = g, p, float(cr.level)
+        parts = [
+            self._onset(m0, P0, exact, quadrature_nodes)
+            for m0, P0 in zip(mixture[0], mixture[1], strict=True)
+        ]
+        weights = np.asarray(mixture[2], float)
+        self.m0s = np.concatenate([part[0] for part in parts])
+        self.P0s = np.concatenate([part[1] for part in parts])
+        self.w = np.concatenate([wm * part[2] for wm, part in zip(weights, parts, strict=True)])
+        self.immediate_probability = float(
+            sum(wm * part[3] for wm, part in zip(weights, parts, strict=True))
+        )
+        self.x0 = self.m0s @ p
+        # The law of the onset position (the threshold), for the next cycle's threshold.
+        pos, inverse = np.unique(np.round(mixture[0] @ p, 14), return_inverse=True)
+        self.thresholds = (pos, np.bincount(inverse, weights=weights))
+        self._grids: dict = {}
+
+    def _onset(self, m0, P0, exact, quadrature_nodes):
+        """Components for one Gaussian onset N(m0, P0): `(m0s, P0s, weights, p0)`."""
+        A, b = np.asarray(self.cr.A), np.asarray(self.cr.b)
+        g = self._g
         h = A.T @ g
         mu = float(h @ m0 + g @ b)
         var = float(h @ P0 @ h)
         if var <= 0.0 or not exact:
             # A sharp onset (or the closure, which has no finite a(0)): one component; the
             # slip is immediate when the crossing variable is already rising.
-            self.immediate_probability = 1.0 if (exact and mu >= 0.0) else 0.0
-            self.m0s, self.P0s = m0[None], P0[None]
-            self.w = np.array([1.0 - self.immediate_probability])
-        else:
-            # Gauss-Legendre over the initial rate a(0) in [mu - 8.5 sd, 0] with its normal
-            # density as part of the integrand (smooth: the rule converges exponentially,
-            # where a rule uniform in the distribution function met a log singularity).
-            sd = math.sqrt(var)
-            self.immediate_probability = float(special.ndtr(mu / sd))
-            lo = min(mu - 8.5 * sd, -1e-12 * sd)
-            x, wq = np.polynomial.legendre.leggauss(quadrature_nodes)
-            a0 = 0.5 * lo * (1.0 - x)  # from lo to 0
-            k = P0 @ h / var
-            self.m0s = m0[None] + np.outer(a0 - mu, k)
-            P_cond = P0 - np.outer(k, h @ P0)
-            self.P0s = np.repeat(0.5 * (P_cond + P_cond.T)[None], a0.size, axis=0)
-            density = np.exp(-0.5 * ((a0 - mu) / sd) ** 2) / (sd * math.sqrt(2 * math.pi))
-            self.w = 0.5 * (-lo) * wq * density
-        self.x0 = self.m0s @ p
-        self._grids: dict = {}
+            p0 = 1.0 if (exact and mu >= 0.0) else 0.0
+            return m0[None], P0[None], np.array([1.0 - p0]), p0
+        # Gauss-Legendre over the initial rate a(0) in [mu - 8.5 sd, 0] with its normal
+        # density as part of the integrand (smooth: the rule converges exponentially, where a
+        # rule uniform in the distribution function met a log singularity).
+        sd = math.sqrt(var)
+        lo = min(mu - 8.5 * sd, -1e-12 * sd)
+        x, wq = np.polynomial.legendre.leggauss(quadrature_nodes)
+        a0 = 0.5 * lo * (1.0 - x)  # from lo to 0
+        k = P0 @ h / var
+        P_cond = P0 - np.outer(k, h @ P0)
+        density = np.exp(-0.5 * ((a0 - mu) / sd) ** 2) / (sd * math.sqrt(2 * math.pi))
+        return (
+            m0[None] + np.outer(a0 - mu, k),
+            np.repeat(0.5 * (P_cond + P_cond.T)[None], a0.size, axis=0),
+            0.5 * (-lo) * wq * density,
+            float(special.ndtr(mu / sd)),
+        )
 
     @property
     def n_components(self):
@@ -234,7 +253,8 @@ class GaussianSource:
                 share = np.where(total > 0, fine / np.where(total > 0, total, 1.0), 0.0)
                 K2x[c] = share * K_fine[c] * dt_w
         T = np.broadcast_to(t, X.shape)
-        return T, X, width, n1x * width * dt_w, K2x
+        X0 = self.x0.reshape((-1,) + (1,) * (X.ndim - 1))
+        return T, X, width, n1x * width * dt_w, K2x, X0
 
 
 class EmpiricalSource:
@@ -253,12 +273,17 @@ class EmpiricalSource:
         self.n_paths = u.n_paths
         self.immediate_probability = float(np.mean(u.immediate))
         self.w = np.array([1.0 - self.immediate_probability])
-        self.x0 = np.array([float(np.mean(u.onset_position[slip])) if slip.any() else 0.0])
+        onset = u.onset_position
+        self.x0 = np.array([float(np.mean(onset[slip])) if slip.any() else 0.0])
         times, pos = u.times[slip], u.positions[slip]
         self.n_slip = max(int(slip.sum()), 1)
         index = np.broadcast_to(np.arange(times.shape[1]), times.shape)
         ok = np.isfinite(times)
         self.t, self.x, self.index = times[ok], pos[ok], index[ok].astype(float)
+        # each upcrossing's own onset position (for the slip distance), and the law of the
+        # onset position (all paths: the next cycle's threshold), as up to 64 quantile groups
+        self.x0_point = np.broadcast_to(onset[slip][:, None], times.shape)[ok]
+        self.thresholds = _empirical_law(onset)
         self.t_complete = u.t_complete
         self.t_max = u.t_max
 
@@ -285,4 +310,16 @@ class EmpiricalSource:
         w = np.full(keep.sum(), 1.0 / self.n_slip)
         K2 = (self.index[keep] / self.n_slip)[None] if order == 2 else None
         zero = np.zeros((1, keep.sum()))
-        return self.t[keep][None], self.x[keep][None], zero, w[None], K2
+        x0 = self.x0_point[keep][None]
+        return self.t[keep][None], self.x[keep][None], zero, w[None], K2, x0
+
+
+def _empirical_law(values, groups=64):
+    """A sample as a discrete law `(nodes, weights)`: its distinct values if few, else the
+    means of `groups` equal-count quantile groups."""
+    values = np.sort(np.asarray(values, float))
+    distinct, counts = np.unique(values, return_counts=True)
+    if distinct.size <= groups:
+        return distinct, counts / counts.sum()
+    parts = np.array_split(values, groups)
+    return np.array([q.mean() for q in parts]), np.array([q.size for q in parts]) / values.size

@@ -1,0 +1,7 @@
+"""The Langevin model with a random static threshold, as a stickslip plugin."""
+
+from ._laws import THRESHOLD_LAWS as THRESHOLD_LAWS
+from ._laws import ThresholdLaw as ThresholdLaw
+from ._model import RandomThreshold as RandomThreshold
+
+__all__ = ["RandomThreshold", "ThresholdLaw", "THRESHOLD_LAWS"]

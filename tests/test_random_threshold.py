@@ -1,0 +1,197 @@
+"""The `random-threshold` plugin: zero-spread identity with `langevin`, the laws, the exact
+mixture against simulated crossings, and its errors."""
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+from scipy import stats
+
+import stickslip as ss
+from stickslip._estimate.estimator import _deposit
+
+BASE = dict(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, tau=0.1)
+LAWS = {
+    "normal": {"mean": 1.0, "sd": 0.5},
+    "lognormal": {"median": 1.0, "sigma": 0.3},
+    "uniform": {"low": 0.4, "high": 1.8},
+    "weibull": {"shape": 3.0, "scale": 1.2},
+}
+ZERO_SPREAD = {
+    "normal": {"mean": 1.0, "sd": 0.0},
+    "lognormal": {"median": 1.0, "sigma": 0.0},
+    "uniform": {"low": 1.0, "high": 1.0},
+}
+
+
+@pytest.fixture(scope="module")
+def RandomThreshold():
+    return ss.get_model("random-threshold")
+
+
+@pytest.mark.parametrize("law", sorted(ZERO_SPREAD))
+@pytest.mark.parametrize("tau", [0.1, None])
+def test_zero_spread_is_langevin(RandomThreshold, Langevin, law, tau):
+    """Same seed: identical ensembles (bit for bit); the estimator to 1e-10."""
+    base = BASE | {"tau": tau}
+    rt = RandomThreshold(**base, threshold=law, threshold_params=ZERO_SPREAD[law])
+    lv = Langevin(**base, x0=1.0)
+    a = ss.simulate(rt, 3000, 0.02, 40.0, seed=5)
+    b = ss.simulate(lv, 3000, 0.02, 40.0, seed=5)
+    for name in ("slip_time", "stick_position", "slip_distance", "period"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    ea, eb = ss.CrossingEstimator(rt), ss.CrossingEstimator(lv)
+    t = np.linspace(0, 20, 401)
+    np.testing.assert_allclose(ea.n1(t), eb.n1(t), rtol=0, atol=1e-10)
+    np.testing.assert_allclose(ea.first_passage(t), eb.first_passage(t), rtol=0, atol=1e-10)
+    if tau is not None:
+        T = np.arange(0.05, 12, 0.1)
+        np.testing.assert_allclose(ea.period_density(T), eb.period_density(T), atol=1e-10)
+
+
+@pytest.mark.parametrize("law", sorted(LAWS))
+def test_thresholds_follow_their_law(RandomThreshold, law):
+    """Onset positions of a simulated ensemble against the SciPy law (KS test), and the
+    quadrature rule against the law's moments."""
+    m = RandomThreshold(**BASE, threshold=law, threshold_params=LAWS[law])
+    ens = ss.simulate(m, 4000, 0.05, 2.0, seed=11)
+    x0 = ens.onset_state[:, 0]
+    dist = m.threshold.frozen()
+    assert stats.kstest(x0, dist.cdf).pvalue > 1e-3
+    assert float(m.threshold.average()) == pytest.approx(dist.mean(), rel=1e-12)
+    values, weights = m.threshold.quadrature(32)
+    assert weights.sum() == pytest.approx(1.0, abs=1e-14)
+    assert values @ weights == pytest.approx(dist.mean(), rel=1e-7)
+    assert values**2 @ weights == pytest.approx(dist.moment(2), rel=1e-7)
+
+
+@pytest.fixture(scope="module")
+def lognormal(RandomThreshold):
+    return RandomThreshold(**BASE, threshold="lognormal", threshold_params=LAWS["lognormal"])
+
+
+@pytest.fixture(scope="module")
+def crossings(lognormal):
+    """Free-run upcrossings of 1e5 paths up to t = 6 (fixed seed)."""
+    return ss.simulate(lognormal, 100_000, 0.005, 6.0, seed=3, record_upcrossings=16)
+
+
+def test_mixture_n1_and_Fg1_agree_with_simulated_crossings(lognormal, crossings):
+    """The exact mixture n1 against the empirical one (cells of 0.1 from t = 0.1), and the
+    first-order decoupling F_g1 of the mixed process against the empirical estimator's,
+    in cells of 0.25, within the sampling error of 1e5 paths (delta method on the per-path
+    upcrossing counts)."""
+    u = crossings.upcrossings
+    exact = ss.CrossingEstimator(lognormal, mixing="process", dt=0.005)
+    emp = ss.CrossingEstimator(lognormal, ensemble=crossings, dt=0.005)
+    assert emp.mixing == "process"
+    # n1 in cells
+    edges = np.arange(0.1, 6.0001, 0.1)
+    counts = np.histogram(u.times.ravel(), bins=edges)[0]
+    emp_n1 = counts / u.n_paths / 0.1
+    se = np.sqrt(counts) / u.n_paths / 0.1
+    fine = np.linspace(0.1, 6.0, 5901)
+    cell = np.add.reduceat(exact.n1(fine)[:-1], np.arange(0, 5900, 100)) * 0.001 / 0.1
+    z = (emp_n1 - cell) / se
+    assert np.mean(z**2) < 1.6 and np.max(np.abs(z)) < 4.5
+    # F_g1 masses in cells of 0.25 from both estimators
+    t = np.arange(0, 6.0001, 0.005)
+    cells = np.arange(0, t.size - 1, 50)
+
+    def masses(est):
+        F = est.first_passage(t)
+        return np.add.reduceat(0.5 * (F[1:] + F[:-1]) * 0.005, cells)
+
+    diff = masses(emp) - masses(exact)
+    # sampling error: mass(a, b) = exp(-I(a)) - exp(-I(b)), I(t) the mean upcrossing count
+    e = t[cells].tolist() + [6.0]
+    N = np.stack([(u.times <= s).sum(axis=1) for s in e], axis=1).astype(float)
+    I = N.mean(axis=0)
+    lin = -np.exp(-I[:-1]) * N[:, :-1] + np.exp(-I[1:]) * N[:, 1:]
+    se = lin.std(axis=0) / math.sqrt(u.n_paths)
+    z = diff / se
+    assert np.mean(z**2) < 2.0 and np.max(np.abs(z)) < 4.5, (np.mean(z**2), np.abs(z).max())
+
+
+def test_random_next_threshold_period_against_a_direct_sum(lognormal):
+    """The period density with a random next threshold (FFT over a position grid) against
+    the direct sum over the threshold nodes of the fixed-threshold deposit."""
+    est = ss.CrossingEstimator(lognormal, quadrature_nodes=12, x_points=32)
+    T_cells = np.arange(0.25, 80, 0.5)  # all of the mass
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ss.ApproximationWarning)
+        p = est.period_density(T_cells)
+        T, X, W, mass, _ = est._points("decoupling", 1, False)
+    edges = np.append(T_cells - 0.25, T_cells[-1] + 0.25)
+    nodes, weights = est._source.thresholds
+    direct = sum(
+        q * est._fixed_threshold_periods(edges, T.ravel(), X.ravel(), W.ravel(), x0, mass.ravel())
+        for x0, q in zip(nodes, weights, strict=True)
+    )
+    direct = direct / 0.5
+    assert np.abs(p - direct).sum() * 0.5 < 5e-3
+    assert p.sum() * 0.5 == pytest.approx(mass.sum(), rel=1e-6)
+
+
+def test_period_uses_the_next_threshold(RandomThreshold):
+    """Simulated sticks end at the next cycle's threshold x0', drawn independently of the
+    slip: given x_sl, P(T_st = 0) = P(x0' <= x_sl), and x0' = x_sl + v_b T_st is uniform on
+    (max(x_sl, low), high] when T_st > 0."""
+    low, high = 0.5, 3.0
+    m = RandomThreshold(**BASE, threshold="uniform", threshold_params={"low": low, "high": high})
+    ens = ss.simulate(m, 20_000, 0.02, 60.0, seed=8)
+    ok = ens.stuck
+    x_sl, T_st = ens.stick_position[ok], ens.stick_time[ok]
+    x_next = ens.next_onset_state[ok, 0]
+    np.testing.assert_allclose(x_next[T_st > 0], (x_sl + BASE["v_b"] * T_st)[T_st > 0], atol=1e-9)
+    assert np.all(x_next[T_st == 0] <= x_sl[T_st == 0])
+    cdf = np.clip((x_sl - low) / (high - low), 0, 1)
+    zero = T_st == 0
+    assert abs(zero.sum() - cdf.sum()) < 4 * math.sqrt((cdf * (1 - cdf)).sum())
+    a = np.maximum(x_sl[~zero], low)
+    u = (x_next[~zero] - a) / (high - a)
+    assert stats.kstest(u, "uniform").pvalue > 1e-3
+    # not the slip's own threshold
+    assert not np.allclose(x_next, ens.onset_state[ok, 0])
+
+
+def test_deposit_conserves_mass():
+    edges = np.linspace(-1, 5, 61)
+    lo = np.array([0.0, 1.0, 2.5, 3.3])
+    hi = np.array([0.5, 1.0, 4.0, 3.3])
+    m = np.array([1.0, 2.0, 3.0, 4.0])
+    assert _deposit(edges, lo, hi, m).sum() == pytest.approx(10.0)
+
+
+@pytest.mark.parametrize(
+    "law, params, field",
+    [
+        ("gamma", {}, "threshold"),
+        ("uniform", {"low": -0.1, "high": 1.0}, "threshold_params.low"),
+        ("uniform", {"low": 0.0, "high": 1.0}, "threshold_params.low"),
+        ("uniform", {"low": 2.0, "high": 1.0}, "threshold_params.high"),
+        ("normal", {"mean": 1.0, "sd": -0.2}, "threshold_params.sd"),
+        ("normal", {"mean": -1.0, "sd": 0.2}, "threshold_params.mean"),
+        ("normal", {"mean": 1.0}, "threshold_params.sd"),
+        ("normal", {"mean": 1.0, "sd": 0.2, "sigma": 1}, "threshold_params.sigma"),
+        ("lognormal", {"median": 0.0, "sigma": 0.2}, "threshold_params.median"),
+        ("weibull", {"shape": 0.0, "scale": 1.0}, "threshold_params.shape"),
+        ("weibull", {"shape": 2.0, "scale": "big"}, "threshold_params.scale"),
+    ],
+)
+def test_bad_threshold_laws(RandomThreshold, law, params, field):
+    with pytest.raises(ss.ParameterError) as info:
+        RandomThreshold(**BASE, threshold=law, threshold_params=params)
+    message = str(info.value)
+    assert f"'{field}'" in message and "\n" not in message
+
+
+def test_bad_model_parameters(RandomThreshold):
+    for name, value in [("zeta", -0.1), ("omega0", 0.0), ("D", -1.0), ("v_b", 0.0)]:
+        with pytest.raises(ss.ParameterError, match=f"'{name}'"):
+            RandomThreshold(
+                **(BASE | {name: value}), threshold="normal", threshold_params=LAWS["normal"]
+            )
+    with pytest.raises(ss.ParameterError, match="'mixing'"):
+        ss.CrossingEstimator(RandomThreshold.example(), mixing="pointwise")
