@@ -1,5 +1,8 @@
 """The event-driven stick/slip simulator."""
 
+from .chain import ChainModel as ChainModel
+from .chain import ChainRun as ChainRun
+from .chain import simulate_chain as simulate_chain
 from .cycles import CycleSeries as CycleSeries
 from .cycles import simulate_cycles as simulate_cycles
 from .driver import simulate as simulate

@@ -147,6 +147,12 @@ def _validate(owner, model, n_paths, dt, t_max, seed, solver, monitor, chunk_siz
     """Check the arguments of `owner` (`simulate` or `simulate_cycles`); one-line errors."""
     if not isinstance(model, FrictionModel):
         raise TypeError(f"{owner}: model must be a stickslip.FrictionModel instance, got {model!r}")
+    from .chain import ChainModel
+
+    if isinstance(model, ChainModel):
+        raise ParameterError(
+            owner, "model", "is a chain of blocks: simulate it with stickslip.simulate_chain"
+        )
     n_paths = check_int(owner, "n_paths", n_paths, minimum=1)
     dt = check_positive(owner, "dt", dt)
     t_max = check_positive(owner, "t_max", t_max)

@@ -1,0 +1,140 @@
+"""The `burridge-knopoff` chain: reduction to `langevin`, events, crossing statistics,
+errors."""
+
+import importlib.util
+import pathlib
+
+import numpy as np
+import pytest
+from conftest import chi2_homogeneity
+
+import stickslip as ss
+from stickslip.friction import LinearViscous
+
+
+@pytest.fixture(scope="module")
+def BK():
+    return ss.get_model("burridge-knopoff")
+
+
+def _gaps(run):
+    """Stuck time before each event (the first: from t = 0)."""
+    return np.concatenate(
+        [
+            np.concatenate([s[:1], s[1:] - (s[:-1] + d[:-1])])
+            for s, d in zip(run.start, run.duration, strict=True)
+        ]
+    )
+
+
+def test_one_block_with_linear_friction_is_langevin(BK):
+    """N = 1, F(V) = F_k + mu V: the Langevin model with omega0^2 = k_p, zeta = mu,
+    x0 = (F_s - F_k - mu v_b) / k_p. A block that sticks beyond its static limit releases
+    at once from where it stuck (Langevin restarts from x0), so the slips compared are those
+    that follow a stick of positive length: they start from the threshold, as every
+    Langevin slip does. Chi-square on the slip-time histograms (fixed seeds)."""
+    kp, mu, Fs, Fk, vb, D, tau = 1.0, 0.1, 2.2, 1.0, 1.0, 0.4, 0.1
+    chain = BK(1, 0.0, kp, vb, LinearViscous(static=Fs, viscosity=mu, kinetic=Fk), D=D, tau=tau)
+    run = ss.simulate_chain(chain, 800.0, dt=0.002, n_paths=50, seed=1)
+    dur = run.events("duration")[_gaps(run) > 0.004]
+    assert dur.size > 4000 and set(run.events("size")) == {1}
+    x0 = (Fs - Fk - mu * vb) / kp
+    lv = ss.get_model("langevin")(omega0=kp**0.5, zeta=mu, D=D, v_b=vb, x0=x0, tau=tau)
+    st = ss.simulate(lv, 40_000, 0.002, 60.0, seed=2).slip_time
+    edges = np.append(np.arange(0, 12.01, 0.25), 100)
+    _, _, p = chi2_homogeneity(np.histogram(dur, edges)[0], np.histogram(st, edges)[0])
+    assert p > 0.01
+
+
+def test_noise_free_single_block_is_periodic(BK):
+    """D = 0: every slip after the first stick is the same deterministic cycle."""
+    chain = BK(1, 0.0, 1.0, 0.5, LinearViscous(static=2.0, viscosity=0.2, kinetic=1.0))
+    run = ss.simulate_chain(chain, 200.0, dt=0.001, seed=0)
+    d, s = run.duration[0][1:], run.slip[0][1:]
+    assert d.size > 5 and np.ptp(d) < 2e-3 and np.ptp(s) < 2e-3
+
+
+def test_hundred_blocks_broad_event_sizes(BK):
+    """N = 100 with noise over 1e4 time units: sizes span 1 to N, and P(s) falls over two
+    decades as a power law for small events (slope of log P against log s between -3 and -1)."""
+    path = pathlib.Path(__file__).parents[1] / "examples" / "burridge_knopoff.py"
+    spec = importlib.util.spec_from_file_location("bk_example", path)
+    example = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(example)
+    size_distribution = example.size_distribution
+
+    run = ss.simulate_chain(BK.example(), 1e4, dt=0.02, seed=1)
+    sizes = run.events("size")
+    assert sizes.size > 1000 and sizes.min() == 1 and sizes.max() == 100
+    s, p, counts = size_distribution(sizes, 100)
+    fit = (s <= 30) & (counts > 0)
+    slope = np.polyfit(np.log(s[fit]), np.log(p[fit]), 1)[0]
+    assert -3.0 < slope < -1.0
+    assert p[0] / p[fit][-1] > 100
+    # events are disjoint in time and the slip is positive
+    for start, dur in zip(run.start, run.duration, strict=True):
+        assert np.all(start[1:] >= start[:-1] + dur[:-1] - 1e-9)
+    assert np.all(run.events("slip") > 0)
+    assert run.mean_velocity.shape == (1, run.t.size) and np.all(run.slipping <= 1)
+
+
+def test_chunking_free_periodic_and_random_thresholds(BK):
+    """Periodic ends and random per-block thresholds run; paths are independent of how many
+    run together (counter-based noise)."""
+    law = {"low": 0.9, "high": 1.1}
+    m = BK(16, 5.0, 1.0, 0.05, "velocity-weakening", {"F0": 1.0, "alpha": 2.0}, D=1e-3,
+           boundary="periodic", threshold="uniform", threshold_params=law)  # fmt: skip
+    a = ss.simulate_chain(m, 300.0, dt=0.01, n_paths=3, seed=4)
+    b = ss.simulate_chain(m, 300.0, dt=0.01, n_paths=1, seed=4)
+    np.testing.assert_array_equal(a.size[0], b.size[0])
+    assert a.n_events.min() > 5
+
+
+def test_empirical_estimator_on_the_chain(BK):
+    """The crossing variable is the mean sliding velocity (quiet at the event level); the
+    empirical estimator takes the chain's crossings, and F_g1 carries at most the mass of
+    the first quiet time."""
+    chain = BK(8, 2.0, 1.0, 0.1, "viscous", {"static": 1.0, "viscosity": 0.5, "kinetic": 0.6},
+               D=0.05, tau=0.2)  # fmt: skip
+    run = ss.simulate_chain(chain, 2000.0, dt=0.01, n_paths=2, seed=3)
+    up = run.upcrossings(window=20.0)
+    est = ss.CrossingEstimator(chain, ensemble=up, dt=0.1)
+    t = np.arange(0, 20.0, 0.1)
+    F = est.first_passage(t)
+    mass = np.trapezoid(F, t)
+    first = up.times[:, 0]  # nan: never quiet in the window
+    assert 0.5 < mass <= 1.0 + 1e-9
+    assert mass == pytest.approx(np.mean(first <= 20.0), abs=0.15)
+
+
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        (dict(k_c=-1.0), "k_c"),
+        (dict(k_p=0.0), "k_p"),
+        (dict(v_b=-0.1), "v_b"),
+        (dict(D=-1.0), "D"),
+        (dict(tau=0.0), "tau"),
+        (dict(n_blocks=0), "n_blocks"),
+        (dict(boundary="closed"), "boundary"),
+        (dict(friction="rubber"), "friction"),
+        (dict(friction_params={"F0": -1.0, "alpha": 1.0}), "friction_params.F0"),
+        (dict(friction_params={"F0": 1.0, "alpha": 1.0, "sigma": 1.5}), "friction_params.sigma"),
+        (dict(threshold="gamma"), "threshold"),
+        (
+            dict(threshold="uniform", threshold_params={"low": -0.1, "high": 1}),
+            "threshold_params.low",
+        ),
+    ],
+)
+def test_bad_parameters(BK, kwargs, field):
+    base = dict(n_blocks=4, k_c=1.0, k_p=1.0, v_b=0.1, friction="velocity-weakening",
+                friction_params={"F0": 1.0, "alpha": 1.0}, D=0.0)  # fmt: skip
+    with pytest.raises(ss.ParameterError) as info:
+        BK(**(base | kwargs))
+    assert f"'{field}'" in str(info.value) and "\n" not in str(info.value)
+
+
+def test_simulate_points_to_simulate_chain(BK):
+    with pytest.raises(ss.ParameterError, match="simulate_chain"):
+        ss.simulate(BK.example(), 10, 0.01, 1.0)
