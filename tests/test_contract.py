@@ -18,6 +18,10 @@ def test_model_contract(name, cls):
     assert y0.shape == (d,) and y0.dtype == jnp.float64
     assert m.drift(y0).shape == (d,)
     assert m.diffusion(y0).shape == (d, m.noise_dim)
+    if isinstance(m, ss.ChainModel):  # per-block events: its own simulator
+        run = ss.simulate_chain(m, 50.0, dt=0.02, n_paths=2, seed=0)
+        assert run.mean_velocity.shape == (2, run.t.size) and run.n_events.shape == (2,)
+        return
     assert float(m.crossing(y0)) == pytest.approx(float(m.stick_level))
     assert isinstance(m.crossing_is_smooth, bool)
     lg = m.linear_gaussian()

@@ -113,7 +113,9 @@ class ChainModel(FrictionModel):
         return self.tau is not None or self.D == 0.0
 
     def onset_state(self, key):
-        raise NotImplementedError("a chain is simulated by simulate_chain")
+        """The relaxed chain: every block at rest where its loading spring is slack (the
+        start of `simulate_chain`; an event starts when the first block releases)."""
+        return jnp.zeros(len(self.state_names))
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
