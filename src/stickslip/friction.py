@@ -77,7 +77,7 @@ class Coulomb(FrictionLaw):
 
 class LinearViscous(FrictionLaw):
     """Kinetic force `kinetic + viscosity * V` (Coulomb plus viscous damping); with it a
-    single block is the paper's Langevin model."""
+    single block is the paper's Langevin model (`static >= kinetic >= 0`, `viscosity >= 0`)."""
 
     static: float
     viscosity: float
@@ -91,6 +91,10 @@ class LinearViscous(FrictionLaw):
         check_positive("viscous", "static", self.static)
         check_nonnegative("viscous", "viscosity", self.viscosity)
         check_nonnegative("viscous", "kinetic", self.kinetic)
+        if self.kinetic > self.static:
+            raise ParameterError(
+                "viscous", "kinetic", f"must be <= static = {self.static}", self.kinetic
+            )
 
     def force(self, V):
         return self.kinetic + self.viscosity * V
@@ -178,8 +182,12 @@ FRICTION_LAWS = {
 
 def get_friction_law(name: str | FrictionLaw, **params) -> FrictionLaw:
     """A friction law by name (`coulomb`, `viscous`, `velocity-weakening`, `stribeck`) and its
-    parameters; an instance is returned unchanged."""
+    parameters; an instance (with no parameters) is returned unchanged."""
     if isinstance(name, FrictionLaw):
+        if params:
+            raise ParameterError(
+                "friction", "law", "is a FrictionLaw instance: give its parameters to it, not here"
+            )
         return name
     try:
         cls = FRICTION_LAWS[name]
