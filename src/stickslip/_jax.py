@@ -13,24 +13,25 @@ disable it. A cache directory the user configured for JAX is left alone.
 import os
 import pathlib
 
-# XLA's CPU runtime can deadlock in its multithreaded Eigen pool on vmapped small matrix
-# products (seen here on 2 cores: the estimator's propagators hung on repeated calls; a
-# known issue, e.g. PyAutoFit #1528). Single-threaded Eigen avoids it; the simulator's hot
-# loop has no matrix products, so it costs nothing there. Must be set before JAX starts its
-# backend; a value the user set is kept.
-if "xla_cpu_multi_thread_eigen" not in os.environ.get("XLA_FLAGS", ""):
-    os.environ["XLA_FLAGS"] = (
-        os.environ.get("XLA_FLAGS", "") + " --xla_cpu_multi_thread_eigen=false"
-    ).strip()
+# XLA's CPU runtime can deadlock on these workloads (seen here on 2 cores; a known issue,
+# e.g. PyAutoFit #1528): a call waits forever with every worker idle.
+# - Multithreaded Eigen on vmapped small matrix products: single-threaded Eigen avoids it
+#   (the simulator's hot loop has no matrix products, so it costs nothing there).
+# - The concurrency-optimised thunk scheduler: the estimator's vmapped n1(x, t) kernel hung
+#   within 30 repeated calls in each of 3 runs with it on, and completed 3 x 60 calls with it
+#   off (`--xla_cpu_enable_concurrency_optimized_scheduler=false`).
+# Must be set before JAX starts its backend; a value the user set for either is kept.
+_FLAGS = {
+    "xla_cpu_multi_thread_eigen": "false",
+    "xla_cpu_enable_concurrency_optimized_scheduler": "false",
+}
+for _flag, _value in _FLAGS.items():
+    if _flag not in os.environ.get("XLA_FLAGS", ""):
+        os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + f" --{_flag}={_value}").strip()
 
 import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
-# The CPU client's asynchronous dispatch can also lose a completion: a call then waits
-# forever in BlockUntilReady with every worker idle (seen here on 2 cores in the estimator's
-# vmapped kernels, with single-threaded Eigen already set; jax-ml/jax#25861). Every result
-# here is fetched at once, so synchronous dispatch costs nothing measurable.
-jax.config.update("jax_cpu_enable_async_dispatch", False)
 
 
 def _enable_compilation_cache() -> None:
