@@ -80,8 +80,8 @@ def crossings(lognormal):
 def test_mixture_n1_and_Fg1_agree_with_simulated_crossings(lognormal, crossings):
     """The exact mixture n1 against the empirical one (cells of 0.1 from t = 0.1), and the
     first-order decoupling F_g1 of the mixed process against the empirical estimator's,
-    in cells of 0.25, within the sampling error of 1e5 paths (delta method on the per-path
-    upcrossing counts)."""
+    in cells of 0.25 from t = 0.25, within the sampling error of 1e5 paths (delta method on
+    the per-path upcrossing counts)."""
     u = crossings.upcrossings
     exact = ss.CrossingEstimator(lognormal, mixing="process", dt=0.005)
     emp = ss.CrossingEstimator(lognormal, ensemble=crossings, dt=0.005)
@@ -111,6 +111,12 @@ def test_mixture_n1_and_Fg1_agree_with_simulated_crossings(lognormal, crossings)
     lin = -np.exp(-I[:-1]) * N[:, :-1] + np.exp(-I[1:]) * N[:, 1:]
     se = lin.std(axis=0) / math.sqrt(u.n_paths)
     z = diff / se
+    # Cell [0, 0.25] holds the sharp n1 peak near t = 0.02, which the simulation (dt = 0.005)
+    # resolves to O(dt): its mass there was measured at 0.2881 / 0.2903 for dt = 0.005 /
+    # 0.0025 against the exact 0.2939, a bias larger than the sampling error (0.0013). That
+    # cell is held to the bias; the rest to the sampling error.
+    assert abs(diff[0]) < 0.01
+    z = z[1:]
     assert np.mean(z**2) < 2.0 and np.max(np.abs(z)) < 4.5, (np.mean(z**2), np.abs(z).max())
 
 

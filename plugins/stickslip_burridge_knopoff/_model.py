@@ -78,7 +78,7 @@ class BurridgeKnopoff(ChainModel):
                 raise ParameterError(_NAME, "threshold_params", "given without a threshold law")
             self.threshold = None
         else:
-            from stickslip_random_threshold._laws import make_law
+            from stickslip_random_threshold import make_law
 
             try:
                 self.threshold = make_law(threshold, threshold_params)

@@ -11,69 +11,39 @@ from stickslip._jax import jax, jnp
 _NAME = "langevin"
 
 
-class Langevin(FrictionModel):
-    r"""Block, spring and damper with friction noise, in the frame moving with the driver.
+class LangevinSlip(FrictionModel):
+    r"""The slip phase of eqs. (8-9), shared by `langevin` and `random-threshold`: state
+    `(x, v)` (white noise) or `(x, v, eta)` (OU noise), crossing variable v at level $v_b$.
+    A concrete model gives the parameters, `threshold_at(key)` (the onset position x0 of one
+    slip) and `mean_threshold()` (for the Gaussian description; `onset_mixture` gives the
+    law of a random threshold)."""
 
-    Slip phase (eq. 8), while $\dot x < v_b$:
-    $$\dot x = v, \qquad \dot v = -\omega_0^2 x - \zeta v + \eta(t).$$
-    Stick phase (eq. 9): $\dot x = v_b$ until $x$ reaches the threshold $x_0$, then the next
-    slip starts from $(x, v) = (x_0, v_b)$.
+    omega0: eqx.AbstractVar[float]
+    zeta: eqx.AbstractVar[float]
+    D: eqx.AbstractVar[float]
+    v_b: eqx.AbstractVar[float]
+    tau: eqx.AbstractVar[float | None]
+    eta0: eqx.AbstractVar[str]
 
-    Friction noise $\eta$:
-
-    - `tau=None`: white noise, $\langle \eta(t)\eta(s)\rangle = 2D\,\delta(t-s)$, as printed in
-      the paper. The noise then enters $\dot v$ directly: $v$ is not differentiable and a
-      path started at $v_b$ re-crosses $v_b$ at once (see the docs on the white-noise
-      degeneracy). State `(x, v)`.
-    - `tau > 0`: Ornstein-Uhlenbeck noise,
-      $\langle \eta(t)\eta(s)\rangle = (D/\tau)\,e^{-|t-s|/\tau}$, i.e.
-      $d\eta = -\eta/\tau\,dt + \sqrt{2D}/\tau\,dW$; white noise of intensity $D$ is the
-      limit $\tau \to 0$. State `(x, v, eta)`. `eta0="zero"` (default) starts each slip
-      with $\eta(0) = 0$; `eta0="stationary"` draws $\eta(0) \sim \mathcal N(0, D/\tau)$.
-
-    **Arguments:** `omega0` ($\omega_0 > 0$), `zeta` (damping $\zeta > 0$), `D` (noise
-    intensity $D \ge 0$), `v_b` (driving speed $> 0$), `x0` (static threshold $> 0$; the
-    paper does not state it), `tau` (None or $> 0$), `eta0` (`"zero"` or `"stationary"`).
-    """
-
-    omega0: float
-    zeta: float
-    D: float
-    v_b: float
-    x0: float
-    tau: float | None = None
-    eta0: str = eqx.field(default="zero", static=True)
-
-    def __check_init__(self):
-        # Runs on construction only (not on the array-valued copies made for jitted code).
-        check_positive(_NAME, "omega0", self.omega0)
-        check_positive(_NAME, "zeta", self.zeta)
-        check_nonnegative(_NAME, "D", self.D)
-        check_positive(_NAME, "v_b", self.v_b)
-        check_positive(_NAME, "x0", self.x0)
-        check_positive(_NAME, "tau", self.tau, allow_none=True)
-        check_choice(_NAME, "eta0", self.eta0, ("zero", "stationary"))
+    def _check_slip(self, name):
+        check_positive(name, "omega0", self.omega0)
+        check_positive(name, "zeta", self.zeta)
+        check_nonnegative(name, "D", self.D)
+        check_positive(name, "v_b", self.v_b)
+        check_positive(name, "tau", self.tau, allow_none=True)
+        check_choice(name, "eta0", self.eta0, ("zero", "stationary"))
         if self.eta0 == "stationary" and self.tau is None:
             raise ParameterError(
-                _NAME, "eta0", "'stationary' needs Ornstein-Uhlenbeck noise (set tau > 0)"
+                name, "eta0", "'stationary' needs Ornstein-Uhlenbeck noise (set tau > 0)"
             )
 
-    def __init__(self, omega0, zeta, D, v_b, x0, tau=None, eta0="zero"):
-        # Store plain floats (ints accepted); validation in __check_init__ names the field.
-        def as_float(name, value):
-            if isinstance(value, (int, float)) and not isinstance(value, bool):
-                return float(value)
-            from stickslip._errors import check_real
+    def threshold_at(self, key):
+        """The onset position x0 of one slip (`key`: a JAX PRNG key)."""
+        raise NotImplementedError
 
-            return check_real(_NAME, name, value, allow_none=name == "tau")
-
-        self.omega0 = as_float("omega0", omega0)
-        self.zeta = as_float("zeta", zeta)
-        self.D = as_float("D", D)
-        self.v_b = as_float("v_b", v_b)
-        self.x0 = as_float("x0", x0)
-        self.tau = None if tau is None else as_float("tau", tau)
-        self.eta0 = eta0
+    def mean_threshold(self):
+        """The mean onset position (for the Gaussian description)."""
+        raise NotImplementedError
 
     # -- slip-phase SDE ------------------------------------------------------------------
     @property
@@ -108,25 +78,26 @@ class Langevin(FrictionModel):
         return self.tau is not None or self.D == 0.0
 
     def onset_state(self, key):
+        x0 = jnp.asarray(self.threshold_at(jax.random.fold_in(key, 1)), float)
         if self.tau is None:
-            return jnp.stack([jnp.asarray(self.x0, float), jnp.asarray(self.v_b, float)])
+            return jnp.stack([x0, jnp.asarray(self.v_b, float)])
         if self.eta0 == "zero":
             eta = jnp.zeros(())
         else:
             eta = jnp.sqrt(self.D / self.tau) * jax.random.normal(key, (), dtype=jnp.float64)
-        return jnp.stack([jnp.asarray(self.x0, float), jnp.asarray(self.v_b, float), eta])
+        return jnp.stack([x0, jnp.asarray(self.v_b, float), eta])
 
     def linear_gaussian(self):
         w2, z = self.omega0**2, self.zeta
         if self.tau is None:
             A = jnp.array([[0.0, 1.0], [-w2, -z]])
             B = jnp.array([[0.0], [jnp.sqrt(2.0 * self.D)]])
-            m0 = jnp.array([self.x0, self.v_b])
+            m0 = jnp.array([self.mean_threshold(), self.v_b])
             P0 = jnp.zeros((2, 2))
         else:
             A = jnp.array([[0.0, 1.0, 0.0], [-w2, -z, 1.0], [0.0, 0.0, -1.0 / self.tau]])
             B = jnp.array([[0.0], [0.0], [jnp.sqrt(2.0 * self.D) / self.tau]])
-            m0 = jnp.array([self.x0, self.v_b, 0.0])
+            m0 = jnp.array([self.mean_threshold(), self.v_b, 0.0])
             eta_var = 0.0 if self.eta0 == "zero" else self.D / self.tau
             P0 = jnp.diag(jnp.array([0.0, 0.0, eta_var]))
         d = A.shape[0]
@@ -139,6 +110,68 @@ class Langevin(FrictionModel):
             m0=m0,
             P0=P0,
         )
+
+
+class Langevin(LangevinSlip):
+    r"""Block, spring and damper with friction noise, in the frame moving with the driver.
+
+    Slip phase (eq. 8), while $\dot x < v_b$:
+    $$\dot x = v, \qquad \dot v = -\omega_0^2 x - \zeta v + \eta(t).$$
+    Stick phase (eq. 9): $\dot x = v_b$ until $x$ reaches the threshold $x_0$, then the next
+    slip starts from $(x, v) = (x_0, v_b)$.
+
+    Friction noise $\eta$:
+
+    - `tau=None`: white noise, $\langle \eta(t)\eta(s)\rangle = 2D\,\delta(t-s)$, as printed in
+      the paper. The noise then enters $\dot v$ directly: $v$ is not differentiable and a
+      path started at $v_b$ re-crosses $v_b$ at once (see the docs on the white-noise
+      degeneracy). State `(x, v)`.
+    - `tau > 0`: Ornstein-Uhlenbeck noise,
+      $\langle \eta(t)\eta(s)\rangle = (D/\tau)\,e^{-|t-s|/\tau}$, i.e.
+      $d\eta = -\eta/\tau\,dt + \sqrt{2D}/\tau\,dW$; white noise of intensity $D$ is the
+      limit $\tau \to 0$. State `(x, v, eta)`. `eta0="zero"` (default) starts each slip
+      with $\eta(0) = 0$; `eta0="stationary"` draws $\eta(0) \sim \mathcal N(0, D/\tau)$.
+
+    **Arguments:** `omega0` ($\omega_0 > 0$), `zeta` (damping $\zeta > 0$), `D` (noise
+    intensity $D \ge 0$), `v_b` (driving speed $> 0$), `x0` (static threshold $> 0$; the
+    paper does not state it), `tau` (None or $> 0$), `eta0` (`"zero"` or `"stationary"`).
+    """
+
+    omega0: float
+    zeta: float
+    D: float
+    v_b: float
+    x0: float
+    tau: float | None = None
+    eta0: str = eqx.field(default="zero", static=True)
+
+    def __check_init__(self):
+        # Runs on construction only (not on the array-valued copies made for jitted code).
+        self._check_slip(_NAME)
+        check_positive(_NAME, "x0", self.x0)
+
+    def threshold_at(self, key):
+        return self.x0
+
+    def mean_threshold(self):
+        return self.x0
+
+    def __init__(self, omega0, zeta, D, v_b, x0, tau=None, eta0="zero"):
+        # Store plain floats (ints accepted); validation in __check_init__ names the field.
+        def as_float(name, value):
+            if isinstance(value, (int, float)) and not isinstance(value, bool):
+                return float(value)
+            from stickslip._errors import check_real
+
+            return check_real(_NAME, name, value, allow_none=name == "tau")
+
+        self.omega0 = as_float("omega0", omega0)
+        self.zeta = as_float("zeta", zeta)
+        self.D = as_float("D", D)
+        self.v_b = as_float("v_b", v_b)
+        self.x0 = as_float("x0", x0)
+        self.tau = None if tau is None else as_float("tau", tau)
+        self.eta0 = eta0
 
     @classmethod
     def example(cls):

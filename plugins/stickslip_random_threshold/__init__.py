@@ -2,6 +2,7 @@
 
 from ._laws import THRESHOLD_LAWS as THRESHOLD_LAWS
 from ._laws import ThresholdLaw as ThresholdLaw
+from ._laws import make_law as make_law
 from ._model import RandomThreshold as RandomThreshold
 
-__all__ = ["RandomThreshold", "ThresholdLaw", "THRESHOLD_LAWS"]
+__all__ = ["RandomThreshold", "ThresholdLaw", "THRESHOLD_LAWS", "make_law"]

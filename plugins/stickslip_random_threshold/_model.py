@@ -4,17 +4,16 @@ from __future__ import annotations
 
 import equinox as eqx
 import numpy as np
+from stickslip_langevin import LangevinSlip
 
-from stickslip import FrictionModel, ParameterError
-from stickslip._errors import check_choice, check_nonnegative, check_positive, check_real
-from stickslip._jax import jax, jnp
+from stickslip._errors import check_real
 
 from ._laws import ThresholdLaw, make_law
 
 _NAME = "random-threshold"
 
 
-class RandomThreshold(FrictionModel):
+class RandomThreshold(LangevinSlip):
     r"""Langevin model with a static threshold drawn afresh at every release.
 
     The `langevin` slip phase (eqs. 8-9), with the threshold $x_0$ drawn for each cycle from a
@@ -52,16 +51,7 @@ class RandomThreshold(FrictionModel):
         self.threshold = make_law(threshold, threshold_params)
 
     def __check_init__(self):
-        check_positive(_NAME, "omega0", self.omega0)
-        check_positive(_NAME, "zeta", self.zeta)
-        check_nonnegative(_NAME, "D", self.D)
-        check_positive(_NAME, "v_b", self.v_b)
-        check_positive(_NAME, "tau", self.tau, allow_none=True)
-        check_choice(_NAME, "eta0", self.eta0, ("zero", "stationary"))
-        if self.eta0 == "stationary" and self.tau is None:
-            raise ParameterError(
-                _NAME, "eta0", "'stationary' needs Ornstein-Uhlenbeck noise (set tau > 0)"
-            )
+        self._check_slip(_NAME)
 
     def params(self):
         from ._laws import THRESHOLD_LAWS, describe
@@ -91,68 +81,12 @@ class RandomThreshold(FrictionModel):
     def example(cls):
         return cls(1.0, 0.1, 0.4, 1.0, "lognormal", {"median": 1.0, "sigma": 0.25}, tau=0.1)
 
-    # The slip phase is the Langevin one.
-    @property
-    def state_names(self):
-        return ("x", "v") if self.tau is None else ("x", "v", "eta")
+    # The slip phase is the Langevin one (LangevinSlip); only the threshold is random.
+    def threshold_at(self, key):
+        return self.threshold.sample(key)
 
-    @property
-    def noise_dim(self):
-        return 1
-
-    def drift(self, y):
-        x, v = y[0], y[1]
-        a = -(self.omega0**2) * x - self.zeta * v
-        if self.tau is None:
-            return jnp.stack([v, a])
-        eta = y[2]
-        return jnp.stack([v, a + eta, -eta / self.tau])
-
-    def diffusion(self, y):
-        g = jnp.sqrt(2.0 * self.D)
-        z = jnp.zeros_like(g)
-        if self.tau is None:
-            return jnp.stack([z, g]).reshape(2, 1)
-        return jnp.stack([z, z, g / self.tau]).reshape(3, 1)
-
-    @property
-    def stick_level(self):
-        return self.v_b
-
-    @property
-    def crossing_is_smooth(self):
-        return self.tau is not None or self.D == 0.0
-
-    def onset_state(self, key):
-        k_x0, k_eta = jax.random.split(key)
-        x0 = self.threshold.sample(k_x0)
-        if self.tau is None:
-            return jnp.stack([jnp.asarray(x0, float), jnp.asarray(self.v_b, float)])
-        if self.eta0 == "zero":
-            eta = jnp.zeros(())
-        else:
-            eta = jnp.sqrt(self.D / self.tau) * jax.random.normal(k_eta, (), dtype=jnp.float64)
-        return jnp.stack([jnp.asarray(x0, float), jnp.asarray(self.v_b, float), eta])
-
-    def linear_gaussian(self):
-        from stickslip import LinearGaussian
-
-        w2, z = self.omega0**2, self.zeta
-        x0 = self.threshold.average()
-        if self.tau is None:
-            A = jnp.array([[0.0, 1.0], [-w2, -z]])
-            B = jnp.array([[0.0], [jnp.sqrt(2.0 * self.D)]])
-            m0, P0 = jnp.array([x0, self.v_b]), jnp.zeros((2, 2))
-        else:
-            A = jnp.array([[0.0, 1.0, 0.0], [-w2, -z, 1.0], [0.0, 0.0, -1.0 / self.tau]])
-            B = jnp.array([[0.0], [0.0], [jnp.sqrt(2.0 * self.D) / self.tau]])
-            m0 = jnp.array([x0, self.v_b, 0.0])
-            P0 = jnp.diag(jnp.array([0.0, 0.0, 0.0 if self.eta0 == "zero" else self.D / self.tau]))
-        d = A.shape[0]
-        # m0, P0: the Gaussian part at the law's mean threshold; onset_mixture gives the law.
-        return LinearGaussian(
-            A=A, b=jnp.zeros(d), B=B, crossing=jnp.eye(d)[1], position=jnp.eye(d)[0], m0=m0, P0=P0
-        )
+    def mean_threshold(self):
+        return self.threshold.average()
 
     def onset_mixture(self, nodes=32):
         lg = self.linear_gaussian()

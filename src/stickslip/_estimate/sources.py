@@ -5,10 +5,11 @@ simulated upcrossings. Both give, on a uniform time grid t_k = k h, per componen
   upcrossing at t times the expected number of earlier ones);
 - the position-resolved densities as boxes: times `T`, positions `X` and widths in x (all
   (K, P); width 0 for point masses) with the weights of n1(x, t) dx dt and of
-  K2(x, t) dx dt they carry,
+  K2(x, t) dx dt they carry, and the onset position of each (broadcastable to `X`);
 
-and the component weights `w` (K,) (their sum is the probability that the slip has
-non-zero length) and onset positions `x0` (K,).
+the component weights `w` (K,) (their sum is the probability that the slip has non-zero
+length), and `thresholds`, the law of the onset position as `(nodes, weights)` (for the
+next cycle's threshold).
 """
 
 from __future__ import annotations
@@ -274,7 +275,6 @@ class EmpiricalSource:
         self.immediate_probability = float(np.mean(u.immediate))
         self.w = np.array([1.0 - self.immediate_probability])
         onset = u.onset_position
-        self.x0 = np.array([float(np.mean(onset[slip])) if slip.any() else 0.0])
         times, pos = u.times[slip], u.positions[slip]
         self.n_slip = max(int(slip.sum()), 1)
         index = np.broadcast_to(np.arange(times.shape[1]), times.shape)

@@ -187,8 +187,7 @@ class _ChainStep(diffrax.AbstractSolver):
     model: Any
     key: Any
     n_paths: int = eqx.field(static=True)
-    max_events: int = eqx.field(static=True)
-    max_quiet: int = eqx.field(static=True)
+    max_events: int = eqx.field(static=True)  # per path, for events and quiet times alike
     stride: int = eqx.field(static=True)
     record_blocks: bool = eqx.field(static=True)
 
@@ -267,8 +266,8 @@ class _ChainStep(diffrax.AbstractSolver):
             quiet = (Vm0 > level) & (Vm1 <= level)
             t_quiet = t0 + dt * (Vm0 - level) / jnp.where(quiet, Vm0 - Vm1, 1.0)
         qbuf, n_quiet = y["quiet"], y["n_quiet"]
-        qslot = jnp.minimum(n_quiet, self.max_quiet - 1).astype(jnp.int32)
-        qwrite = quiet & (n_quiet < self.max_quiet)
+        qslot = jnp.minimum(n_quiet, self.max_events - 1).astype(jnp.int32)
+        qwrite = quiet & (n_quiet < self.max_events)
         qbuf = qbuf.at[rows, qslot].set(jnp.where(qwrite, t_quiet, qbuf[rows, qslot]))
         n_quiet = n_quiet + quiet
         # time series, every `stride` steps
@@ -310,7 +309,6 @@ def simulate_chain(
     record_dt: float | None = None,
     record_blocks: bool = False,
     max_events: int | None = None,
-    initial: str = "relaxed",
 ) -> ChainRun:
     """Simulate `n_paths` independent chains for `t_max` time units.
 
@@ -319,9 +317,9 @@ def simulate_chain(
     - `record_dt`: spacing of the time series (default: 1000 points over the run);
       `record_blocks` also keeps every block's velocity;
     - `max_events`: event buffer per path (default from `t_max`); `n_events` counts them all;
-    - `initial`: `"relaxed"` starts every block stuck at rest with the loading springs
-      slack and each block's static limit drawn (the stress builds up from zero); the
-      driver then loads them.
+
+    Every chain starts relaxed: each block stuck at rest with its loading spring slack
+    (and its static limit drawn, with a random threshold); the driver then loads them.
     """
     owner = "simulate_chain"
     if not isinstance(model, ChainModel):
@@ -329,8 +327,6 @@ def simulate_chain(
     t_max = check_positive(owner, "t_max", t_max)
     dt = check_positive(owner, "dt", dt)
     n_paths = check_int(owner, "n_paths", n_paths, minimum=1)
-    if initial != "relaxed":
-        raise ParameterError(owner, "initial", "must be 'relaxed'", initial)
     n_steps = int(math.ceil(t_max / dt - 1e-9))
     t_max = n_steps * dt
     record_dt = t_max / 1000 if record_dt is None else check_positive(owner, "record_dt", record_dt)
@@ -362,7 +358,7 @@ def simulate_chain(
     y0["series"] = {
         name: jnp.zeros((P, n_rec) + v.shape[1:]).at[:, 0].set(v) for name, v in first.items()
     }
-    solver = _ChainStep(_to_arrays(model), key, P, max_events, max_events, stride, record_blocks)
+    solver = _ChainStep(_to_arrays(model), key, P, max_events, stride, record_blocks)
     sol = _solve(solver, solver.model, y0, jnp.asarray(dt), jnp.asarray(t_max), n_steps)
     final = jax.tree.map(lambda a: np.asarray(a)[-1], sol.ys)
     series = final["series"]
