@@ -18,12 +18,8 @@ class LangevinSlip(FrictionModel):
     slip) and `mean_threshold()` (for the Gaussian description; `onset_mixture` gives the
     law of a random threshold)."""
 
-    omega0: eqx.AbstractVar[float]
-    zeta: eqx.AbstractVar[float]
-    D: eqx.AbstractVar[float]
-    v_b: eqx.AbstractVar[float]
-    tau: eqx.AbstractVar[float | None]
-    eta0: eqx.AbstractVar[str]
+    # The parameters `omega0`, `zeta`, `D`, `v_b`, `tau`, `eta0` are the concrete model's
+    # fields (not declared here, so that each model keeps its own field order).
 
     def _check_slip(self, name):
         check_positive(name, "omega0", self.omega0)
@@ -38,7 +34,8 @@ class LangevinSlip(FrictionModel):
             )
 
     def threshold_at(self, key):
-        """The onset position x0 of one slip (`key`: a JAX PRNG key)."""
+        """The onset position x0 of one slip (`key`: the onset's JAX PRNG key, also used for
+        the initial noise: fold in a constant before drawing from it)."""
         raise NotImplementedError
 
     def mean_threshold(self):
@@ -78,7 +75,7 @@ class LangevinSlip(FrictionModel):
         return self.tau is not None or self.D == 0.0
 
     def onset_state(self, key):
-        x0 = jnp.asarray(self.threshold_at(jax.random.fold_in(key, 1)), float)
+        x0 = jnp.asarray(self.threshold_at(key), float)
         if self.tau is None:
             return jnp.stack([x0, jnp.asarray(self.v_b, float)])
         if self.eta0 == "zero":

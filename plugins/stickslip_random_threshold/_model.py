@@ -7,6 +7,7 @@ import numpy as np
 from stickslip_langevin import LangevinSlip
 
 from stickslip._errors import check_real
+from stickslip._jax import jax
 
 from ._laws import ThresholdLaw, make_law
 
@@ -83,7 +84,7 @@ class RandomThreshold(LangevinSlip):
 
     # The slip phase is the Langevin one (LangevinSlip); only the threshold is random.
     def threshold_at(self, key):
-        return self.threshold.sample(key)
+        return self.threshold.sample(jax.random.fold_in(key, 1))
 
     def mean_threshold(self):
         return self.threshold.average()
