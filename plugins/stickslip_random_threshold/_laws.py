@@ -188,6 +188,12 @@ def make_law(name, params) -> ThresholdLaw:
     import dataclasses
 
     fields = [f.name for f in dataclasses.fields(cls)]
+    if params is not None and not (
+        isinstance(params, dict) and all(isinstance(k, str) for k in params)
+    ):
+        raise ParameterError(
+            _NAME, "threshold_params", "must be a dict of the law's parameters by name", params
+        )
     params = dict(params or {})
     for key in params:
         if key not in fields:

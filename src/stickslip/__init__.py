@@ -39,6 +39,10 @@ _LAZY = {
     "get_friction_law": ".friction",
     "ApproximationWarning": "._estimate",
     "EulerMaruyama": "._solver",
+    "Study": ".study",
+    "StudyError": ".study",
+    "load_study": ".study",
+    "run_study": ".study",
 }
 
 __all__ = [

@@ -160,6 +160,15 @@ class FrictionModel(eqx.Module):
             for f in dataclasses.fields(cls)
         }
 
+    @classmethod
+    def params_model(cls):
+        """The pydantic model that checks this model's `params` in a study: unknown names,
+        missing required ones and wrong types. The default is built from `parameters()` and
+        the field annotations; values are then checked by constructing the model."""
+        from .study.params import default_params_model
+
+        return default_params_model(cls)
+
     @property
     def state_dim(self) -> int:
         return len(self.state_names)

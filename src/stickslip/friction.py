@@ -194,10 +194,17 @@ def get_friction_law(name: str | FrictionLaw, **params) -> FrictionLaw:
     except (KeyError, TypeError):
         options = ", ".join(repr(k) for k in FRICTION_LAWS)
         raise ParameterError("friction", "law", f"must be one of {options}", name) from None
+    import inspect
+
+    accepted = list(inspect.signature(cls.__init__).parameters)[1:]
+    for key in params:
+        if key not in accepted:
+            raise ParameterError("friction", name, f"takes {_signature(cls)}: no parameter '{key}'")
     try:
         return cls(**params)
-    except TypeError as exc:  # a missing or unknown parameter
-        raise ParameterError("friction", name, f"takes {_signature(cls)}: {exc}") from None
+    except TypeError as exc:  # a missing parameter
+        text = str(exc).split(": ", 1)[-1] if "missing" in str(exc) else str(exc)
+        raise ParameterError("friction", name, f"takes {_signature(cls)}: {text}") from None
 
 
 def _signature(cls):

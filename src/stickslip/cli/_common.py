@@ -1,0 +1,51 @@
+"""What every command shares: bad input exits 2 with one line, failures exit 1."""
+
+from __future__ import annotations
+
+import functools
+import sys
+
+import click
+
+EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
+
+
+def handle_errors(func):
+    """Run a command body: a `StudyError` (bad input) is one line on stderr and exit 2; any
+    other error is one line and exit 1, with the traceback under `--debug`."""
+
+    @functools.wraps(func)
+    def wrapper(*args, debug: bool = False, **kwargs):
+        from ..study import StudyError
+
+        try:
+            return func(*args, **kwargs)
+        except StudyError as err:
+            click.echo(f"error: {err}", err=True)
+            sys.exit(EXIT_BAD_INPUT)
+        except KeyboardInterrupt:
+            click.echo("interrupted: nothing was written under the output name", err=True)
+            sys.exit(130)
+        except Exception as err:  # a failure during the run
+            if debug:
+                raise
+            text = str(err).splitlines()[0] if str(err) else ""
+            click.echo(
+                f"error: run failed: {type(err).__name__}: {text} (--debug shows the traceback)",
+                err=True,
+            )
+            sys.exit(EXIT_FAILURE)
+
+    return click.option("--debug", is_flag=True, help="Show the full traceback of a failure.")(
+        wrapper
+    )
+
+
+def set_option(func):
+    return click.option(
+        "--set",
+        "overrides",
+        multiple=True,
+        metavar="KEY=VALUE",
+        help="Override a setting (dotted key, YAML value), e.g. --set simulation.n_paths=2000.",
+    )(func)

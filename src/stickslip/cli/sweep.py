@@ -1,0 +1,69 @@
+"""`stickslip sweep`: run a study over values of one or more settings."""
+
+from __future__ import annotations
+
+import click
+
+from ._common import handle_errors, set_option
+
+
+@click.command()
+@click.argument("study", type=click.Path(dir_okay=True, path_type=str))
+@click.option(
+    "--param",
+    "-p",
+    "params",
+    multiple=True,
+    required=True,
+    metavar="KEY=V1,V2,...",
+    help="A setting and its values, e.g. -p model.params.v_b=0.5,1,2 (repeatable).",
+)
+@click.option(
+    "--zip",
+    "zipped",
+    is_flag=True,
+    help="Take the values side by side instead of every combination.",
+)
+@click.option(
+    "--out",
+    "-o",
+    required=True,
+    type=click.Path(path_type=str),
+    help="Directory for results.nc, the figures and summary.md.",
+)
+@set_option
+@click.option("--force", is_flag=True, help="Replace an existing, non-empty output directory.")
+@click.option("--quiet", "-q", is_flag=True, help="No progress messages or bars.")
+@handle_errors
+def sweep(study, params, zipped, out, overrides, force, quiet):
+    """Run STUDY at each value of the --param settings (this replaces any sweep block)."""
+    import yaml
+
+    from ..study import StudyError, run_study
+    from ..study.load import parse_value
+
+    values = {}
+    for item in params:
+        key, sep, text = item.partition("=")
+        key = key.strip()
+        if not sep or not key or not text.strip():
+            raise StudyError("--param", None, f"expected KEY=V1,V2,... (got {item!r})")
+        if key in values:
+            raise StudyError("--param", key, "is given twice (list its values once: V1,V2,...)")
+        try:
+            values[key] = [parse_value(v) for v in text.split(",")]
+        except yaml.YAMLError as err:
+            reason = f"values {text!r} are not valid YAML ({str(err).splitlines()[0]})"
+            raise StudyError("--param", key, reason) from None
+    block = {"parameters": values, "mode": "zip" if zipped else "product"}
+    from ..study.load import _sweep_override
+
+    run_study(
+        study,
+        out,
+        overrides=[*overrides, _sweep_override(block)],
+        force=force,
+        progress=False if quiet else None,
+    )
+    if not quiet:
+        click.echo(f"results in {out}/ (summary.md, results.nc, figures)")

@@ -1,0 +1,14 @@
+"""Studies: YAML files that say which model to simulate, which theory to compare and what to
+write (`stickslip run STUDY.yaml --out DIR`, or `stickslip.run_study`)."""
+
+from .load import StudyError, load_study
+from .run import run_study
+from .schema import Study
+
+
+def study_schema() -> dict:
+    """The JSON schema of a study file."""
+    return Study.model_json_schema()
+
+
+__all__ = ["Study", "StudyError", "load_study", "run_study", "study_schema"]

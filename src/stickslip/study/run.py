@@ -1,0 +1,405 @@
+"""Running a study: simulation, theory and their comparison, gathered in one xarray Dataset.
+
+`run_study` is what `stickslip run` calls. For each point of the study (one, or one per
+sweep value) it simulates the model, evaluates every requested level-crossing
+approximation, and histograms the simulation on grids shared with the theory; then it
+assembles an `xarray.Dataset` and, given `out`, writes it with the figures and a summary.
+The simulator is asked only for what the outputs need (upcrossings only for `n1`, `n2` or an
+empirical estimate; successive cycles only for time series and phase portraits).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import pathlib
+import time
+import warnings
+from typing import Any
+
+import numpy as np
+
+from .load import StudyError, load_study
+from .schema import DENSITIES, Study
+
+THEORY_DENSITIES = ("slip_time", "period", "slip_distance")  # stick_time: simulation only
+EVENTS = ("event_size", "event_duration", "event_interval")
+
+
+@dataclasses.dataclass
+class _Point:
+    """Everything computed for one point of a study."""
+
+    study: Study
+    values: dict[str, Any]
+    ensemble: Any = None
+    cycles: Any = None
+    chain: Any = None
+    exact: Any = None
+    empirical: Any = None
+    timings: dict[str, float] = dataclasses.field(default_factory=dict)
+    warnings: list[str] = dataclasses.field(default_factory=list)
+
+
+class _Progress:
+    """Stage messages on stderr (one line each) unless quiet."""
+
+    def __init__(self, enabled: bool):
+        self.enabled = enabled
+
+    def __call__(self, text: str):
+        if self.enabled:
+            import sys
+
+            print(text, file=sys.stderr, flush=True)
+
+
+def run_study(
+    study: Study | str | os.PathLike | dict,
+    out: str | os.PathLike | None = None,
+    *,
+    overrides=None,
+    force: bool = False,
+    progress: bool | None = None,
+    figures: bool = True,
+):
+    """Run a study and return its results as an `xarray.Dataset`.
+
+    **Arguments:**
+
+    - `study`: a `Study`, a path to a YAML study, or the study as a dict.
+    - `out`: directory to write `results.nc`, the figures (PNG) and `summary.md` to; None
+      writes nothing. An existing non-empty directory is replaced only with `force=True`,
+      and only once everything is written: the files are made in a temporary directory
+      beside it and moved into place at the end, so a run stopped midway leaves no
+      half-written file under a final name.
+    - `overrides`: `["key=value", ...]` applied to the study first (dotted keys, YAML values).
+    - `progress`: progress messages and bars on stderr (default: when stderr is a terminal).
+    - `figures`: write the figures (with `out`).
+
+    **Raises:** `StudyError` for an invalid study or output directory (before any work).
+    """
+    import sys
+
+    study = load_study(study, overrides)
+    out_dir = None if out is None else _check_out(pathlib.Path(out), force)
+    if progress is None:
+        progress = sys.stderr.isatty()
+    say = _Progress(progress)
+    points = [_Point(s, values) for values, s in study.points()]
+    for i, point in enumerate(points):
+        label = ", ".join(f"{k}={v!r}" for k, v in point.values.items())
+        if label:
+            say(f"[{i + 1}/{len(points)}] {label}")
+        _compute(point, progress, say)
+    t0 = time.perf_counter()
+    grids = _grids(study, points)
+    from .dataset import assemble
+
+    ds = assemble(study, points, grids)
+    ds.attrs["seconds_theory_densities"] = time.perf_counter() - t0
+    if out_dir is not None:
+        from .write import write_results
+
+        write_results(ds, study, out_dir, force=force, figures=figures, say=say)
+    return ds
+
+
+def _check_out(out: pathlib.Path, force: bool) -> pathlib.Path:
+    if out.exists() and not out.is_dir():
+        raise StudyError("--out", None, f"{out} exists and is not a directory")
+    if out.is_dir() and any(out.iterdir()) and not force:
+        raise StudyError(
+            "--out", None, f"{out} exists and is not empty (use --force to replace it)"
+        )
+    parent = out.resolve().parent
+    if not parent.is_dir():
+        raise StudyError("--out", None, f"parent directory {parent} does not exist")
+    if not os.access(parent, os.W_OK):
+        raise StudyError("--out", None, f"parent directory {parent} is not writable")
+    return out
+
+
+# -- simulation and estimators -----------------------------------------------------------
+def _compute(point: _Point, progress: bool, say):
+    from .._simulate.chain import ChainModel
+
+    s = point.study
+    model = s.model.instance
+    if isinstance(model, ChainModel):
+        _compute_chain(point, say)
+        return
+    import stickslip as ss
+
+    outs = s.resolved_outputs()
+    sim = s.simulation
+    sources = [_source(s, a) for a in s.analytic]
+    lg = model.linear_gaussian() is not None
+    if sim is not None and any(q in outs for q in (*DENSITIES, "n1", "n2")):
+        record = sim.upcrossings if ("n1" in outs or "n2" in outs or "empirical" in sources) else 0
+        say(f"simulate: {sim.n_paths} paths, dt={sim.dt:g}, solver={sim.solver}")
+        ens = ss.simulate(
+            model,
+            sim.n_paths,
+            sim.dt,
+            sim.t_max,
+            sim.seed,
+            solver=sim.solver,
+            monitor=sim.monitor,
+            chunk_size=sim.chunk_size,
+            progress=progress,
+            record_upcrossings=record,
+        )
+        point.ensemble = ens
+        point.timings["simulation"] = ens.stats["wall_seconds"]
+        point.timings["simulation_compile"] = ens.stats["compile_seconds"]
+    if sim is not None and ("time_series" in outs or "phase_portrait" in outs):
+        say(f"simulate_cycles: {sim.cycles.n_paths} paths to t={sim.cycles.t_max:g}")
+        t0 = time.perf_counter()
+        point.cycles = ss.simulate_cycles(
+            model,
+            sim.cycles.n_paths,
+            sim.dt,
+            sim.cycles.t_max,
+            sim.seed,
+            solver=sim.solver,
+            monitor=sim.monitor,
+        )
+        point.timings["cycles"] = time.perf_counter() - t0
+    opts = s.estimator
+    if lg and ("exact" in sources or "n1" in outs or "n2" in outs):
+        t0 = time.perf_counter()
+        point.exact = ss.CrossingEstimator(
+            model, dt=opts.dt, horizon=opts.horizon, mixing=opts.mixing
+        )
+        point.timings["estimator_setup"] = time.perf_counter() - t0
+    if "empirical" in sources:
+        mixing = None if opts.mixing == "components" else opts.mixing
+        point.empirical = ss.CrossingEstimator(
+            model, ensemble=point.ensemble, dt=opts.dt, horizon=opts.horizon, mixing=mixing
+        )
+
+
+def _source(study: Study, analytic) -> str:
+    if analytic.source != "auto":
+        return analytic.source
+    return "exact" if study.model.instance.linear_gaussian() is not None else "empirical"
+
+
+def _compute_chain(point: _Point, say):
+    import stickslip as ss
+
+    sim = point.study.simulation
+    say(f"simulate_chain: {sim.n_paths} chains to t={sim.t_max:g}, dt={sim.dt:g}")
+    t0 = time.perf_counter()
+    point.chain = ss.simulate_chain(
+        point.study.model.instance,
+        t_max=sim.t_max,
+        dt=sim.dt,
+        n_paths=sim.n_paths,
+        seed=sim.seed,
+    )
+    point.timings["simulation"] = time.perf_counter() - t0
+
+
+# -- grids ---------------------------------------------------------------------------------
+def _grids(study: Study, points: list[_Point]) -> dict[str, np.ndarray]:
+    """Bin edges of every density output, shared by all points: given ends, else from the
+    pooled simulated values (0.5% and 99.5% quantiles; times start at 0), else from theory."""
+    outs = study.resolved_outputs()
+    edges: dict[str, np.ndarray] = {}
+    for q in DENSITIES:
+        if q in outs:
+            edges[q] = _edges(
+                study.grid.slip_time if q == "slip_time" else getattr(study.grid, q), q, points
+            )
+    if "n1" in outs or "n2" in outs:
+        stop = edges["slip_time"][-1] if "slip_time" in edges else None
+        for q in ("n1", "n2"):
+            if q in outs:
+                r = getattr(study.grid, q)
+                lo = 0.0 if r.start is None else r.start
+                hi = r.stop if r.stop is not None else (stop or _auto_stop(points, "slip_time"))
+                edges[q] = np.linspace(lo, hi, r.bins + 1)
+    for q in EVENTS:
+        if q in outs:
+            edges[q] = _event_edges(getattr(study.grid, q), q, points)
+    return edges
+
+
+def _edges(r, q, points):
+    lo, hi = r.start, r.stop
+    if lo is None or hi is None:
+        a, b = _auto_range(q, points)
+        lo = a if lo is None else lo
+        hi = b if hi is None else hi
+        if not hi > lo:
+            hi = lo + 1.0
+    return np.linspace(lo, hi, r.bins + 1)
+
+
+def _auto_stop(points, q):
+    return _auto_range(q, points)[1]
+
+
+def _auto_range(q, points) -> tuple[float, float]:
+    values = []
+    for p in points:
+        if p.ensemble is not None:
+            x = np.asarray(getattr(p.ensemble, q))
+            keep = p.ensemble.stuck & ~p.ensemble.immediate & np.isfinite(x)
+            values.append(x[keep])
+    data = np.concatenate(values) if values else np.array([])
+    if data.size >= 20:
+        lo, hi = np.quantile(data, [0.005, 0.995])
+    else:
+        lo, hi = _theory_range(q, points)
+    if q != "slip_distance":
+        return 0.0, float(hi)
+    pad = 0.05 * (hi - lo)
+    return float(lo - pad), float(hi + pad)
+
+
+def _theory_range(q, points) -> tuple[float, float]:
+    """Quantile range of a density from the theory's point masses (no simulation)."""
+    lows, highs = [], []
+    for p in points:
+        est = p.exact or p.empirical
+        if est is None:
+            continue
+        a = p.study.analytic[0]
+        T, X, W, mass, X0 = est._points(a.method, a.order, a.normalized)
+        T = np.broadcast_to(T, X.shape).ravel()
+        X0 = np.broadcast_to(X0, X.shape).ravel()
+        X, w = X.ravel(), np.abs(mass.ravel())
+        level = float(np.asarray(p.study.model.instance.stick_level))
+        value = {
+            "slip_time": T,
+            "slip_distance": X0 - X,
+            "period": T + np.maximum(X0 - X, 0.0) / level,
+            "stick_time": np.maximum(X0 - X, 0.0) / level,
+        }[q]
+        order = np.argsort(value)
+        c = np.cumsum(w[order])
+        if c.size == 0 or c[-1] <= 0:
+            continue
+        c /= c[-1]
+        lows.append(value[order][np.searchsorted(c, 0.005)])
+        highs.append(value[order][min(np.searchsorted(c, 0.995), c.size - 1)])
+    if not highs:
+        return 0.0, 10.0
+    return float(min(lows)), float(max(highs))
+
+
+def _event_edges(r, q, points):
+    values = np.concatenate([p.chain.events(q.removeprefix("event_")) for p in points])
+    values = values[np.isfinite(values) & (values > 0)]
+    lo = r.start if r.start is not None else (values.min() if values.size else 1.0)
+    hi = r.stop if r.stop is not None else (values.max() if values.size else 10.0)
+    if q == "event_size":  # integer sizes: log-spaced cells with integer edges (+ 1/2)
+        ints = np.unique(np.round(np.geomspace(max(lo, 1.0), hi + 1.0, r.bins + 1)))
+        if ints.size < 2:
+            ints = np.array([ints[0], ints[0] + 1.0])
+        return ints - 0.5
+    lo = max(lo, 1e-12)
+    if not hi > lo:
+        hi = lo * 10
+    return np.geomspace(lo, hi, r.bins + 1)
+
+
+# -- evaluations used by the dataset ---------------------------------------------------------
+def theory_density(point: _Point, analytic, q: str, edges: np.ndarray):
+    """One approximation of one density on cell centres; `(values, seconds, warnings)`."""
+    est = point.exact if _source(point.study, analytic) == "exact" else point.empirical
+    centres = 0.5 * (edges[1:] + edges[:-1])
+    t0 = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        args = (analytic.method, analytic.order, analytic.normalized)
+        if q == "slip_time":
+            values = cell_average(lambda t: est.first_passage(t, *args), edges, est.dt / 4)
+        elif q == "period":
+            values = est.period_density(centres, *args)
+        else:
+            values = est.slip_distance_density(centres, *args)
+    seconds = time.perf_counter() - t0
+    notes = [f"{analytic.key} {q}: {w.message}" for w in caught]
+    return np.asarray(values, float), seconds, notes
+
+
+def cell_average(f, edges, spacing: float):
+    """Average of a density over each cell (midpoint rule, points at most `spacing` apart),
+    to compare with a histogram where the density is steep (it rises from 0 to its peak
+    within a few hundredths of a time unit after slip onset)."""
+    k = int(min(1000, max(4, math.ceil(float(np.max(np.diff(edges))) / spacing))))
+    u = (np.arange(k) + 0.5) / k
+    x = edges[:-1, None] + np.diff(edges)[:, None] * u[None, :]
+    return np.asarray(f(x.ravel()), float).reshape(x.shape).mean(axis=1)
+
+
+def cell_average_2d(f, edges, k: int = 2):
+    """Cell averages of f(t1, t2) on a square grid (k x k midpoint rule per cell)."""
+    u = (np.arange(k) + 0.5) / k
+    x = (edges[:-1, None] + np.diff(edges)[:, None] * u[None, :]).ravel()
+    n = edges.size - 1
+    values = np.asarray(f(x, x), float).reshape(n, k, n, k)
+    return values.mean(axis=(1, 3))
+
+
+def mc_density(point: _Point, q: str, edges: np.ndarray):
+    """Histogram of the simulated slips of non-zero length, normalised by all paths (so it
+    compares with the theory's continuous part), and its standard errors."""
+    ens = point.ensemble
+    x = np.asarray(getattr(ens, q))
+    keep = ens.stuck & ~ens.immediate & np.isfinite(x)
+    counts, _ = np.histogram(x[keep], bins=edges)
+    n = ens.n_paths
+    p = counts / n
+    width = np.diff(edges)
+    return p / width, np.sqrt(p * (1 - p) / n) / width
+
+
+def mc_n1(point: _Point, edges: np.ndarray):
+    """Upcrossing density from the recorded upcrossings (`nan` beyond `t_complete`)."""
+    up = point.ensemble.upcrossings
+    t = up.times[~up.immediate]
+    counts, _ = np.histogram(t[np.isfinite(t)], bins=edges)
+    n = up.n_paths
+    width = np.diff(edges)
+    value, se = counts / (n * width), np.sqrt(counts) / (n * width)
+    beyond = edges[1:] > up.t_complete
+    value[beyond] = np.nan
+    se[beyond] = np.nan
+    return value, se
+
+
+def mc_n2(point: _Point, edges: np.ndarray):
+    """Joint density of two upcrossings at t1 != t2 (ordered pairs of recorded upcrossings)."""
+    up = point.ensemble.upcrossings
+    t = up.times[~up.immediate]
+    k = t.shape[1]
+    i, j = np.meshgrid(np.arange(k), np.arange(k), indexing="ij")
+    off = i != j
+    a, b = t[:, i[off]].ravel(), t[:, j[off]].ravel()
+    ok = np.isfinite(a) & np.isfinite(b)
+    counts, _, _ = np.histogram2d(a[ok], b[ok], bins=[edges, edges])
+    width = np.diff(edges)
+    value = counts / (up.n_paths * width[:, None] * width[None, :])
+    beyond = edges[1:] > up.t_complete
+    value[beyond, :] = np.nan
+    value[:, beyond] = np.nan
+    return value
+
+
+def l1(theory, mc, edges) -> float:
+    """L1 distance on the cells where both are defined."""
+    ok = np.isfinite(theory) & np.isfinite(mc)
+    return float(np.sum(np.abs(theory - mc)[ok] * np.diff(edges)[ok]))
+
+
+def l1_floor(se, edges) -> float:
+    """Expected L1 of the histogram's own sampling noise, sum sqrt(2/pi) se dx: an L1 below
+    it cannot be told from zero."""
+    ok = np.isfinite(se)
+    return float(math.sqrt(2 / math.pi) * np.sum(se[ok] * np.diff(edges)[ok]))

@@ -1,0 +1,548 @@
+"""The study schema: what a YAML study may say, checked by pydantic.
+
+Every model is strict: unknown keys are errors, types are not converted (an int is accepted
+where a float is expected, nothing else), and every setting carries a description so that
+the JSON schema (`stickslip schema`) documents itself. Checks that involve more than one
+field (the model's own parameters, outputs the model cannot give, a sweep over a parameter
+that does not exist) raise errors located at the field they are about.
+"""
+
+from __future__ import annotations
+
+import difflib
+import itertools
+from typing import Annotated, Any, Literal
+
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    ValidationError,
+    model_validator,
+)
+from pydantic_core import PydanticCustomError
+
+DENSITIES = ("slip_time", "period", "slip_distance", "stick_time")
+BLOCK_OUTPUTS = (*DENSITIES, "n1", "n2", "time_series", "phase_portrait")
+SINGLE_RUN_OUTPUTS = ("n1", "n2", "time_series", "phase_portrait")  # not over a sweep
+CHAIN_OUTPUTS = ("event_size", "event_duration", "event_interval", "time_series")
+OutputName = Literal[
+    "slip_time", "period", "slip_distance", "stick_time", "n1", "n2", "time_series",
+    "phase_portrait", "event_size", "event_duration", "event_interval",
+]  # fmt: skip
+
+
+def fail(loc: str, reason: str):
+    """An error located at `loc` (dotted, relative to the model being validated)."""
+    return PydanticCustomError("stickslip", "{reason}", {"loc": loc, "reason": reason})
+
+
+def suggest(word: str, options) -> str:
+    close = difflib.get_close_matches(str(word), [str(o) for o in options], n=1, cutoff=0.6)
+    return f"; did you mean '{close[0]}'?" if close else ""
+
+
+class Base(BaseModel):
+    model_config = ConfigDict(
+        extra="forbid", strict=True, validate_assignment=True, validate_default=True
+    )
+
+
+PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+PositiveInt = Annotated[int, Field(ge=1)]
+
+
+class ModelSpec(Base):
+    """The friction model: a plugin's name and its parameters."""
+
+    name: str = Field(description="Model name, as listed by `stickslip models`.")
+    params: dict[str, Any] = Field(
+        default_factory=dict,
+        description="The model's parameters, checked by the plugin's own parameter model "
+        "(`stickslip models` lists them; `stickslip schema --model NAME` prints their schema).",
+    )
+    _instance: Any = PrivateAttr(default=None)
+
+    @model_validator(mode="after")
+    def _build(self):
+        from .._errors import ParameterError
+        from .._registry import list_models
+
+        models = list_models()
+        if self.name not in models:
+            raise fail(
+                "name",
+                f"unknown model '{self.name}' (installed: {', '.join(models)})"
+                + suggest(self.name, models),
+            )
+        cls = models[self.name]
+        try:
+            values = cls.params_model().model_validate(self.params)
+        except ValidationError as err:
+            e = first_error(err)
+            loc = ".".join(str(p) for p in e["loc"])
+            names = list(cls.parameters())
+            if e["type"] == "extra_forbidden":
+                reason = f"unknown parameter of {self.name} (parameters: {', '.join(names)})"
+                reason += suggest(e["loc"][-1], names)
+            elif e["type"] == "missing":
+                reason = f"required parameter of {self.name} is missing"
+            else:
+                reason = describe_error(e)
+            raise fail(f"params.{loc}", reason) from None
+        kwargs = {k: getattr(values, k) for k in values.model_fields_set}
+        try:
+            self._instance = cls(**kwargs)
+        except ParameterError as err:
+            got = "" if err.value is None else f" (got {err.value!r})"
+            raise fail(f"params.{err.parameter}", f"{err.reason}{got}") from None
+        except (TypeError, ValueError) as err:
+            raise fail("params", str(err).splitlines()[0]) from None
+        return self
+
+    @property
+    def instance(self):
+        """The model object these settings make."""
+        return self._instance
+
+
+class Cycles(Base):
+    """A few paths run through successive cycles, for the time series and phase portraits."""
+
+    n_paths: int = Field(2, ge=1, le=64, description="Paths to run through many cycles.")
+    t_max: PositiveFloat = Field(60.0, description="Length of each path's run (time units).")
+
+
+class Simulation(Base):
+    """The Monte Carlo run (`stickslip.simulate`, or `simulate_chain` for chains)."""
+
+    n_paths: PositiveInt = Field(
+        100_000, le=2**32 - 1, description="Paths (one slip-stick cycle each); chains: chains."
+    )
+    dt: PositiveFloat = Field(0.005, description="Time step.")
+    t_max: PositiveFloat = Field(
+        60.0, description="Longest slip followed (chains: the length of the run)."
+    )
+    seed: int = Field(0, ge=0, lt=2**64, description="Random seed; results depend on it alone.")
+    solver: Literal["auto", "exact", "euler"] = Field(
+        "auto", description="'exact' Gaussian transitions, 'euler' (Euler-Maruyama), or 'auto'."
+    )
+    monitor: Literal["continuous", "grid"] = Field(
+        "continuous",
+        description="Look for the stick inside each step ('continuous') or only on the time "
+        "grid ('grid', the paper's convention).",
+    )
+    chunk_size: PositiveInt = Field(2**20, description="Paths per chunk (bounds the memory).")
+    upcrossings: PositiveInt = Field(
+        12,
+        le=256,
+        description="Upcrossings recorded per path when n1, n2 or an empirical estimate is "
+        "requested.",
+    )
+    cycles: Cycles = Field(default_factory=Cycles, description="Runs for time series.")
+
+    @model_validator(mode="after")
+    def _steps(self):
+        if self.t_max < self.dt:
+            raise fail("t_max", f"must be >= dt = {self.dt:g} (got {self.t_max:g})")
+        return self
+
+
+class Analytic(Base):
+    """One level-crossing approximation of the first-passage density."""
+
+    method: Literal["truncation", "decoupling"] = Field(
+        description="'truncation' (F_n, eq. 6) or 'decoupling' (F_g, eq. 7)."
+    )
+    order: Literal[1, 2] = Field(1, description="Order of the approximation.")
+    normalized: bool = Field(
+        False, description="Normalised truncation (cut where the integral reaches 1)."
+    )
+    source: Literal["auto", "exact", "empirical"] = Field(
+        "auto",
+        description="Crossing densities from the exact Gaussian formulas ('exact'), from "
+        "simulated upcrossings ('empirical'), or exact where the model allows ('auto').",
+    )
+    label: str | None = Field(None, description="Legend label (default from the method).")
+
+    @model_validator(mode="after")
+    def _normalised(self):
+        if self.normalized and self.method != "truncation":
+            raise fail("normalized", "applies only to method 'truncation'")
+        return self
+
+    @property
+    def key(self) -> str:
+        """A short identifier: e.g. `Fg1`, `Fn2_norm`, `Fg1_empirical`."""
+        k = f"F{'n' if self.method == 'truncation' else 'g'}{self.order}"
+        if self.normalized:
+            k += "_norm"
+        if self.source == "empirical":
+            k += "_empirical"
+        return k
+
+    @property
+    def title(self) -> str:
+        if self.label:
+            return self.label
+        sym = ("\\hat{\\mathcal{F}}" if self.normalized else "\\mathcal{F}") + (
+            "_n" if self.method == "truncation" else "_g"
+        )
+        name = f"${sym}^{{({self.order})}}$ {self.method}"
+        return name + (" (empirical)" if self.source == "empirical" else "")
+
+
+class Estimator(Base):
+    """Settings of the crossing-statistics estimator."""
+
+    dt: PositiveFloat | None = Field(
+        None, description="Time step of the series (default 0.01; 0.05 empirical)."
+    )
+    horizon: PositiveFloat | None = Field(
+        None, description="End of the time grid of the position-resolved densities."
+    )
+    mixing: Literal["components", "process"] | None = Field(
+        None, description="How a random onset is mixed (see CrossingEstimator)."
+    )
+
+
+class Range(Base):
+    """Bins of a histogram: `bins` cells between `start` and `stop`; a missing end is taken
+    from the simulated data (0.5% and 99.5% quantiles) or from the theory."""
+
+    start: float | None = Field(None, description="Left edge (default: automatic).")
+    stop: float | None = Field(None, description="Right edge (default: automatic).")
+    bins: int = Field(100, ge=2, le=100_000, description="Number of cells.")
+
+    @model_validator(mode="after")
+    def _order(self):
+        if self.start is not None and self.stop is not None and not self.stop > self.start:
+            raise fail("stop", f"must be > start = {self.start:g} (got {self.stop:g})")
+        return self
+
+
+class Grid(Base):
+    """Where densities are evaluated: shared by Monte Carlo histograms and the theory."""
+
+    slip_time: Range = Field(default_factory=Range, description="Slip times T_sl.")
+    period: Range = Field(default_factory=Range, description="Periods T = T_sl + T_st.")
+    slip_distance: Range = Field(default_factory=Range, description="Slip distances d.")
+    stick_time: Range = Field(default_factory=Range, description="Stick times T_st.")
+    n1: Range = Field(default_factory=Range, description="Times of the upcrossing density.")
+    n2: Range = Field(
+        default_factory=lambda: Range(bins=40), description="Times (both axes) of n2(t1, t2)."
+    )
+    event_size: Range = Field(
+        default_factory=lambda: Range(bins=30), description="Event sizes (log-spaced bins)."
+    )
+    event_duration: Range = Field(
+        default_factory=lambda: Range(bins=30), description="Event durations (log-spaced)."
+    )
+    event_interval: Range = Field(
+        default_factory=lambda: Range(bins=30), description="Times between events (log-spaced)."
+    )
+
+
+class Sweep(Base):
+    """Run the study at several values of one or more settings."""
+
+    parameters: dict[str, list[Any]] = Field(
+        description="Dotted path of a setting (e.g. `model.params.v_b`, `simulation.dt`) -> "
+        "the values it takes.",
+        min_length=1,
+    )
+    mode: Literal["product", "zip"] = Field(
+        "product", description="Every combination ('product') or values side by side ('zip')."
+    )
+
+    @model_validator(mode="after")
+    def _lengths(self):
+        for path, values in self.parameters.items():
+            if not values:
+                raise fail(f"parameters.{path}", "needs at least one value")
+        lengths = {len(v) for v in self.parameters.values()}
+        if self.mode == "zip" and len(lengths) > 1:
+            raise fail("parameters", f"mode 'zip' needs lists of one length (got {lengths})")
+        return self
+
+    def points(self) -> list[dict[str, Any]]:
+        """The settings of each point: `[{path: value, ...}, ...]`."""
+        paths = list(self.parameters)
+        values = [self.parameters[p] for p in paths]
+        combos = itertools.product(*values) if self.mode == "product" else zip(*values, strict=True)
+        return [dict(zip(paths, c, strict=True)) for c in combos]
+
+
+class Study(Base):
+    """A stick-slip study: a model, how to simulate it, which theory to compare, what to
+    write. Run it with `stickslip run STUDY.yaml --out DIR` or `stickslip.run_study`."""
+
+    title: str | None = Field(None, description="Title of the figures and the summary.")
+    description: str | None = Field(None, description="Free text, copied to the summary.")
+    model: ModelSpec = Field(description="The friction model.")
+    simulation: Simulation | None = Field(
+        default_factory=Simulation, description="The Monte Carlo run; null for theory only."
+    )
+    analytic: list[Analytic] = Field(
+        default_factory=list, description="Level-crossing approximations to compare."
+    )
+    estimator: Estimator = Field(default_factory=Estimator, description="Estimator settings.")
+    outputs: list[OutputName] | None = Field(
+        None,
+        description="What to compute and plot (default: slip_time, period, slip_distance for "
+        "a block; event_size, event_duration, time_series for a chain).",
+    )
+    grid: Grid = Field(default_factory=Grid, description="Grids of the densities.")
+    sweep: Sweep | None = Field(None, description="Parameters to sweep (optional).")
+
+    # -- cross-field checks ------------------------------------------------------------
+    @model_validator(mode="after")
+    def _consistent(self):
+        from .._simulate.chain import ChainModel
+
+        model = self.model.instance
+        chain = isinstance(model, ChainModel)
+        allowed = CHAIN_OUTPUTS if chain else BLOCK_OUTPUTS
+        kind = "a chain" if chain else "a single block"
+        for i, name in enumerate(self.outputs or ()):
+            if name not in allowed:
+                raise fail(
+                    f"outputs.{i}",
+                    f"'{name}' is not an output of {self.model.name} ({kind}); "
+                    f"choose from {', '.join(allowed)}",
+                )
+            if name in (self.outputs or ())[:i]:
+                raise fail(f"outputs.{i}", f"'{name}' is listed twice")
+        if chain:
+            if self.analytic:
+                raise fail(
+                    "analytic",
+                    f"the crossing estimator needs a single-block model; {self.model.name} is "
+                    "a chain (remove 'analytic')",
+                )
+            if self.simulation is None:
+                raise fail("simulation", f"is required for {self.model.name} (a chain)")
+        lg = None if chain else model.linear_gaussian()
+        keys = [a.key for a in self.analytic]
+        for i, key in enumerate(keys):
+            if key in keys[:i]:
+                raise fail(f"analytic.{i}", f"repeats an earlier entry ({key})")
+        for i, a in enumerate(self.analytic):
+            if a.source == "exact" and lg is None:
+                raise fail(
+                    f"analytic.{i}.source",
+                    f"'exact' needs a linear-Gaussian model; {self.model.name} is not "
+                    "(use 'empirical')",
+                )
+            if self.simulation is None and (a.source == "empirical" or lg is None):
+                raise fail(
+                    f"analytic.{i}.source",
+                    "an empirical estimate needs a simulation (simulation is null)",
+                )
+        if self.simulation is None:
+            for i, name in enumerate(self.resolved_outputs()):
+                if name in ("time_series", "phase_portrait"):
+                    raise fail(f"outputs.{i}", f"'{name}' needs a simulation")
+                if name in DENSITIES and not self.analytic:
+                    raise fail(f"outputs.{i}", f"'{name}' needs a simulation or an analytic method")
+        if self.sweep is not None:
+            drawn = ", ".join(n for n in allowed if n not in SINGLE_RUN_OUTPUTS)
+            for i, name in enumerate(self.resolved_outputs()):
+                if name in SINGLE_RUN_OUTPUTS:
+                    raise fail(
+                        f"outputs.{i}",
+                        f"'{name}' is not drawn over a sweep (run the study at one value; a "
+                        f"sweep draws {drawn})",
+                    )
+            self._check_sweep()
+        return self
+
+    def resolved_outputs(self) -> tuple[str, ...]:
+        """The outputs, with the default filled in."""
+        if self.outputs is not None:
+            return tuple(self.outputs)
+        from .._simulate.chain import ChainModel
+
+        if isinstance(self.model.instance, ChainModel):
+            return ("event_size", "event_duration", "time_series")
+        return ("slip_time", "period", "slip_distance")
+
+    def _check_sweep(self):
+        base = self.model_dump(exclude={"sweep"}, exclude_unset=True)
+        for path, values in self.sweep.parameters.items():
+            where = f"sweep.parameters.{path}"
+            parts = path.split(".")
+            if (
+                parts[0] in ("sweep", "outputs", "analytic")
+                or parts[0] not in type(self).model_fields
+            ):
+                raise fail(where, f"cannot sweep '{path}': not a setting of a study")
+            if parts[:2] == ["model", "params"]:
+                names = list(type(self.model.instance).parameters())
+                if len(parts) < 3 or parts[2] not in names:
+                    raise fail(
+                        where,
+                        f"unknown parameter of {self.model.name} (parameters: {', '.join(names)})"
+                        + suggest(parts[-1], names),
+                    )
+            elif not _settable(type(self), parts):
+                raise fail(where, f"cannot sweep '{path}': no such setting")
+            for j, value in enumerate(values):
+                data = set_path(base, path, value)
+                try:
+                    Study.model_validate(data)
+                except ValidationError as err:
+                    loc, reason = locate(first_error(err))
+                    raise fail(f"{where}.{j}", f"value {value!r}: {loc}: {reason}") from None
+
+    def points(self) -> list[tuple[dict[str, Any], Study]]:
+        """The studies to run: `[(swept values, study without sweep), ...]`."""
+        if self.sweep is None:
+            return [({}, self)]
+        base = self.model_dump(exclude={"sweep"}, exclude_unset=True)
+        out = []
+        for point in self.sweep.points():
+            data = base
+            for path, value in point.items():
+                data = set_path(data, path, value)
+            out.append((point, Study.model_validate(data)))
+        return out
+
+
+def _settable(model_cls, parts) -> bool:
+    """True if a dotted path names a (nested) field of a pydantic model class."""
+    import types
+    import typing
+
+    cls = model_cls
+    for part in parts:
+        if not (isinstance(cls, type) and issubclass(cls, BaseModel)):
+            return False
+        field = cls.model_fields.get(part)
+        if field is None:
+            return False
+        ann = field.annotation
+        # unwrap Optional[X]
+        if typing.get_origin(ann) in (typing.Union, types.UnionType):
+            args = [a for a in typing.get_args(ann) if a is not type(None)]
+            ann = args[0] if len(args) == 1 else ann
+        cls = ann
+    return True
+
+
+def set_path(data: dict, path: str, value: Any) -> dict:
+    """A copy of nested `data` with the dotted `path` set to `value` (missing levels are
+    created; a numeric part indexes a list)."""
+    import copy
+
+    out = copy.deepcopy(data)
+    parts = path.split(".")
+    node = out
+    for i, part in enumerate(parts):
+        last = i == len(parts) - 1
+        if isinstance(node, list):
+            where = ".".join(parts[:i])
+            try:
+                idx = int(part)
+            except ValueError:
+                raise KeyError(f"'{where}' is a list: index it by number") from None
+            if not -len(node) <= idx < len(node):
+                raise KeyError(f"'{where}' has {len(node)} item(s): no index {idx}")
+            if last:
+                node[idx] = value
+            else:
+                node = node[idx]
+            continue
+        if not isinstance(node, dict):
+            raise KeyError(f"'{'.'.join(parts[:i])}' is not a mapping or list")
+        if last:
+            node[part] = value
+        else:
+            if node.get(part) is None:
+                node[part] = {}
+            node = node[part]
+    return out
+
+
+def first_error(err: ValidationError) -> dict:
+    """The error to report: an unknown key first (a misspelt required key is also reported
+    missing, and the typo is the useful news), else the first."""
+    errors = err.errors()
+    for e in errors:
+        if e["type"] == "extra_forbidden":
+            return e
+    return errors[0]
+
+
+def describe_error(e: dict) -> str:
+    """One pydantic error as a reason: 'must be ...' with the offending value."""
+    msg = e["msg"]
+    if e["type"] == "stickslip":
+        return e["ctx"]["reason"]
+    if e["type"] == "missing":
+        return "is required"
+    if e["type"] == "extra_forbidden":
+        return "unknown key"
+    msg = msg.replace("Input should be", "must be").replace("Value error, ", "")
+    msg = msg.replace("must be a valid number", "must be a number")
+    for words, sym in (
+        ("greater than or equal to", ">="), ("less than or equal to", "<="),
+        ("greater than", ">"), ("less than", "<"),
+    ):  # fmt: skip
+        msg = msg.replace(f"must be {words}", f"must be {sym}")
+    if e["type"] in ("model_type", "dict_type"):
+        msg = f"must be a mapping of keys to values (got {_yaml_type(e.get('input'))})"
+    elif e["type"] == "list_type":
+        msg = f"must be a list (got {_yaml_type(e.get('input'))})"
+    elif e["type"] == "too_short":
+        msg = "must not be empty"
+    elif "input" in e:
+        value = e["input"]
+        if not isinstance(value, dict | list):
+            msg += f" (got {'null' if value is None else repr(value)})"
+    return msg
+
+
+def _yaml_type(value) -> str:
+    names = {dict: "a mapping", list: "a list", str: "a string", bool: "a boolean",
+             int: "an integer", float: "a number", type(None): "null"}  # fmt: skip
+    return names.get(type(value), type(value).__name__)
+
+
+def locate(e: dict) -> tuple[str, str]:
+    """The dotted location and the reason of one pydantic error (custom errors carry a
+    location relative to where they were raised)."""
+    loc = [str(p) for p in e["loc"]]
+    if e["type"] == "stickslip":
+        loc += [p for p in e["ctx"]["loc"].split(".") if p]
+    reason = describe_error(e)
+    if e["type"] == "extra_forbidden":
+        fields = _fields_at(loc[:-1])
+        if fields:
+            reason += f" (known: {', '.join(fields)})" + suggest(loc[-1], fields)
+    return ".".join(loc) or "study", reason
+
+
+def _fields_at(loc) -> list[str]:
+    """Field names of the (sub-)model at a location of the study."""
+    import types
+    import typing
+
+    cls: Any = Study
+    for part in loc:
+        if part.isdigit():
+            continue
+        if not (isinstance(cls, type) and issubclass(cls, BaseModel)):
+            return []
+        field = cls.model_fields.get(part)
+        if field is None:
+            return []
+        ann = field.annotation
+        while typing.get_origin(ann) in (typing.Union, types.UnionType, list):
+            args = [a for a in typing.get_args(ann) if a is not type(None)]
+            ann = args[0]
+        cls = ann
+    if isinstance(cls, type) and issubclass(cls, BaseModel):
+        return list(cls.model_fields)
+    return []

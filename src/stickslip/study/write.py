@@ -1,0 +1,187 @@
+"""Writing a study's results: `results.nc`, figures and `summary.md`, atomically.
+
+Everything is written into a temporary directory beside the target (`.NAME.partial-PID`)
+and moved into place when complete. A run stopped midway leaves that temporary directory and
+nothing under the final name; an existing target (replaced only with `--force`) is moved
+aside and deleted only after the new results are in place.
+"""
+
+from __future__ import annotations
+
+import os
+import pathlib
+import shutil
+import time
+
+import numpy as np
+import xarray as xr
+
+from .schema import Study
+
+NETCDF = "results.nc"
+
+
+def write_results(ds: xr.Dataset, study: Study, out: pathlib.Path, *, force, figures, say):
+    out = pathlib.Path(out)
+    tmp = out.parent / f".{out.name}.partial-{os.getpid()}"
+    if tmp.exists():
+        shutil.rmtree(tmp)
+    tmp.mkdir(parents=True)
+    timings = {}
+    try:
+        if figures:
+            from .plots import make_figures
+
+            t0 = time.perf_counter()
+            names = make_figures(ds, study, tmp)
+            timings["figures"] = time.perf_counter() - t0
+            say(f"figures: {', '.join(names)}")
+        t0 = time.perf_counter()
+        save_netcdf(ds, tmp / NETCDF)
+        timings["netcdf"] = time.perf_counter() - t0
+        (tmp / "summary.md").write_text(summary(ds, study, timings), encoding="utf-8")
+        (tmp / "study.yaml").write_text(ds.attrs["study"], encoding="utf-8")
+        _replace(tmp, out, force)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    say(f"wrote {out}/: {', '.join(sorted(p.name for p in out.iterdir()))}")
+
+
+def _replace(tmp: pathlib.Path, out: pathlib.Path, force: bool):
+    old = None
+    if out.exists():
+        if any(out.iterdir()):
+            if not force:  # checked before the run too; the directory may have filled since
+                raise FileExistsError(f"{out} exists and is not empty (use --force)")
+            old = out.parent / f".{out.name}.old-{os.getpid()}"
+            out.rename(old)
+        else:
+            out.rmdir()
+    tmp.rename(out)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def save_netcdf(ds: xr.Dataset, path: pathlib.Path):
+    """netCDF-4 through h5netcdf; booleans as int8 (netCDF has no boolean type)."""
+    ds = ds.copy()
+    for name, var in ds.variables.items():
+        if var.dtype == bool:
+            ds[name] = var.astype(np.int8)
+    ds.to_netcdf(path, engine="h5netcdf", invalid_netcdf=False)
+
+
+# -- summary ------------------------------------------------------------------------------
+def summary(ds: xr.Dataset, study: Study, timings: dict) -> str:
+    lines = [f"# {ds.attrs['title']}", ""]
+    if study.description:
+        lines += [study.description.strip(), ""]
+    lines += [
+        f"stickslip {ds.attrs['stickslip_version']}, {ds.attrs['created']}. "
+        f"Model `{study.model.name}`: "
+        + ", ".join(f"{k} = {v}" for k, v in study.model.instance.params().items()),
+        "",
+    ]
+    sim = study.simulation
+    if sim is not None:
+        lines += [
+            f"Simulation: {sim.n_paths} paths, dt = {sim.dt:g}, t_max = {sim.t_max:g}, "
+            f"solver `{sim.solver}`, monitor `{sim.monitor}`, seed {sim.seed}.",
+            "",
+        ]
+    if "point" in ds.dims:
+        lines += _sweep_table(ds, study)
+    else:
+        lines += _point_tables(ds)
+    lines += ["## Wall time", "", "| part | seconds |", "|---|---|"]
+    for name in sorted(ds.data_vars):
+        if name.startswith("seconds_"):
+            value = ds[name]
+            if "method" in value.dims:
+                axis = value.dims.index("method")
+                for i, m in enumerate(value["method"].values):
+                    total = float(np.take(value.values, i, axis=axis).sum())
+                    lines.append(f"| {name.removeprefix('seconds_')} `{m}` | {total:.3g} |")
+            else:
+                lines.append(f"| {name.removeprefix('seconds_')} | {float(value.sum()):.3g} |")
+    lines.append(
+        f"| theory densities and histograms | {ds.attrs['seconds_theory_densities']:.3g} |"
+    )
+    for part, seconds in timings.items():
+        lines.append(f"| writing {part} | {seconds:.3g} |")
+    lines.append("")
+    if ds.attrs.get("warnings"):
+        lines += ["## Warnings of the approximations", ""]
+        lines += [f"- {w}" for w in ds.attrs["warnings"].splitlines()]
+        lines.append("")
+    lines += ["## Files", "", "- `results.nc`: every number above and the curves (xarray/netCDF)"]
+    lines += ["- `study.yaml`: the study as run", "- `*.png`: figures", ""]
+    return "\n".join(lines)
+
+
+def _point_tables(ds) -> list[str]:
+    lines = []
+    if "fraction_stuck" in ds:
+        lines += ["## Monte Carlo", "", "| quantity | value |", "|---|---|"]
+        lines.append(f"| paths stuck before t_max | {float(ds.fraction_stuck):.4f} |")
+        lines.append(f"| immediate re-sticks | {float(ds.fraction_immediate):.4f} |")
+        for q in ("slip_time", "slip_distance", "stick_time", "period"):
+            if f"mean_{q}" in ds:
+                m, s = float(ds[f"mean_{q}"]), float(ds[f"mean_{q}_se"])
+                lines.append(f"| mean {q.replace('_', ' ')} | {m:.4f} ± {s:.2g} |")
+        lines.append("")
+    if "n_events" in ds:
+        lines += [
+            "## Events",
+            "",
+            f"{int(ds.n_events)} events, rate {float(ds.event_rate):.4g} per time unit per chain.",
+            "",
+        ]
+    for q in ("slip_time", "period", "slip_distance"):
+        if f"theory_{q}" not in ds:
+            continue
+        floor = float(ds[f"l1_floor_{q}"]) if f"l1_floor_{q}" in ds else float("nan")
+        lines += [
+            f"## {q.replace('_', ' ')}: L1 error against the simulation",
+            "",
+            f"On {ds[q].size} cells over [{float(ds[f'{q}_edges'][0]):.4g}, "
+            f"{float(ds[f'{q}_edges'][-1]):.4g}]; the histogram's own noise gives L1 about "
+            f"{floor:.3g}.",
+            "",
+            "| method | L1 | seconds |",
+            "|---|---|---|",
+        ]
+        for i, m in enumerate(ds["method"].values):
+            label = str(ds["method_label"].values[i])
+            lines.append(
+                f"| `{m}` {label} | {float(ds[f'l1_{q}'][i]):.4f} | "
+                f"{float(ds[f'seconds_theory_{q}'][i]):.3g} |"
+            )
+        lines.append("")
+    if "l1_n1" in ds:
+        lines += [
+            f"Upcrossing density n1: L1 of the exact theory against the simulated "
+            f"upcrossings {float(ds.l1_n1):.4f}.",
+            "",
+        ]
+    return lines
+
+
+def _sweep_table(ds, study) -> list[str]:
+    paths = list(study.sweep.parameters)
+    cols = [c for c in ("fraction_stuck", "mean_slip_time", "mean_period") if c in ds]
+    l1s = [v for v in ds.data_vars if v.startswith("l1_") and "method" in ds[v].dims]
+    head = paths + cols + [f"{v} `{m}`" for v in l1s for m in ds["method"].values]
+    lines = ["## Sweep", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for i in range(ds.sizes["point"]):
+        row = [str(ds[p].values[i]) for p in paths]
+        for c in cols:
+            v = float(ds[c][i])
+            se = f" ± {float(ds[c + '_se'][i]):.2g}" if c + "_se" in ds else ""
+            row.append(f"{v:.4f}{se}")
+        for v in l1s:
+            row += [f"{float(x):.4f}" for x in ds[v][i].values]
+        lines.append("| " + " | ".join(row) + " |")
+    lines.append("")
+    return lines
