@@ -234,3 +234,19 @@ def test_example_study(path, tmp_path):
     for name in ds.data_vars:
         if name.startswith("theory_") and name != "theory_n2":
             assert np.isfinite(ds[name].values).all(), name
+
+
+def test_documented_study_is_valid():
+    """The annotated study in docs/studies.md is a valid study (and its sweep block too)."""
+    import re
+
+    from stickslip.study.load import read_yaml
+
+    text = (EXAMPLES.parent / "docs" / "studies.md").read_text()
+    blocks = re.findall(r"^```yaml\n(.*?)^```", text, re.S | re.M)
+    full = read_yaml(blocks[0])
+    study = ss.load_study(full)
+    assert len(study.analytic) == 3 and study.simulation.cycles.n_paths == 2
+    sweep = read_yaml(blocks[1])
+    full["outputs"] = ["slip_time", "period"]
+    assert len(ss.load_study({**full, **sweep}).points()) == 6

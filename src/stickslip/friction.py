@@ -203,7 +203,10 @@ def get_friction_law(name: str | FrictionLaw, **params) -> FrictionLaw:
     try:
         return cls(**params)
     except TypeError as exc:  # a missing parameter
-        text = str(exc).split(": ", 1)[-1] if "missing" in str(exc) else str(exc)
+        import re
+
+        names = re.findall(r"'(\w+)'", str(exc)) if "missing" in str(exc) else []
+        text = f"missing {', '.join(names)}" if names else str(exc)
         raise ParameterError("friction", name, f"takes {_signature(cls)}: {text}") from None
 
 

@@ -171,6 +171,7 @@ def _one(study: Study, point, edges) -> xr.Dataset:
                 value, se = mc_n1(point, e)
                 data["mc_n1"] = (dims, value)
                 data["mc_n1_se"] = (dims, se)
+                data["l1_floor_n1"] = ((), l1_floor(se, e))
                 if point.exact is not None:
                     data["l1_n1"] = ((), l1(data["theory_n1"][1], value, e))
             else:

@@ -46,21 +46,26 @@ def _density_label(ds, coord, model) -> str:
     return f"{head} [1/{unit}]" if kind != "blocks" else head
 
 
-def _subtitle(study: Study) -> str:
-    params = study.model.instance.params()
+def _subtitle(study: Study, width_inches: float = 7.0) -> str:
+    """The model and its parameters (swept ones marked), wrapped to the figure's width."""
+    import textwrap
+
+    params = dict(study.model.instance.params())
+    if "threshold_description" in params:  # e.g. lognormal(median=1, sigma=0.4)
+        params["threshold"] = params.pop("threshold_description")
     swept = {p.split(".")[-1] for p in (study.sweep.parameters if study.sweep else ())}
     shown = [
         f"{k} swept" if k in swept else f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}"
         for k, v in params.items()
-        if v is not None and not isinstance(v, dict) and k != "threshold_description"
+        if v is not None and not isinstance(v, dict)
     ]
-    import textwrap
-
-    return "\n".join(textwrap.wrap(f"{study.model.name}: " + ", ".join(shown), 110))
+    width = int(width_inches * 13)  # characters of 9-point text per inch, with a margin
+    return "\n".join(textwrap.wrap(f"{study.model.name}: " + ", ".join(shown), width))
 
 
 def _title(ax, ds, study):
-    ax.set_title(f"{ds.attrs['title']}\n{_subtitle(study)}", fontsize=9)
+    width = ax.figure.get_figwidth()
+    ax.set_title(f"{ds.attrs['title']}\n{_subtitle(study, width)}", fontsize=9)
 
 
 def make_figures(ds, study: Study, out: pathlib.Path) -> list[str]:
@@ -204,7 +209,7 @@ def _n2(plt, ds, study, model):
         ax.set_title(titles[k], fontsize=9)
         ax.set_aspect("equal")
     fig.colorbar(im, ax=axes[0], label=f"$n_2$ [1/{units_of(model, 'time')}$^2$]")
-    fig.suptitle(f"{ds.attrs['title']}\n{_subtitle(study)}", fontsize=9)
+    fig.suptitle(f"{ds.attrs['title']}\n{_subtitle(study, fig.get_figwidth())}", fontsize=9)
     return fig
 
 
@@ -243,7 +248,9 @@ def _time_series(plt, ds, study, model):
         ax.legend(fontsize=8, loc="upper right")
     axes[-1, 0].set_xlabel(f"time $t$ [{units_of(model, 'time')}]")
     fig.suptitle(
-        f"{ds.attrs['title']}: stick-slip motion of one path\n{_subtitle(study)}", fontsize=9
+        f"{ds.attrs['title']}: stick-slip motion of one path\n"
+        + _subtitle(study, fig.get_figwidth()),
+        fontsize=9,
     )
     return fig
 
@@ -307,7 +314,9 @@ def _chain_series(plt, ds, study):
     axes[1].set_xlabel("time $t$ [time units]")
     for ax in axes:
         ax.legend(fontsize=8, loc="upper right")
-    fig.suptitle(f"{ds.attrs['title']}: chain 0\n{_subtitle(study)}", fontsize=9)
+    fig.suptitle(
+        f"{ds.attrs['title']}: chain 0\n{_subtitle(study, fig.get_figwidth())}", fontsize=9
+    )
     return fig
 
 
@@ -369,5 +378,8 @@ def _sweep(plt, ds, study):
         ax.set_ylabel("L1 error against\nthe simulation")
         ax.legend(fontsize=7)
     axes[-1].set_xlabel(f"{name}  ({path})")
-    fig.suptitle(f"{ds.attrs['title']}: sweep over {path}\n{_subtitle(study)}", fontsize=9)
+    fig.suptitle(
+        f"{ds.attrs['title']}: sweep over {path}\n{_subtitle(study, fig.get_figwidth())}",
+        fontsize=9,
+    )
     return fig
