@@ -2,8 +2,8 @@
 
 Every case here fails at validation (or at the check of `--out`), before any simulation:
 `_no_simulation` makes sure of it, so a case whose bad input is wrongly accepted fails fast
-instead of running a Monte Carlo. Problems found while writing it were
-fixed; `case(..., xfail=...)` marks a known one, asserting the correct behaviour.
+instead of running a Monte Carlo. The problems it found
+while it was written are fixed.
 """
 
 from __future__ import annotations
@@ -108,11 +108,10 @@ def study(changes=None, drop=(), base=LANGEVIN) -> str:
     return yaml.safe_dump(data, sort_keys=False)
 
 
-def case(case_id, argv, expect, *, text=None, contains=(), absent=(), xfail=None):
+def case(case_id, argv, expect, *, text=None, contains=(), absent=()):
     """One bad input: `argv` (placeholders in braces, see `paths`), the study text written
     to {study}, the required start of the error line, and substrings it must (not) hold."""
-    marks = [pytest.mark.xfail(strict=True, reason=xfail)] if xfail else []
-    return pytest.param(argv, text, expect, tuple(contains), tuple(absent), id=case_id, marks=marks)
+    return pytest.param(argv, text, expect, tuple(contains), tuple(absent), id=case_id)
 
 
 V = ["validate", "{study}"]  # validate the study written from `text`

@@ -49,3 +49,23 @@ def set_option(func):
         metavar="KEY=VALUE",
         help="Override a setting (dotted key, YAML value), e.g. --set simulation.n_paths=2000.",
     )(func)
+
+
+def output_options(func):
+    """`--out`, `--force` and `--quiet`, shared by the commands that write results."""
+    func = click.option("--quiet", "-q", is_flag=True, help="No progress messages or bars.")(func)
+    func = click.option(
+        "--force", is_flag=True, help="Replace an existing, non-empty output directory."
+    )(func)
+    return click.option(
+        "--out",
+        "-o",
+        required=True,
+        type=click.Path(path_type=str),
+        help="Directory for results.nc, the figures and summary.md.",
+    )(func)
+
+
+def report_written(out: str, quiet: bool):
+    if not quiet:
+        click.echo(f"results in {out}/ (summary.md, results.nc, figures)")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ._common import handle_errors, set_option
+from ._common import handle_errors, output_options, report_written, set_option
 
 
 @click.command()
@@ -24,16 +24,8 @@ from ._common import handle_errors, set_option
     is_flag=True,
     help="Take the values side by side instead of every combination.",
 )
-@click.option(
-    "--out",
-    "-o",
-    required=True,
-    type=click.Path(path_type=str),
-    help="Directory for results.nc, the figures and summary.md.",
-)
+@output_options
 @set_option
-@click.option("--force", is_flag=True, help="Replace an existing, non-empty output directory.")
-@click.option("--quiet", "-q", is_flag=True, help="No progress messages or bars.")
 @handle_errors
 def sweep(study, params, zipped, out, overrides, force, quiet):
     """Run STUDY at each value of the --param settings (this replaces any sweep block)."""
@@ -65,5 +57,4 @@ def sweep(study, params, zipped, out, overrides, force, quiet):
         force=force,
         progress=False if quiet else None,
     )
-    if not quiet:
-        click.echo(f"results in {out}/ (summary.md, results.nc, figures)")
+    report_written(out, quiet)
