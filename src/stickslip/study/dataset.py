@@ -83,6 +83,19 @@ def assemble(study: Study, points, edges) -> xr.Dataset:
         created=datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         warnings="\n".join(w for p in points for w in p.warnings),
     )
+    choices = {q: c for p in points for q, c in p.choices.items()}
+    if choices:
+        ds.attrs["method_choice"] = json.dumps(
+            {
+                q: dict(
+                    settings=c.settings,
+                    error=c.chosen.error,
+                    seconds=c.chosen.seconds,
+                    reason=c.reason,
+                )
+                for q, c in choices.items()
+            }
+        )
     return ds
 
 

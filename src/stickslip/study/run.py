@@ -38,6 +38,7 @@ class _Point:
     chain: Any = None
     exact: Any = None
     empirical: Any = None
+    choices: dict = dataclasses.field(default_factory=dict)
     timings: dict[str, float] = dataclasses.field(default_factory=dict)
     warnings: list[str] = dataclasses.field(default_factory=list)
 
@@ -88,6 +89,9 @@ def run_study(
         progress = sys.stderr.isatty()
     say = _Progress(progress)
     points = [_Point(s, values) for values, s in study.points()]
+    if study.method == "auto":
+        _choose(points[0], say)
+        study = points[0].study
     for i, point in enumerate(points):
         label = ", ".join(f"{k}={v!r}" for k, v in point.values.items())
         if label:
@@ -104,6 +108,43 @@ def run_study(
 
         write_results(ds, study, out_dir, force=force, figures=figures, say=say)
     return ds
+
+
+def _choose(point: _Point, say):
+    """method: auto: choose per requested density, then run one simulation (the most
+    demanding Monte Carlo choice) and/or the chosen level-crossing approximations."""
+    from ..selection import SelectionError, select_method
+    from .schema import Analytic
+
+    s = point.study
+    sim = (
+        s.simulation
+        if s.simulation is not None
+        else type(s).model_fields["simulation"].default_factory()
+    )
+    model = s.model.instance
+    choices = {}
+    for q in s.resolved_outputs():
+        try:
+            choices[q] = select_method(model, s.tolerance, q, t_max=sim.t_max, seed=sim.seed)
+        except SelectionError as err:
+            raise StudyError(None, "tolerance", str(err).removeprefix("select_method: ")) from None
+        say(f"method: auto ({q}): {choices[q].reason.splitlines()[0]}")
+    mc = [c for c in choices.values() if c.kind == "simulation"]
+    analytic = []
+    for c in choices.values():
+        if c.kind == "analytic":
+            a = Analytic(**c.settings)
+            if a.key not in [b.key for b in analytic]:
+                analytic.append(a)
+    update = dict(method="compare", tolerance=None, analytic=analytic)
+    if mc:
+        best = max(mc, key=lambda c: c.chosen.seconds)
+        update["simulation"] = sim.model_copy(update=best.settings)
+    else:
+        update["simulation"] = None
+    point.study = s.model_copy(update=update)
+    point.choices = choices
 
 
 def _check_out(out: pathlib.Path, force: bool) -> pathlib.Path:

@@ -25,6 +25,7 @@ from pydantic_core import PydanticCustomError
 
 DENSITIES = ("slip_time", "period", "slip_distance", "stick_time")
 BLOCK_OUTPUTS = (*DENSITIES, "n1", "n2", "time_series", "phase_portrait")
+AUTO_OUTPUTS = ("slip_time", "period")  # the densities the accuracy-cost data measures
 SINGLE_RUN_OUTPUTS = ("n1", "n2", "time_series", "phase_portrait")  # not over a sweep
 CHAIN_OUTPUTS = ("event_size", "event_duration", "event_interval", "time_series")
 OutputName = Literal[
@@ -281,6 +282,16 @@ class Study(Base):
     title: str | None = Field(None, description="Title of the figures and the summary.")
     description: str | None = Field(None, description="Free text, copied to the summary.")
     model: ModelSpec = Field(description="The friction model.")
+    method: Literal["compare", "auto"] = Field(
+        "compare",
+        description="'compare': run the simulation and every analytic method listed. 'auto': "
+        "run only the cheapest method whose L1 error meets `tolerance` on each requested "
+        "density (slip_time, period), chosen from the measured accuracy-cost data and the "
+        "stability rules; the summary says which and why.",
+    )
+    tolerance: PositiveFloat | None = Field(
+        None, description="L1 tolerance of the densities, for method: auto (e.g. 0.05)."
+    )
     simulation: Simulation | None = Field(
         default_factory=Simulation, description="The Monte Carlo run; null for theory only."
     )
@@ -323,6 +334,7 @@ class Study(Base):
                 )
             if self.simulation is None:
                 raise fail("simulation", f"is required for {self.model.name} (a chain)")
+        self._check_auto(chain)
         lg = None if chain else model.linear_gaussian()
         keys = [a.key for a in self.analytic]
         for i, key in enumerate(keys):
@@ -358,10 +370,36 @@ class Study(Base):
             self._check_sweep()
         return self
 
+    def _check_auto(self, chain: bool):
+        if self.method == "compare":
+            if self.tolerance is not None:
+                raise fail("tolerance", "applies only to method: auto")
+            return
+        if self.tolerance is None:
+            raise fail("tolerance", "is required with method: auto (an L1 error, e.g. 0.05)")
+        if chain:
+            raise fail("method", f"'auto' needs a single-block model; {self.model.name} is a chain")
+        if self.analytic:
+            raise fail("analytic", "method: auto chooses the method itself (remove 'analytic')")
+        if self.sweep is not None:
+            raise fail("method", "'auto' chooses per parameter set: run each point on its own")
+        if self.simulation is not None:
+            for name in ("n_paths", "dt", "solver"):
+                if name in self.simulation.model_fields_set:
+                    raise fail(f"simulation.{name}", "is chosen by method: auto (remove it)")
+        for i, name in enumerate(self.outputs or ()):
+            if name not in AUTO_OUTPUTS:
+                raise fail(
+                    f"outputs.{i}",
+                    f"method: auto computes {' and '.join(AUTO_OUTPUTS)} only, not '{name}'",
+                )
+
     def resolved_outputs(self) -> tuple[str, ...]:
         """The outputs, with the default filled in."""
         if self.outputs is not None:
             return tuple(self.outputs)
+        if self.method == "auto":
+            return AUTO_OUTPUTS
         from .._simulate.chain import ChainModel
 
         if isinstance(self.model.instance, ChainModel):

@@ -8,6 +8,7 @@ aside and deleted only after the new results are in place.
 
 from __future__ import annotations
 
+import json
 import os
 import pathlib
 import shutil
@@ -90,6 +91,10 @@ def summary(ds: xr.Dataset, study: Study, timings: dict) -> str:
             f"solver `{sim.solver}`, monitor `{sim.monitor}`, seed {sim.seed}.",
             "",
         ]
+    if ds.attrs.get("method_choice"):
+        lines += ["## Method (auto)", ""]
+        for q, c in json.loads(ds.attrs["method_choice"]).items():
+            lines += [f"**{q.replace('_', ' ')}**: " + c["reason"].replace("\n  ", "\n- "), ""]
     if "point" in ds.dims:
         lines += _sweep_table(ds, study)
     else:
