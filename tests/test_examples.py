@@ -4,6 +4,10 @@ import pathlib
 import subprocess
 import sys
 
+import pytest
+
+import stickslip as ss
+
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
@@ -68,3 +72,55 @@ def test_estimator_benchmark_runs():
     )
     assert run.returncode == 0, run.stderr
     assert "decoupling order 1" in run.stdout
+
+
+def _load_benchmark(name):
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(name, ROOT / "benchmarks" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_accuracy_cost_pipeline_end_to_end(tmp_path, monkeypatch):
+    """A tiny accuracy-cost run (small reference, two methods) writes a table and chart that
+    the method selection reads back."""
+    from stickslip.selection import load_table, select_method
+
+    ac = _load_benchmark("accuracy_cost")
+    monkeypatch.setattr(ac, "CACHE", tmp_path / "cache")
+    cfg = dict(ref_paths=20_000, ref_dt=0.02, analytic=["Fg1"], period_analytic=[],
+               mc={"exact": [0.02]}, n_paths=[1_000, 4_000], repeats=2)  # fmt: skip
+    rows, edges = ac.measure("public", ac.SETS["public"], cfg, lambda text: None)
+    ac.pareto(rows)
+    ac.write_csv(rows, tmp_path / "accuracy_cost.csv")
+    ac.chart(rows, tmp_path / "accuracy_cost.png")
+    assert (tmp_path / "accuracy_cost.png").stat().st_size > 10_000
+    assert len(rows) == 1 + 2 * 2 and any(r["pareto"] for r in rows)
+    mc = [r for r in rows if r["family"] == "mc" and r["output"] == "slip_time"]
+    assert mc[1]["l1"] < mc[0]["l1"]  # more paths, smaller error
+    table = load_table(str(tmp_path / "accuracy_cost.csv"))
+    choice = select_method(
+        ss.get_model("langevin")(**ac.SETS["public"]),
+        0.9 * mc[0]["l1"],
+        table=str(tmp_path / "accuracy_cost.csv"),
+    )
+    assert choice.settings["n_paths"] == 4_000 and len(table) == len(rows)
+
+
+@pytest.mark.slow
+def test_accuracy_cost_quick_mode(tmp_path):
+    run = subprocess.run(
+        [
+            sys.executable,
+            str(ROOT / "benchmarks" / "accuracy_cost.py"),
+            "--quick",
+            "--out",
+            str(tmp_path),
+        ],  # fmt: skip
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 0, run.stderr
+    assert (tmp_path / "accuracy_cost.csv").exists() and (tmp_path / "accuracy_cost.png").exists()

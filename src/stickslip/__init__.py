@@ -43,6 +43,14 @@ _LAZY = {
     "StudyError": ".study",
     "load_study": ".study",
     "run_study": ".study",
+    "deterministic_slip": ".stability",
+    "critical_speed": ".stability",
+    "stability_report": ".stability",
+    "StabilityReport": ".stability",
+    "select_method": ".selection",
+    "first_passage_density": ".selection",
+    "MethodChoice": ".selection",
+    "SelectionError": ".selection",
 }
 
 __all__ = [
