@@ -217,6 +217,7 @@ REDUCED = {
     "fig7": ["simulation.n_paths=1000", "simulation.cycles.t_max=100"],
     # one method: each period density with a random threshold costs ~20 s (FFT over nodes)
     "random_threshold": ["simulation.n_paths=2000", "analytic=[{method: decoupling}]"],
+    "public_auto": ["tolerance=0.1"],  # method: auto sizes the run itself
 }
 
 

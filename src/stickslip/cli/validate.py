@@ -19,9 +19,12 @@ def validate(study, overrides):
     s = load_study(study, list(overrides))
     points = len(s.points())
     parts = [f"model {s.model.name}"]
-    if s.simulation is not None:
-        parts.append(f"{s.simulation.n_paths} paths")
-    parts.append(f"{len(s.analytic)} analytic method(s)")
+    if s.method == "auto":
+        parts.append(f"method auto (L1 <= {s.tolerance:g}; chosen when run)")
+    else:
+        if s.simulation is not None:
+            parts.append(f"{s.simulation.n_paths} paths")
+        parts.append(f"{len(s.analytic)} analytic method(s)")
     parts.append("outputs " + ", ".join(s.resolved_outputs()))
     if points > 1:
         parts.append(f"{points} sweep points")
