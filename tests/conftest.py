@@ -11,6 +11,21 @@ import pytest
 DATA = pathlib.Path(__file__).parent / "data"
 
 
+@pytest.fixture(autouse=True, scope="module")
+def _release_compiled_code():
+    """Drop the compiled executables each test module made once it ends: a whole suite in
+    one process otherwise holds every shape ever compiled (several GB by the end). The
+    on-disk compilation cache keeps recompiling cheap."""
+    yield
+    import sys
+
+    if "stickslip._compile" in sys.modules:
+        sys.modules["stickslip._compile"]._cache.clear()
+        import jax
+
+        jax.clear_caches()
+
+
 @pytest.fixture(scope="session")
 def reference():
     """The public reference set (independent NumPy implementation); see data/README.md."""

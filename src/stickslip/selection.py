@@ -43,6 +43,8 @@ import numpy as np
 
 from ._errors import ParameterError, StickSlipError, check_positive
 from ._model import FrictionModel
+from .stability import ANALYTIC_METHODS as ANALYTIC
+from .stability import stability_report
 
 OUTPUTS = ("slip_time", "period")
 # A level-crossing approximation's measured error is trusted for parameters within this
@@ -53,14 +55,6 @@ LADDER = [int(m * 10**k) for k in range(3, 8) for m in (1, 2, 5)]
 # Predicted (not measured) errors must meet the tolerance with this margin.
 MARGIN = 0.9
 PILOT_PATHS = 4000
-ANALYTIC = {
-    "Fn1": ("truncation", 1, False),
-    "Fn1_norm": ("truncation", 1, True),
-    "Fg1": ("decoupling", 1, False),
-    "Fn2": ("truncation", 2, False),
-    "Fn2_norm": ("truncation", 2, True),
-    "Fg2": ("decoupling", 2, False),
-}
 
 
 class SelectionError(StickSlipError):
@@ -327,16 +321,20 @@ def _mc_row(r, basis) -> Candidate:
 
 def _check_white_noise(model):
     """White noise entering the crossing variable: no method converges (fact 1)."""
-    from .stability import stability_report
-
     if model.crossing_is_smooth:
         return
-    report = stability_report(model, methods=())
-    if not report.ok("mc_exact"):
+    if model.linear_gaussian() is None:
+        reasons = [
+            "noise enters the crossing variable directly, so its slip time has no dt -> 0 limit"
+        ]
+    else:
+        report = stability_report(model, methods=())
+        reasons = [] if report.ok("mc_exact") else list(report.failures["mc_exact"])
+    if reasons:
         raise SelectionError(
             "select_method: no method can meet a tolerance for this model: "
-            + "; ".join(report.failures["mc_exact"])
-            + " (use Ornstein-Uhlenbeck friction noise, tau > 0)"
+            + "; ".join(reasons)
+            + " (use a smooth, e.g. Ornstein-Uhlenbeck, friction noise)"
         )
 
 
@@ -346,8 +344,6 @@ def _veto(model, c: Candidate, distance: float) -> str | None:
     escape rate that goes negative (not a density at all) vetoes there."""
     if c.kind != "analytic":
         return None
-    from .stability import stability_report
-
     report = stability_report(model, methods=(c.key,))
     failures = report.failures.get(c.key, ())
     if distance == 0:
