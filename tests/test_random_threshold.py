@@ -120,6 +120,7 @@ def test_mixture_n1_and_Fg1_agree_with_simulated_crossings(lognormal, crossings)
     assert np.mean(z**2) < 2.0 and np.max(np.abs(z)) < 4.5, (np.mean(z**2), np.abs(z).max())
 
 
+@pytest.mark.slow  # 30 s: a direct sum over thresholds
 def test_random_next_threshold_period_against_a_direct_sum(lognormal):
     """The period density with a random next threshold (FFT over a position grid) against
     the direct sum over the threshold nodes of the fixed-threshold deposit."""

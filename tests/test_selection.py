@@ -175,6 +175,7 @@ def test_first_passage_density_rejects_uneven_times(table):
         first_passage_density(langevin(), [0.1, 0.2, 0.5], 0.1, table=table)
 
 
+@pytest.mark.slow
 def test_predicted_monte_carlo_meets_the_tolerance_off_the_measured_sets():
     """Off every measured set, the predicted Monte Carlo choice is checked by running it
     against a 20x larger run: its L1 (minus the larger run's own noise) meets the tolerance."""

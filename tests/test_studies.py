@@ -213,7 +213,11 @@ def test_one_e_minus_four_is_a_float():
 # -- every example study runs, reduced ----------------------------------------------------
 REDUCED = {
     "burridge_knopoff": ["simulation.t_max=400"],
-    "sweep_driving_speed": ["simulation.n_paths=500", "simulation.t_max=30"],
+    "sweep_driving_speed": [
+        "simulation.n_paths=500",
+        "simulation.t_max=30",
+        "sweep.parameters={model.params.v_b: [0.5, 1.25, 2.0]}",
+    ],
     "fig7": ["simulation.n_paths=1000", "simulation.cycles.t_max=100"],
     # one method: each period density with a random threshold costs ~20 s (FFT over nodes)
     "random_threshold": ["simulation.n_paths=2000", "analytic=[{method: decoupling}]"],
