@@ -15,7 +15,9 @@ and cached in benchmarks/.cache/):
 Error: the L1 distance of the slip-time density (and of the period density) to the
 reference histogram on a common grid (cell averages of the analytic densities). Cost: the
 wall time of the run once compiled; compile time is reported apart. Writes
-`accuracy_cost.csv` (one row per method, set and output, with the Pareto front marked) and
+`accuracy_cost.csv` (one row per method, set and output, with the Pareto front marked, the
+reference's noise floor and the noise constant A: an N-path histogram's L1 noise is about
+A / sqrt(N)) and
 `accuracy_cost.png` (log-log, error against run time, Pareto front drawn). `--package` also
 copies the table to the package (`stickslip/_data/accuracy_cost.csv`), where `method: auto`
 reads it. `--quick` (fewer configurations, a smaller reference) runs in a few minutes.

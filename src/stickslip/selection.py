@@ -123,9 +123,7 @@ class MethodChoice:
             f"run time {_seconds(c.seconds)}; the cheapest of the methods that meet the "
             f"tolerance for the {self.output.replace('_', ' ')} density ({where})."
         ]
-        cheaper = [
-            o for o in self.candidates if o.seconds < c.seconds and o.key != c.key and o is not c
-        ]
+        cheaper = [o for o in self.candidates if o.seconds < c.seconds and o.key != c.key]
         seen = set()
         for o in sorted(cheaper, key=lambda o: o.seconds):
             why = o.rejected or f"L1 {o.error:.3g} > {self.tolerance:g}"
