@@ -37,6 +37,8 @@ import warnings
 
 import numpy as np
 
+from stickslip.stability import ANALYTIC_METHODS as ANALYTIC  # key -> (method, order, normalized)
+
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 CACHE = ROOT / "benchmarks" / ".cache"
 PACKAGE_TABLE = ROOT / "src" / "stickslip" / "_data" / "accuracy_cost.csv"
@@ -49,14 +51,6 @@ SETS = {
     # 0.93 of the deterministic critical speed v_c = 1.2335 of (omega0, zeta, x0) = (1, 0.1, 1):
     # a slip may miss its first stick and stick cycles later (the multiperiodic regime).
     "near_critical": dict(omega0=1.0, zeta=0.1, D=0.1, v_b=1.15, x0=1.0, tau=0.1),
-}
-ANALYTIC = {
-    "Fn1": ("truncation", 1, False),
-    "Fn1_norm": ("truncation", 1, True),
-    "Fg1": ("decoupling", 1, False),
-    "Fn2": ("truncation", 2, False),
-    "Fn2_norm": ("truncation", 2, True),
-    "Fg2": ("decoupling", 2, False),
 }
 FULL = dict(
     ref_paths=2_000_000,
