@@ -139,12 +139,32 @@ def _choose(point: _Point, say):
                 analytic.append(a)
     update = dict(method="compare", tolerance=None, analytic=analytic)
     if mc:
-        best = max(mc, key=lambda c: c.chosen.seconds)
-        update["simulation"] = sim.model_copy(update=best.settings)
+        update["simulation"] = sim.model_copy(update=_common_run(mc, s.tolerance))
     else:
         update["simulation"] = None
     point.study = s.model_copy(update=update)
     point.choices = choices
+
+
+def _common_run(mc, tolerance) -> dict:
+    """One Monte Carlo run for every density that chose Monte Carlo: the cheapest run that
+    meets the tolerance on all of them (else the most demanding of their choices)."""
+
+    def meets(choice, settings):
+        return any(
+            o.kind == "simulation" and o.rejected is None and o.settings == settings
+            and o.error <= tolerance
+            for o in choice.candidates
+        )  # fmt: skip
+
+    common = [
+        o
+        for o in mc[0].candidates
+        if o.kind == "simulation" and all(meets(c, o.settings) for c in mc)
+    ]
+    if common:
+        return dict(min(common, key=lambda o: o.seconds).settings)
+    return max(mc, key=lambda c: c.chosen.seconds).settings
 
 
 def _check_out(out: pathlib.Path, force: bool) -> pathlib.Path:
