@@ -25,6 +25,7 @@ BRIDGE = 2  # uniforms of the Brownian-bridge crossing test
 LOCATE = 3  # draws of the crossing-time sampler
 ONSET = 4  # PRNG keys handed to model.onset_state
 SERIES = 5  # multi-cycle runs
+TREE = 6  # bridge samples of the exact stick detection (keyed by step and tree node)
 
 _SQRT2 = np.float32(np.sqrt(2.0))
 
@@ -71,19 +72,41 @@ def threefry2x32(key, x0, x1):
     return x0, x1
 
 
+def _block_keys(key, nblocks: int):
+    """One key per block of two words: block 0 uses `key` itself, block j > 0 a key hashed
+    from it. The counter is then hashed as it is, never multiplied by the number of blocks,
+    so that no (counter, block) pair can wrap onto another one on long runs."""
+    keys = [key]
+    for j in range(1, nblocks):
+        w0, w1 = threefry2x32(key, jnp.uint32(j), jnp.uint32(0xB10C))
+        keys.append(jnp.stack([w0, w1]))
+    return keys
+
+
 def bits(key, path, counter, nblocks: int):
     """Random 32-bit words, shape `(2 * nblocks, n)`, for paths `path` (uint32, `(n,)`) at
     `counter` (a scalar, or one per path). Words for (path, counter) never depend on which
     other paths are in the batch."""
     key = jnp.asarray(key, dtype=jnp.uint32)
     path = jnp.asarray(path, dtype=jnp.uint32)
-    counter = jnp.asarray(counter, dtype=jnp.uint32)
-    n = path.shape[0]
-    block = jnp.arange(nblocks, dtype=jnp.uint32)[:, None]
-    x0 = jnp.broadcast_to(path[None, :], (nblocks, n))
-    x1 = jnp.broadcast_to(counter * jnp.uint32(nblocks) + block, (nblocks, n))
-    w0, w1 = threefry2x32(key, x0, x1)
-    return jnp.concatenate([w0, w1], axis=0)
+    counter = jnp.broadcast_to(jnp.asarray(counter, dtype=jnp.uint32), path.shape)
+    words = [threefry2x32(k, path, counter) for k in _block_keys(key, nblocks)]
+    return jnp.stack([w[0] for w in words] + [w[1] for w in words])
+
+
+def tree_normals(key, path, step, node, k: int):
+    """`k` standard normals per path for node `node` (uint32, one per path) of the refinement
+    tree of step `step` (one per path): a function of (key, path, step, node) alone."""
+    key = jnp.asarray(key, dtype=jnp.uint32)
+    w0, w1 = threefry2x32(
+        key, jnp.asarray(step, dtype=jnp.uint32), jnp.asarray(node, dtype=jnp.uint32)
+    )
+    sub = jnp.stack([w0, w1])  # a key per path
+    path = jnp.asarray(path, dtype=jnp.uint32)
+    nblocks = (k + 1) // 2
+    blocks = [threefry2x32(sub, path, jnp.full(path.shape, j, jnp.uint32)) for j in range(nblocks)]
+    b = jnp.stack([w[0] for w in blocks] + [w[1] for w in blocks])
+    return _to_normals(b[:k])
 
 
 # Giles (2010), "Approximating the erfinv function", single precision: the same
@@ -129,7 +152,10 @@ def erfinv32(x):
 
 def normals(key, path, counter, k: int):
     """`k` standard normals per path, float64 from float32, shape `(k, n)`."""
-    b = bits(key, path, counter, (k + 1) // 2)[:k]
+    return _to_normals(bits(key, path, counter, (k + 1) // 2)[:k])
+
+
+def _to_normals(b):
     f = jax.lax.bitcast_convert_type((b >> 9) | jnp.uint32(0x3F800000), jnp.float32) - 1.0
     # f is uniform on {0, ..., 1 - 2**-23}; u below is symmetric in (-1, 1), so E[z] = 0.
     u = 2.0 * f - 1.0 + jnp.float32(2.0**-23)

@@ -13,6 +13,7 @@ import numpy as np
 
 from .. import _rng
 from .._errors import ParameterError, check_int
+from .._jax import jnp
 from .._model import FrictionModel
 from .driver import _Run, _validate, solve
 from .hybrid import INACTIVE, SLIPPING
@@ -72,9 +73,13 @@ class CycleSeries:
 
 @eqx.filter_jit
 def _record(model, solver, cfg, X, k_stick, path, dt, step_key, bridge_key, n_steps):
-    """The same solve as in `simulate`, saving the state after every step."""
+    """The same noise as in `simulate`, saving the state after every step. Nothing sticks
+    (the slips are cut at their known stick times), so no candidate step of the exact
+    detector freezes a path early."""
+    cfg = dataclasses.replace(cfg, detect="none")
+    y0 = (X, (X, k_stick, jnp.zeros(X.shape[-1])))
     sol = solve(
-        model, solver, cfg, (X, (X, k_stick)), path, dt, (step_key, bridge_key), 0.0,
+        model, solver, cfg, y0, path, dt, (step_key, bridge_key), 0.0,
         t1=float(n_steps), saveat=diffrax.SaveAt(steps=True), max_steps=n_steps,
     )  # fmt: skip
     return sol.ys[0]

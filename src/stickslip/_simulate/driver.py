@@ -6,6 +6,7 @@ import dataclasses
 import math
 import sys
 import time
+import warnings
 
 import diffrax
 import equinox as eqx
@@ -17,17 +18,18 @@ from .._jax import jax, jnp
 from .._model import FrictionModel, _to_arrays
 from .._solver import EulerMaruyama, ExactGaussian, PathwiseBrownian, SlipTerm
 from .._solver.base import over_paths
-from . import localise
+from . import bridge, localise
 from .ensemble import Ensemble
 from .hybrid import INACTIVE, SLIPPING, StickSlipHybrid
 
 MIN_BUFFER = 128  # smallest buffer; below it a step costs the same whatever the size
 LOCATE_BATCH = 4096  # paths located at once (bounds the memory of the dense nodes)
+DEFAULT_CROSSING_TOL = 1e-5  # bound on the chance of a missed crossing per certified step
 DEFAULT_CHUNK = 2**20  # about 100 bytes of state per path: 100 MB
 # Interpolation sub-steps of the exact solver: chosen so that h_sub * rho(A) <= this, where
 # the cubic pieces' relative error (h_sub rho)^4 / 384 stays below 1e-10.
 _NODE_SCALE = 0.0125
-_MAX_NODES = 64
+_MAX_NODES = 256
 # The far end of every solve (in steps); events end the solves long before. A power of two:
 # diffrax's step times t0 + (t1 - t0) * j / n are then exact integers.
 _HORIZON = float(2**30)
@@ -41,14 +43,36 @@ class _Config:
     monitor: str
     smooth: bool
     nodes: int
+    detect: str  # the in-step test: "grid", "cubic", "brownian", "bridge" or "none"
 
 
 @eqx.filter_jit
 def _make_solver(model, cfg: _Config, dt):
     if cfg.solver == "exact":
         lg = model.linear_gaussian()
-        return ExactGaussian(lg.A, lg.b, lg.B, dt, nodes=cfg.nodes)
+        tables = None
+        if cfg.detect == "bridge":
+            tables = bridge.bridge_tables(lg.A, lg.b, lg.B, lg.crossing, dt)
+        return ExactGaussian(lg.A, lg.b, lg.B, dt, nodes=cfg.nodes, bridge=tables)
     return EulerMaruyama()
+
+
+def _detector(model, solver: str, monitor: str, smooth: bool, dt: float) -> str:
+    """The in-step stick test of a run (static): exact in law (`"bridge"`) wherever the slip
+    is linear-Gaussian with noise reaching the differentiable crossing variable."""
+    if monitor == "grid":
+        return "grid"
+    if not smooth:
+        return "brownian"
+    if solver == "exact":
+        from .._linear import propagators
+
+        lg = model.linear_gaussian()
+        c = np.asarray(lg.crossing, dtype=float)
+        Sigma = np.asarray(propagators(lg.A, lg.b, lg.B, dt)[3])
+        if float(c @ Sigma @ c) > 0.0:
+            return "bridge"
+    return "cubic"  # noise-free (exact flow) or Euler-Maruyama
 
 
 @eqx.filter_jit
@@ -64,7 +88,7 @@ def _onset_rate(model, X):
 
 def solve(
     model, solver, cfg, y0, path, dt, keys, offset, *, t1, saveat, event=None, max_steps=None,
-    wrapper=StickSlipHybrid,
+    wrapper=StickSlipHybrid, **fields,
 ):  # fmt: skip
     """One diffrax solve of the ensemble state `y0` with the crossing solver `wrapper`
     around the slip solver (the stick/slip hybrid by default), from global step `offset`.
@@ -73,7 +97,10 @@ def solve(
     callback, and code with host callbacks cannot be kept in the persistent cache."""
     step_key, bridge_key = keys
     control = PathwiseBrownian(step_key, path, dt, solver.noise_dim(model), offset=offset)
-    hybrid = wrapper(solver, dt, bridge_key, path, offset, cfg.smooth, cfg.monitor)
+    hybrid = wrapper(
+        inner=solver, dt=dt, bridge_key=bridge_key, path=path, offset=offset, detect=cfg.detect,
+        **fields,
+    )  # fmt: skip
     return diffrax.diffeqsolve(
         SlipTerm(model, control),
         hybrid,
@@ -93,20 +120,23 @@ def solve(
 
 @eqx.filter_jit
 def _advance(
-    model, solver, cfg, X, X_prev, k_stick, path, k0, k1, dt, step_key, bridge_key, stop_at
-):
-    """Run the buffer from global step k0 until step k1, or until at most `stop_at` paths
-    slip (the solve heads for a far horizon and the event ends it)."""
+    model, solver, cfg, X, X_prev, k_stick, miss, path, offset, horizon, dt, step_key,
+    bridge_key, stop_at, tol,
+):  # fmt: skip
+    """Run the buffer, each path from its own global step `offset`, until at most `stop_at`
+    paths slip (the solve heads for a far horizon and the event ends it; a path expires at
+    global step `horizon`). Returns the new buffer and the number of steps taken."""
 
     def stop(t, y, args, **kwargs):
-        return (jnp.sum(y[1][1] == SLIPPING) <= stop_at) | (t + k0 >= k1)
+        return jnp.sum(y[1][1] == SLIPPING) <= stop_at
 
     sol = solve(
-        model, solver, cfg, (X, (X_prev, k_stick)), path, dt, (step_key, bridge_key), k0,
-        t1=_HORIZON, saveat=diffrax.SaveAt(t1=True), event=diffrax.Event(stop),
+        model, solver, cfg, (X, (X_prev, k_stick, miss)), path, dt, (step_key, bridge_key),
+        offset, t1=_HORIZON, saveat=diffrax.SaveAt(t1=True), event=diffrax.Event(stop),
+        horizon=horizon, tol=tol,
     )  # fmt: skip
-    X, (X_prev, k_stick) = sol.ys
-    return X[0], X_prev[0], k_stick[0], k0 + sol.ts[0]
+    X, (X_prev, k_stick, miss) = sol.ys
+    return X[0], X_prev[0], k_stick[0], miss[0], sol.ts[0]
 
 
 @eqx.filter_jit
@@ -136,14 +166,22 @@ def _next_pow2(n: int) -> int:
     return 1 << max(0, (int(n) - 1).bit_length())
 
 
-def _nodes_for(model: FrictionModel, dt: float) -> int:
+def _nodes_for(model: FrictionModel, dt: float, warn: bool) -> int:
     A = np.asarray(model.linear_gaussian().A, dtype=float)
     rho = float(np.max(np.abs(np.linalg.eigvals(A)))) if A.size else 0.0
     m = max(2, math.ceil(dt * rho / _NODE_SCALE))
+    if m > _MAX_NODES and warn:
+        err = (dt * rho / _MAX_NODES) ** 4 / 384
+        warnings.warn(
+            f"dt = {dt} is {dt * rho:.3g} times the model's fastest time scale: the stick is "
+            f"located on {_MAX_NODES} interpolation pieces per step, to a relative error of "
+            f"about {err:.1e} (take dt <= {_MAX_NODES * _NODE_SCALE / rho:.3g} for 1e-10)",
+            stacklevel=4,
+        )
     return min(_MAX_NODES, _next_pow2(m))
 
 
-def _validate(owner, model, n_paths, dt, t_max, seed, solver, monitor, chunk_size):
+def _validate(owner, model, n_paths, dt, t_max, seed, solver, monitor, chunk_size):  # noqa: C901
     """Check the arguments of `owner` (`simulate` or `simulate_cycles`); one-line errors."""
     if not isinstance(model, FrictionModel):
         raise TypeError(f"{owner}: model must be a stickslip.FrictionModel instance, got {model!r}")
@@ -183,6 +221,7 @@ def simulate(
     chunk_size: int = DEFAULT_CHUNK,
     progress: bool | None = None,
     record_upcrossings: int = 0,
+    crossing_tol: float = DEFAULT_CROSSING_TOL,
 ) -> Ensemble:
     r"""Simulate one slip-stick cycle for each of `n_paths` paths.
 
@@ -200,9 +239,13 @@ def simulate(
       the same numbers.
     - `solver`: `"exact"` (exact Gaussian transitions; linear-Gaussian slips only),
       `"euler"` (Euler-Maruyama, any model) or `"auto"` (exact where possible).
-    - `monitor`: `"continuous"` (default) looks for sticks inside each step as well (a cubic
-      check for a differentiable crossing variable, the Brownian-bridge test when noise
-      enters it) and locates them on the solver's own interpolant. `"grid"` is the classic
+    - `monitor`: `"continuous"` (default) looks for sticks inside each step as well. With the
+      exact solver and noise reaching a differentiable crossing variable (OU friction noise)
+      the test is exact in law: Rice's bound on the Gaussian bridge's upcrossings selects
+      the steps to refine, and refinement samples the bridge until the first crossing is
+      found or ruled out (`crossing_tol`; docs/simulator.md). Noise in the crossing variable
+      itself: the Brownian-bridge test. Otherwise (Euler-Maruyama, or no noise) a cubic
+      check through the end values, located on the solver's own interpolant. `"grid"` is the classic
       convention of the paper's simulations and the reference data: the first grid point
       at or above the level, placed by linear interpolation. It misses crossings inside a
       step (a bias that vanishes with `dt`) and, from a slip onset at the level, puts the
@@ -213,7 +256,11 @@ def simulate(
     - `record_upcrossings`: if K > 0, also run every path on past its stick, without
       absorption, until `t_max`, and record its first K upcrossings of the stick level
       (`Ensemble.upcrossings`, for the empirical crossing statistics). The noise is the
-      same, so the first recorded upcrossing is the stick.
+      same; upcrossings inside a step are found by the cubic check (not exact in law).
+    - `crossing_tol`: exact detector only: a step (or sub-step) whose bound on the chance of
+      a crossing inside it is at most this is certified crossing-free. The summed bounds of
+      the certified steps, a bound on the chance that a path's stick was missed, are
+      reported as `Ensemble.stats["miss_bound"]` (mean over paths).
 
     **Returns:** an `Ensemble`.
     """
@@ -221,6 +268,9 @@ def simulate(
         "simulate", model, n_paths, dt, t_max, seed, solver, monitor, chunk_size
     )
     record_upcrossings = check_int("simulate", "record_upcrossings", record_upcrossings, minimum=0)
+    crossing_tol = check_positive("simulate", "crossing_tol", crossing_tol)
+    if crossing_tol >= 1.0:
+        raise ParameterError("simulate", "crossing_tol", "must be < 1", crossing_tol)
     wall0 = time.perf_counter()
     bar = None
     if progress is None:
@@ -230,7 +280,9 @@ def simulate(
 
         bar = tqdm(total=n_paths, desc="simulate", unit="path", leave=False)
     try:
-        run = _Run("simulate", model, solver, monitor, dt, t_max, _rng.seed_key(seed), bar)
+        run = _Run(
+            "simulate", model, solver, monitor, dt, t_max, _rng.seed_key(seed), bar, crossing_tol
+        )
         paths = np.arange(n_paths, dtype=np.uint32)
         X0, stick_state, t_stick, located = run.first_passages(paths, chunk_size)
     finally:
@@ -244,6 +296,7 @@ def simulate(
     info = run.info(model, seed=seed, chunk_size=chunk_size)
     stats = dict(
         run.stats,
+        miss_bound=float(np.mean(run.miss)) if run.miss is not None else 0.0,
         wall_seconds=time.perf_counter() - wall0,
         compile_seconds=run.timer.compile_seconds,
         unlocated=int(np.sum(~located & out["stuck"])),
@@ -264,7 +317,10 @@ class _Run:
     """One configured run (model, solver, monitoring, step, horizon, keys): first passages
     for any set of path counters. `owner` names the public function in error messages."""
 
-    def __init__(self, owner, model, solver, monitor, dt, t_max, root, bar=None):
+    def __init__(
+        self, owner, model, solver, monitor, dt, t_max, root, bar=None,
+        crossing_tol=DEFAULT_CROSSING_TOL,
+    ):  # fmt: skip
         has_lg = model.linear_gaussian() is not None
         if solver == "auto":
             solver = "exact" if has_lg else "euler"
@@ -276,12 +332,24 @@ class _Run:
                 "(use 'euler')",
                 solver,
             )
+        smooth = bool(model.crossing_is_smooth)
+        detect = _detector(model, solver, monitor, smooth, dt)
         self.cfg = _Config(
             solver=solver,
             monitor=monitor,
-            smooth=bool(model.crossing_is_smooth),
-            nodes=_nodes_for(model, dt) if solver == "exact" else 1,
+            smooth=smooth,
+            nodes=_nodes_for(model, dt, detect == "cubic") if solver == "exact" else 1,
+            detect=detect,
         )
+        self.depth = 0
+        if detect == "bridge":
+            A = model.linear_gaussian().A
+            self.depths = (
+                bridge.depth_for(A, dt, bridge.LOCATE_SCALE),
+                bridge.depth_for(A, dt, bridge.CERTIFY_SCALE),
+            )
+            self.depth = self.depths[0]
+        self.tol = float(crossing_tol)
         self.model = _to_arrays(model)
         self.keys = {
             "step": _rng.stream_key(root, _rng.STEP),
@@ -289,6 +357,7 @@ class _Run:
             "z": _rng.stream_key(root, _rng.LOCATE, 0),
             "u": _rng.stream_key(root, _rng.LOCATE, 1),
             "onset": _rng.stream_key(root, _rng.ONSET),
+            "tree": _rng.stream_key(root, _rng.TREE),
         }
         self.dt, self.t_max, self.bar = dt, t_max, bar
         self.n_steps = max(1, math.ceil(t_max / dt - 1e-9))
@@ -296,6 +365,10 @@ class _Run:
         self.dt_arr = jnp.asarray(dt, dtype=jnp.float64)
         self.solver = self.call(_make_solver, self.model, self.cfg, self.dt_arr)
         self.stats = {"path_steps": 0, "buffers": 0}
+        if detect == "bridge":
+            self.stats.update(candidates=0, refined_nodes=0, unresolved=0)
+        self.miss = None  # per-path miss bounds of the last `first_passages`
+        self._splitter = None  # the refinement's compiled split, made on first use
 
     def info(self, model, **extra):
         """How the run was made, for the result's `info`."""
@@ -307,7 +380,9 @@ class _Run:
             monitor=cfg.monitor,
             dt=self.dt,
             t_max=self.t_max,
+            detector=cfg.detect,
             interpolation_nodes=cfg.nodes,
+            **({"crossing_tol": self.tol, "refine_depths": self.depths} if self.depth else {}),
             **extra,
         )
 
@@ -318,6 +393,7 @@ class _Run:
         """Onset state, stick state, stick time (`nan` if none by the last step) and whether
         the stick was located, for the paths with counters `paths`, chunk by chunk."""
         parts = [self._chunk(paths[i : i + chunk_size]) for i in range(0, paths.size, chunk_size)]
+        self.miss = np.concatenate([p[4] for p in parts])
         return tuple(np.concatenate([p[i] for p in parts], axis=-1) for i in range(4))
 
     def cycle_outputs(self, X0, stick_state, t_stick, next_onset):
@@ -328,6 +404,7 @@ class _Run:
         x_start = np.asarray(self.call(_finish, self.model, X0, X0)[1])
         stuck = np.isfinite(t_stick) & (t_stick <= self.t_max)
         nan = np.where(stuck, 1.0, np.nan)
+        stick_state *= nan  # no stick state for the paths that never stuck
         slip_time = t_stick * nan
         stick_time = T_st * nan
         return dict(
@@ -354,8 +431,13 @@ class _Run:
             pad = size - rows.size
             X = np.concatenate([X0[:, rows], np.repeat(X0[:, rows[:1]], pad, axis=1)], axis=1)
             p = np.concatenate([paths[rows], np.repeat(paths[rows[:1]], pad)])
+            # The free run counts upcrossings with the cubic check (the exact detector
+            # refines only a path's first crossing).
+            cfg = self.cfg
+            if cfg.detect == "bridge":
+                cfg = dataclasses.replace(cfg, detect="cubic")
             c, t, x = self.call(
-                record, self.model, self.solver, self.cfg, X, p, self.dt_arr,
+                record, self.model, self.solver, cfg, X, p, self.dt_arr,
                 self.keys["step"], self.keys["bridge"], self.n_steps, max_crossings,
             )  # fmt: skip
             count[rows] = np.asarray(c)[: rows.size].astype(np.int64)
@@ -370,8 +452,10 @@ class _Run:
         )
 
     def _chunk(self, paths):
-        """First passages of one chunk of paths; see `simulate`."""
-        model, cfg, keys, n_steps = self.model, self.cfg, self.keys, self.n_steps
+        """First passages of one chunk of paths; see `simulate`. Also returns each path's
+        miss bound (bridge detector; zeros otherwise)."""
+        model, cfg, keys = self.model, self.cfg, self.keys
+        refine = cfg.detect == "bridge"
         count = paths.size
         size = max(MIN_BUFFER, _next_pow2(count))
         path = np.zeros(size, dtype=np.uint32)
@@ -389,31 +473,49 @@ class _Run:
             self.bar.update(int(np.sum(immediate)))
         # Chunk-level results; buffers are written back into them by `slot` (-1: padding).
         X_end, X_prev_end, k_end = X0.copy(), X0.copy(), k_stick.copy()
+        t_stick = np.full(count, np.nan)
+        stick_state = X0[:, :count].copy()
+        located = np.ones(count, dtype=bool)
+        miss_end = np.zeros(size)
         slot = np.arange(size)
         slot[count:] = -1
+        # Buffer: states, modes, path counters, each path's next global step, miss bounds.
         X, X_prev, ks, p = X0, X0, k_stick, path
-        k0 = 0
+        offset, miss = np.zeros(size), np.zeros(size)
+        horizon = jnp.asarray(float(self.n_steps))
+        tol = jnp.asarray(self.tol)
         while True:
             n_slip = int(np.sum(ks == SLIPPING))
-            if n_slip == 0 or k0 >= n_steps:
+            if n_slip == 0:
                 break
             stop_at = size // 2 if size > MIN_BUFFER else 0
-            X, X_prev, ks, t_end = (
-                np.asarray(a)
+            X, X_prev, ks, miss, taken = (
+                np.array(a)
                 for a in self.call(
-                    _advance, model, self.solver, cfg, X, X_prev, ks, p,
-                    jnp.asarray(float(k0)), jnp.asarray(float(n_steps)), self.dt_arr,
-                    keys["step"], keys["bridge"], jnp.asarray(stop_at),
+                    _advance, model, self.solver, cfg, X, X_prev, ks, miss, p, offset, horizon,
+                    self.dt_arr, keys["step"], keys["bridge"], jnp.asarray(stop_at), tol,
                 )
             )  # fmt: skip
-            k1 = int(round(float(t_end)))
-            self.stats["path_steps"] += size * (k1 - k0)
+            taken = int(round(float(taken)))
+            self.stats["path_steps"] += size * taken
             self.stats["buffers"] += 1
-            k0 = k1
+            offset = np.where(ks == SLIPPING, offset + taken, offset)
             real = slot >= 0
-            X_end[:, slot[real]] = X[:, real]
-            X_prev_end[:, slot[real]] = X_prev[:, real]
-            k_end[slot[real]] = ks[real]
+            if refine:
+                cand = np.nonzero(real & (ks >= 0))[0]
+                found = self._refine(cand, X_prev, X, ks, p, miss)
+                hit, back = cand[found], cand[~found]
+                rows = slot[hit]
+                t_stick[rows] = (ks[hit] + self._frac[found]) * self.dt
+                stick_state[:, rows] = self._state[:, found]
+                offset[back] = ks[back] + 1.0  # refuted: resume at the next step
+                ks[back] = SLIPPING
+                ks[hit] = INACTIVE
+            else:
+                X_end[:, slot[real]] = X[:, real]
+                X_prev_end[:, slot[real]] = X_prev[:, real]
+                k_end[slot[real]] = ks[real]
+            miss_end[slot[real]] = miss[real]
             alive = np.nonzero(ks == SLIPPING)[0]
             if self.bar is not None:
                 self.bar.update(n_slip - alive.size)
@@ -421,14 +523,44 @@ class _Run:
                 # Re-pack the survivors into a smaller buffer: finished paths cost nothing.
                 size = max(MIN_BUFFER, _next_pow2(alive.size))
                 pad = size - alive.size
-
-                X, X_prev = _repack(X, alive, pad, 0.0), _repack(X, alive, pad, 0.0)
+                X, X_prev = _repack(X, alive, pad, 0.0), _repack(X_prev, alive, pad, 0.0)
                 ks = _repack(ks, alive, pad, INACTIVE)
                 p, slot = _repack(p, alive, pad, 0), _repack(slot, alive, pad, -1)
-        # Locate each stick inside its step, in batches that bound the memory of dense nodes.
-        t_stick = np.full(count, np.nan)
-        stick_state = X_end[:, :count].copy()
-        located = np.ones(count, dtype=bool)
+                offset, miss = _repack(offset, alive, pad, 0.0), _repack(miss, alive, pad, 0.0)
+        if not refine:
+            self._locate_chunk(X_end, X_prev_end, k_end, path, count, t_stick, stick_state, located)
+        imm = immediate[:count]
+        t_stick[imm] = 0.0
+        return X0[:, :count], stick_state, t_stick, located, miss_end[:count]
+
+    def _refine(self, cand, X_prev, X, ks, p, miss):
+        """Refine the candidate steps `cand` of the buffer exactly (bridge detector): sets
+        `self._frac`, `self._state` for them, adds their certified bounds to `miss`, and
+        returns whether each crossed."""
+        n = cand.size
+        self._frac = np.zeros(n)
+        self._state = np.zeros((X.shape[0], n))
+        if n == 0:
+            return np.zeros(0, dtype=bool)
+        self.stats["candidates"] += n
+        if self._splitter is None:
+            self._splitter = bridge.Splitter(
+                self.solver.bridge, self.model.stick_level, self.keys["tree"], self.timer
+            )
+        found, frac, state, add, unresolved, splits = bridge.first_crossing(
+            self._splitter, self.model.stick_level, self.depths, self.tol,
+            X_prev[:, cand], X[:, cand], p[cand], ks[cand].astype(np.uint32),
+        )  # fmt: skip
+        self._frac, self._state = frac, state
+        miss[cand] += add
+        self.stats["unresolved"] += int(np.sum(unresolved))
+        self.stats["refined_nodes"] += int(splits)
+        return found
+
+    def _locate_chunk(self, X_end, X_prev_end, k_end, path, count, t_stick, stick_state, located):
+        """Locate each stick inside its step (all detectors but the bridge), in batches that
+        bound the memory of the dense nodes."""
+        model, cfg, keys = self.model, self.cfg, self.keys
         done = np.nonzero(k_end[:count] >= 0)[0]
         batch = min(LOCATE_BATCH, _next_pow2(max(done.size, 1)))
         for start in range(0, done.size, batch):
@@ -443,6 +575,3 @@ class _Run:
             t_stick[rows] = (k_end[rows] + np.asarray(frac)[:n]) * self.dt
             stick_state[:, rows] = np.asarray(state)[:, :n]
             located[rows] = np.asarray(found)[:n]
-        imm = immediate[:count]
-        t_stick[imm] = 0.0
-        return X0[:, :count], stick_state, t_stick, located

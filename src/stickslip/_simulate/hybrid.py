@@ -1,17 +1,21 @@
 """The stick/slip hybrid as a diffrax solver wrapped around a slip-phase solver.
 
-The state of the solve is the whole ensemble, `(X, (X_prev, k_stick))`: `X` holds each path's
-slip state, `(d, n)`; `k_stick` its mode, `-1` while slipping, otherwise the index of the step
-in which the path stuck; `X_prev` the state at the start of the last step taken. A path that
-sticks in step k keeps `X = X_{k+1}` and `X_prev = X_k` from then on: the two ends of the step
-in which to locate the stick. `-2` marks paths that never step (immediate re-sticks, padding).
+The state of the solve is the whole ensemble, `(X, (X_prev, k_stick, miss))`: `X` holds each
+path's slip state, `(d, n)`; `k_stick` its mode, `-1` while slipping, otherwise the index of
+the step in which the path stuck (or, with the exact bridge detector, the candidate step to
+refine); `X_prev` the state at the start of the last step taken; `miss` the summed crossing
+bound of the steps certified crossing-free (bridge detector). A path that sticks in step k
+keeps `X = X_{k+1}` and `X_prev = X_k` from then on: the two ends of the step in which to
+locate the stick. `-2` marks paths that never step (immediate re-sticks, padding), `-3` paths
+that reached the horizon without sticking.
 
 Freezing is deferred by design: the states written in a step depend only on the mode at the
 start of the step, so the crossing test feeds one output (`k_stick`) and XLA does not
 re-derive it inside every fused output (measured 1.6x faster than freezing at once). The
 solve's time variable counts steps (`t = k`), so grid times are exact integers whatever
 buffer a path is in: a solve starts at time 0 and `offset` is the global index of its first
-step.
+step; `offset` is the global index of each path's first step (a scalar, or one per path: a
+path set back to slipping after a refuted candidate resumes at its own step).
 """
 
 from __future__ import annotations
@@ -25,21 +29,25 @@ from .. import _rng
 from .._jax import jax, jnp
 from .._solver import AbstractSlipSolver
 from .._solver.base import global_step, over_paths, steps
-from . import localise
+from . import bridge, localise
 
 SLIPPING = -1.0
 INACTIVE = -2.0
+EXPIRED = -3.0
 
 
 class AbstractCrossingSolver(diffrax.AbstractItoSolver):
     """A diffrax solver that advances an ensemble with a slip solver (`inner`) and tests,
     path by path, whether the crossing variable reached the stick level in each step.
 
-    The tests (`crossing_tests`): the end value at or above the level; and, with continuous
-    monitoring, a crossing inside the step, by the cubic through the end values with the
-    drift as slope (a differentiable crossing variable), or by the Brownian-bridge
-    probability $\\exp(-2(L - c_k)(L - c_{k+1}) / (\\sigma^2 h))$ against a per-path uniform
-    (noise in the crossing variable). The uniforms are drawn a step ahead, like the noise.
+    The tests (`crossing_tests`, chosen by `detect`): the end value at or above the level
+    (every detector but `"none"`); and inside the step: `"cubic"`, the cubic through the end
+    values with the drift as slope (a differentiable crossing variable; not exact in law);
+    `"brownian"`, the Brownian-bridge probability
+    $\\exp(-2(L - c_k)(L - c_{k+1}) / (\\sigma^2 h))$ against a per-path uniform (noise in
+    the crossing variable; the uniforms are drawn a step ahead, like the noise); `"bridge"`,
+    Rice's bound on the Gaussian bridge's upcrossings above a tolerance, which makes the step
+    a candidate for exact refinement (`bridge.py`); `"grid"`, the end value only.
     """
 
     inner: eqx.AbstractVar[AbstractSlipSolver]
@@ -47,8 +55,7 @@ class AbstractCrossingSolver(diffrax.AbstractItoSolver):
     bridge_key: eqx.AbstractVar[jax.Array]
     path: eqx.AbstractVar[jax.Array]
     offset: eqx.AbstractVar[jax.Array]
-    smooth: eqx.AbstractVar[bool]
-    monitor: eqx.AbstractVar[str]
+    detect: eqx.AbstractVar[str]
 
     term_structure: ClassVar = diffrax.AbstractTerm
     interpolation_cls: ClassVar = diffrax.LocalLinearInterpolation
@@ -66,7 +73,7 @@ class AbstractCrossingSolver(diffrax.AbstractItoSolver):
         return self.inner.init(terms, t0, t1, y0, args), self._uniforms(t0)
 
     def _uniforms(self, t):
-        if self.monitor == "continuous" and not self.smooth:
+        if self.detect == "brownian":
             return _rng.uniforms(self.bridge_key, self.path, global_step(t, self.offset), 1)[0]
         return None
 
@@ -78,47 +85,59 @@ class AbstractCrossingSolver(diffrax.AbstractItoSolver):
         )
         return X1, inner_state, result, u
 
-    def crossing_tests(self, model, X, X1, t0, t1, u):
-        """`(c0, c1, at_end, inside)`: the crossing variable at both ends, whether it ends at
-        or above the level, and (continuous monitoring) whether it crossed inside the step."""
+    def crossing_tests(self, model, X, X1, t0, t1, u, tol=None):
+        """`(c0, c1, at_end, inside, bound)`: the crossing variable at both ends, whether it
+        ends at or above the level, whether it crossed (or, `"bridge"`, may have crossed)
+        inside the step, and the bridge's expected upcrossings (`"bridge"`; else zero)."""
         level = model.stick_level
         cross = over_paths(model.crossing)
         c0, c1 = cross(X), cross(X1)
         inside = jnp.zeros(c0.shape, dtype=bool)
-        if self.monitor == "continuous":
-            h = self.dt * steps(t0, t1)
-            if self.smooth:
-                rate = over_paths(model.crossing_rate)
-                inside = localise.interior_reaches(c0, c1, h * rate(X), h * rate(X1), level)
-            else:
-                var = over_paths(model.crossing_noise)(X)
-                expo = -2.0 * (level - c0) * (level - c1) / jnp.where(var > 0, var * h, 1.0)
-                p = jnp.where(var > 0, jnp.exp(jnp.minimum(expo, 0.0)), 0.0)
-                inside = u < p
-        return c0, c1, c1 >= level, inside
+        bound = jnp.zeros(c0.shape)
+        h = self.dt * steps(t0, t1)
+        if self.detect == "cubic":
+            rate = over_paths(model.crossing_rate)
+            inside = localise.interior_reaches(c0, c1, h * rate(X), h * rate(X1), level)
+        elif self.detect == "brownian":
+            var = over_paths(model.crossing_noise)(X)
+            expo = -2.0 * (level - c0) * (level - c1) / jnp.where(var > 0, var * h, 1.0)
+            p = jnp.where(var > 0, jnp.exp(jnp.minimum(expo, 0.0)), 0.0)
+            inside = u < p
+        elif self.detect == "bridge":
+            bound = bridge.expected_upcrossings(self.inner.bridge, None, X, X1, level)
+            inside = bound > tol
+        at_end = c1 >= level
+        if self.detect == "none":
+            at_end = jnp.zeros(c0.shape, dtype=bool)
+        return c0, c1, at_end, inside, bound
 
 
 class StickSlipHybrid(AbstractCrossingSolver):
     """Advance every slipping path and detect the paths that stuck (see
-    `AbstractCrossingSolver` for the tests); a path sticks in the first step that passes one."""
+    `AbstractCrossingSolver` for the tests); a path sticks (or becomes a candidate) in the
+    first step that passes one, and expires after global step `horizon - 1`."""
 
     inner: AbstractSlipSolver
     dt: jax.Array
     bridge_key: jax.Array
     path: jax.Array
     offset: jax.Array
-    smooth: bool = eqx.field(static=True)
-    monitor: str = eqx.field(static=True)
+    detect: str = eqx.field(static=True)
+    horizon: jax.Array = jnp.inf
+    tol: jax.Array = 0.0
 
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
-        X, (X_prev, k_stick) = y0
+        X, (X_prev, k_stick, miss) = y0
         X1, inner_state, result, u = self.advance(terms, t0, t1, y0, args, solver_state, made_jump)
-        _, _, at_end, inside = self.crossing_tests(args, X, X1, t0, t1, u)
+        _, _, at_end, inside, bound = self.crossing_tests(args, X, X1, t0, t1, u, self.tol)
         hit = at_end | inside
         slipping = k_stick == SLIPPING
+        k_here = jnp.round(t0) + self.offset
+        expired = slipping & ~hit & (k_here + 1.0 >= self.horizon)
         X_out = jnp.where(slipping[None], X1, X)
         X_prev_out = jnp.where(slipping[None], X, X_prev)
-        k_out = jnp.where(slipping & hit, jnp.round(t0) + self.offset, k_stick)
-        y1 = (X_out, (X_prev_out, k_out))
+        k_out = jnp.where(slipping & hit, k_here, jnp.where(expired, EXPIRED, k_stick))
+        miss_out = miss + jnp.where(slipping & ~hit, bound, 0.0)
+        y1 = (X_out, (X_prev_out, k_out, miss_out))
         state = (inner_state, self._uniforms(t1))
         return y1, None, dict(y0=y0, y1=y1), state, result

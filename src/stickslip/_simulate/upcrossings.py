@@ -66,14 +66,13 @@ class UpcrossingRecorder(AbstractCrossingSolver):
     bridge_key: jax.Array
     path: jax.Array
     offset: jax.Array
-    smooth: bool = eqx.field(static=True)
-    monitor: str = eqx.field(static=True)
+    detect: str = eqx.field(static=True)
 
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
         model = args
         X, (count, times, positions) = y0
         X1, inner_state, result, u = self.advance(terms, t0, t1, y0, args, solver_state, made_jump)
-        c0, c1, at_end, inside = self.crossing_tests(model, X, X1, t0, t1, u)
+        c0, c1, at_end, inside, _ = self.crossing_tests(model, X, X1, t0, t1, u)
         level = model.stick_level
         # c0 == level only at the slip onset: a path that dips and is back above the level at
         # the end of the first step has crossed upwards (as the stick detector says).

@@ -79,7 +79,8 @@ class ExactGaussian(AbstractSlipSolver):
     flow when there is no noise ($D = 0$), which makes the stick time exact to rounding.
 
     **Arguments:** `A`, `b`, `B` (see `LinearGaussian`), `h` (the step length), `nodes`
-    (interpolation sub-steps per step).
+    (interpolation sub-steps per step), `bridge` (optional: the bridge coefficients of the
+    exact stick detector, `stickslip._simulate.bridge.BridgeTables`, for the same step).
     """
 
     A: jax.Array
@@ -91,10 +92,12 @@ class ExactGaussian(AbstractSlipSolver):
     node_c: jax.Array
     node_G: jax.Array
     node_dG: jax.Array
+    bridge: eqx.Module | None
     nodes: int = eqx.field(static=True)
 
-    def __init__(self, A, b, B, h, nodes: int = 8):
+    def __init__(self, A, b, B, h, nodes: int = 8, bridge=None):
         M = nodes
+        self.bridge = bridge
         s = h * jnp.arange(M + 1) / M
         Phi, c, Sig = jax.vmap(lambda t: transition(A, b, B, t))(s)
         self.A, self.b, self.nodes = A, b, nodes
