@@ -66,3 +66,29 @@ def test_erfinv32_accuracy():
     ours = np.asarray(_rng.erfinv32(jnp.asarray(x)), dtype=float)
     exact = special.erfinv(x.astype(float))
     assert np.max(np.abs(ours - exact) / np.maximum(np.abs(exact), 1e-30)) < 3e-7
+
+
+def test_long_counters_do_not_wrap_onto_early_ones():
+    """Counters are hashed as they are (a key per block of words): with 4 normals a step
+    (two blocks), counter 2**31 once computed counter * 2 + block = 2**32 = 0 (mod 2**32),
+    the draws of counter 0."""
+    key = _rng.stream_key(_rng.seed_key(8), _rng.STEP)
+    paths = np.arange(64, dtype=np.uint32)
+    early = np.asarray(_rng.normals(key, paths, 0, 4))
+    for late in (2**31, 2**31 + 1, 2**32 - 1):
+        assert not np.any(np.asarray(_rng.normals(key, paths, late, 4)) == early)
+
+
+def test_tree_draws_depend_on_path_step_and_node_only():
+    key = _rng.stream_key(_rng.seed_key(9), _rng.TREE)
+    paths = np.arange(500, dtype=np.uint32)
+    steps = np.full(500, 7, dtype=np.uint32)
+    nodes = np.full(500, 5, dtype=np.uint32)
+    full = np.asarray(_rng.tree_normals(key, paths, steps, nodes, 3))
+    some = np.asarray(_rng.tree_normals(key, paths[[4, 400]], steps[:2], nodes[:2], 3))
+    np.testing.assert_array_equal(full[:, [4, 400]], some)
+    other_node = np.asarray(_rng.tree_normals(key, paths, steps, nodes + 1, 3))
+    other_step = np.asarray(_rng.tree_normals(key, paths, steps + 1, nodes, 3))
+    assert not np.any(full == other_node) and not np.any(full == other_step)
+    z = full.ravel()
+    assert abs(z.mean()) < 4 / np.sqrt(z.size) and abs(z.var() - 1) < 4 * np.sqrt(2 / z.size)

@@ -62,6 +62,7 @@ CERTIFY_SCALE = 1e-5
 _INV_SQRT_2PI = 1.0 / math.sqrt(2.0 * math.pi)
 _U, _W = np.polynomial.legendre.leggauss(QUADRATURE)
 _U, _W = 0.5 * (_U + 1.0), 0.5 * _W  # on (0, 1)
+_KNOTS = np.concatenate([[0.0], _U, [1.0]])
 
 
 class BridgeTables(eqx.Module):
@@ -73,7 +74,8 @@ class BridgeTables(eqx.Module):
     `(Q, d, J)`, `v_q` `(Q, J)`) and of its rate (`a_*`), `inv_sv` (one over the standard
     deviation of v), `kappa` (regression of a on v), `s_a` (conditional standard deviation
     of a given v) and `weight` (quadrature weight times interval length), all `(Q, J)`;
-    `crossing` the functional `(d, J)` (the same at every level).
+    `crossing` the functional `(d, J)`, `rate` that of its rate `(d, J)` with offset
+    `rate_offset` `(J,)` (the same at every level), and `length` the intervals' `(J,)`.
     """
 
     mid_P: jax.Array
@@ -91,6 +93,9 @@ class BridgeTables(eqx.Module):
     s_a: jax.Array
     weight: jax.Array
     crossing: jax.Array
+    rate: jax.Array
+    rate_offset: jax.Array
+    length: jax.Array
 
 
 def bridge_tables(A, b, B, crossing, h) -> BridgeTables:
@@ -147,6 +152,9 @@ def bridge_tables(A, b, B, crossing, h) -> BridgeTables:
             s_a=s_a,
             weight=lengths[:, None] * jnp.asarray(_W)[None, :] * jnp.ones((1, QUADRATURE)),
             crossing=jnp.broadcast_to(cvec, (J,) + cvec.shape),
+            rate=jnp.broadcast_to(rvec, (J,) + rvec.shape),
+            rate_offset=jnp.broadcast_to(ra, (J,)),
+            length=lengths,
         ),
     )
 
@@ -188,9 +196,14 @@ def expected_upcrossings(T: BridgeTables, j, Xa, Xb, level):
     vP, vG, vq, aP, aG, aq = (rows(t) for t in (T.v_P, T.v_G, T.v_q, T.a_P, T.a_G, T.a_q))
     inv_sv, kappa, s_a, w = (rows(t) for t in (T.inv_sv, T.kappa, T.s_a, T.weight))
     total = jnp.zeros(jnp.broadcast_shapes(Xa.shape[1:], Xb.shape[1:]))
+    # The bridge mean of v and its slope (the mean of a) at 0, the nodes and the end, for
+    # the guard below.
+    c, r, ra = T.crossing[:, :1], T.rate[:, :1], T.rate_offset[:1]
+    means = [(_dot(c, Xa), _dot(r, Xa) + ra)]
     for i in range(QUADRATURE):
         mv = _dot(vP[i], Xa) + _dot(vG[i], Xb) + vq[i]
         ma = _dot(aP[i], Xa) + _dot(aG[i], Xb) + aq[i]
+        means.append((mv, ma))
         gap = level - mv
         z = gap * inv_sv[i]
         # E[a^+ | v = L] = E[(m + s Z)^+] <= m^+ + s E[Z^+]: an upper bound that needs no
@@ -199,7 +212,30 @@ def expected_upcrossings(T: BridgeTables, j, Xa, Xb, level):
         # refines a little more; the bound stays a bound, so exactness is untouched.
         e_plus = jnp.maximum(ma + kappa[i] * gap, 0.0) + s_a[i] * _INV_SQRT_2PI
         total = total + (w[i] * _INV_SQRT_2PI) * inv_sv[i] * jnp.exp(-0.5 * z * z) * e_plus
-    return total
+    # Guard: where the bridge mean itself may reach the level inside the interval, the
+    # integrand is a peak of width ~ sd(v) / |a| that a fixed quadrature can step over
+    # (measured: bound 0.003 against Rice's 1.0 for a mean that crosses up and back within
+    # 0.1). Such an interval is always split (bound infinite). The mean is followed by
+    # cubic Hermite pieces through the end points and the nodes, with the mean of a as
+    # slope; on a piece, H(u) = line + u(1-u)[(m0 - D)(1-u) - (m1 - D)u] with D = p1 - p0,
+    # so H <= max(p0, p1) + M / 4 with M = max(m0 - D, D - m1, 0): a cheap test that never
+    # misses. A piece that starts at the level (the slip onset) reaches it again only if
+    # H(u) - L <= u (D + (1 - u) M) can be positive, i.e. D + M > 0. The interval's own
+    # end is not tested (a step that ends above is a candidate anyway).
+    means.append((_dot(c, Xb), _dot(r, Xb) + ra))
+    length = rows(T.length)[0]
+    reach = jnp.zeros(total.shape, dtype=bool)
+    for k in range(QUADRATURE + 1):
+        (p0, m0), (p1, m1) = means[k], means[k + 1]
+        piece = length * (_KNOTS[k + 1] - _KNOTS[k])
+        rise = p1 - p0
+        bulge = jnp.maximum(jnp.maximum(piece * m0 - rise, rise - piece * m1), 0.0)
+        top = p0 if k == QUADRATURE else jnp.maximum(p0, p1)
+        hit = top + 0.25 * bulge >= level
+        if k == 0:
+            hit = jnp.where(p0 >= level, rise + bulge > 0.0, hit)
+        reach = reach | hit
+    return jnp.where(reach, jnp.inf, total)
 
 
 def midpoint(T: BridgeTables, j, Xa, Xb, z):
@@ -328,11 +364,16 @@ def first_crossing(splitter, level, depths, tol, Xa, Xb, path, step):
         if m == 0:
             break
         splits += m
-        pad = _bucket(m) - m
         node = ((np.uint64(1) << np.uint64(j)) + pos.astype(np.uint64)).astype(np.uint32)
-        ends = _pad(np.concatenate([a, b]), pad)
-        ids = _pad(np.stack([path[owner], step[owner], node]), pad)
-        out = splitter(j, ends, ids)[:, :m]
+        ends = np.concatenate([a, b])
+        ids = np.stack([path[owner], step[owner], node])
+        out = np.concatenate(
+            [
+                splitter(j, _pad(ends[:, k : k + size], pad), _pad(ids[:, k : k + size], pad))
+                for k, size, pad in _pieces(m)
+            ],
+            axis=1,
+        )[:, :m]
         Xm = out[:d]
         # Children in time order, child 2i + r the left (r = 0) or right half of interval i;
         # each path's children are contiguous.
@@ -394,9 +435,20 @@ def _child_ends(children, a, b, Xm):
     )
 
 
-def _bucket(m: int) -> int:
-    """Padded size of a refinement pass: a power of two (few compiled shapes), at least 128."""
-    return max(128, 1 << (int(m) - 1).bit_length())
+_BUCKETS = (256, 1024, 4096, 16384, 65536)  # the padded sizes of a pass (compiled once each)
+
+
+def _pieces(m: int):
+    """`(start, size, pad)` of the calls that cover `m` intervals: whole largest buckets,
+    then the rest padded to the smallest bucket that holds it (few compiled shapes; the
+    padding of a small pass costs little)."""
+    top = _BUCKETS[-1]
+    for start in range(0, m - m % top, top):
+        yield start, top, 0
+    rest = m % top
+    if rest:
+        bucket = next(b for b in _BUCKETS if b >= rest)
+        yield m - rest, rest, bucket - rest
 
 
 def _pad(a, pad):
