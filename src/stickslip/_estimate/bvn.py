@@ -40,19 +40,36 @@ def norm_pdf(x):
     return jnp.exp(-0.5 * x * x) / _SQRT_TWO_PI
 
 
-def bvn_upper(h, k, r):
-    """P(U > h, V > k) for standard normals U, V with correlation r (arrays broadcast)."""
-    h, k, r = jnp.broadcast_arrays(
-        jnp.asarray(h, float), jnp.asarray(k, float), jnp.asarray(r, float)
-    )
+# Genz's rule for |r| < 0.925: 6 nodes for |r| < 0.3, 12 for |r| < 0.75, else 20.
+_MID_RULES = {
+    n: tuple(np.asarray(a) for a in (1.0 + np.polynomial.legendre.leggauss(n)[0],
+                                     np.polynomial.legendre.leggauss(n)[1]))
+    for n in (6, 12)
+}  # fmt: skip
+_MID_RULES[20] = (_X20, _W20)
+BRANCHES = ("mid6", "mid12", "mid20", "high")  # `branch_of` maps r to one of these
+
+
+def branch_of(r):
+    """Index into `BRANCHES` of the formula `bvn_upper` uses at correlation r (NumPy)."""
+    a = np.abs(np.clip(r, -1.0 + 1e-15, 1.0 - 1e-15))
+    return np.where(a < 0.3, 0, np.where(a < 0.75, 1, np.where(a < 0.925, 2, 3)))
+
+
+def _bvn_mid(h, k, r, nodes=20):
+    """Drezner-Wesolowsky over asin(r) (|r| < 0.925) with Genz's Gauss-Legendre rule."""
+    x, w = _MID_RULES[nodes]
     hk = h * k
-    # |r| < 0.925: Drezner-Wesolowsky over asin(r).
     hs = 0.5 * (h * h + k * k)
     asr = 0.5 * jnp.arcsin(jnp.clip(r, -1.0, 1.0))
-    sn = jnp.sin(asr[..., None] * _X20)
-    mid = jnp.sum(_W20 * jnp.exp((sn * hk[..., None] - hs[..., None]) / (1.0 - sn * sn)), axis=-1)
-    mid = mid * asr / _TWO_PI + norm_cdf(-h) * norm_cdf(-k)
-    # |r| >= 0.925: expansion around |r| = 1 (Genz), with k -> -k for r < 0.
+    sn = jnp.sin(asr[..., None] * x)
+    mid = jnp.sum(w * jnp.exp((sn * hk[..., None] - hs[..., None]) / (1.0 - sn * sn)), axis=-1)
+    return mid * asr / _TWO_PI + norm_cdf(-h) * norm_cdf(-k)
+
+
+def _bvn_high(h, k, r):
+    """Genz's expansion around |r| = 1 (|r| >= 0.925), with k -> -k for r < 0."""
+    hk = h * k
     neg = r < 0
     kk = jnp.where(neg, -k, k)
     hk2 = jnp.where(neg, -hk, hk)
@@ -88,8 +105,24 @@ def bvn_upper(h, k, r):
     pos_tail = bvn + norm_cdf(-jnp.maximum(h, kk))
     band = jnp.where(h < 0, norm_cdf(kk) - norm_cdf(h), norm_cdf(-h) - norm_cdf(-kk))
     neg_tail = jnp.where(h >= kk, -bvn, band - bvn)
-    high = jnp.where(neg, neg_tail, pos_tail)
-    out = jnp.where(jnp.abs(r) < 0.925, mid, high)
+    return jnp.where(neg, neg_tail, pos_tail)
+
+
+def bvn_upper(h, k, r, branch=None):
+    """P(U > h, V > k) for standard normals U, V with correlation r (arrays broadcast).
+
+    `branch` (one of `BRANCHES`) evaluates only that formula, for arrays whose r all lie
+    in its range (`branch_of`); by default both formulas are evaluated and the one for each
+    r is kept (the 20-node rule below |r| = 0.925)."""
+    h, k, r = jnp.broadcast_arrays(
+        jnp.asarray(h, float), jnp.asarray(k, float), jnp.asarray(r, float)
+    )
+    if branch == "high":
+        out = _bvn_high(h, k, r)
+    elif branch is not None:
+        out = _bvn_mid(h, k, r, int(branch.removeprefix("mid")))
+    else:
+        out = jnp.where(jnp.abs(r) < 0.925, _bvn_mid(h, k, r), _bvn_high(h, k, r))
     return jnp.clip(out, 0.0, 1.0)
 
 
@@ -100,7 +133,7 @@ def positive_part_mean(mu, s):
     return jnp.where(s > 0, s * norm_pdf(z) + mu * norm_cdf(z), jnp.maximum(mu, 0.0))
 
 
-def positive_product_mean(m1, m2, s1, s2, rho):
+def positive_product_mean(m1, m2, s1, s2, rho, branch=None):
     r"""E[X^+ Y^+] for (X, Y) bivariate normal: means `m1, m2`, standard deviations
     `s1, s2 > 0`, correlation `rho` in (-1, 1).
 
@@ -110,12 +143,13 @@ def positive_product_mean(m1, m2, s1, s2, rho):
     E[U 1] = phi(h) Q((k - rho h)/r) + rho phi(k) Q((h - rho k)/r),
     E[U V 1] = rho P + rho h phi(h) Q((k - rho h)/r) + rho k phi(k) Q((h - rho k)/r)
                + r^2 phi_2(h, k; rho),  r = sqrt(1 - rho^2), Q = 1 - Phi.
+    `branch`: the formula for P (see `bvn_upper`).
     """
     h = -m1 / s1
     k = -m2 / s2
     rho = jnp.clip(rho, -1.0 + 1e-15, 1.0 - 1e-15)
     r = jnp.sqrt(1.0 - rho * rho)
-    P = bvn_upper(h, k, rho)
+    P = bvn_upper(h, k, rho, branch)
     qh = norm_cdf(-(k - rho * h) / r)
     qk = norm_cdf(-(h - rho * k) / r)
     ph, pk = norm_pdf(h), norm_pdf(k)

@@ -75,19 +75,31 @@ def _condition(mean, cov, n_obs, obs):
 
     Works on correlation scale (the observed variances can differ by many orders at small
     times). Returns the log density of the observation and the conditional mean and
-    covariance of the remaining components.
+    covariance of the remaining components. The Cholesky factor of the observed block
+    (n_obs <= 3 here) and the triangular solves are written out element by element: under
+    `vmap` over millions of pairs, XLA's batched LAPACK calls on 2 x 2 matrices cost more
+    than the rest of n2 together.
     """
-    So = cov[:n_obs, :n_obs]
-    s = jnp.sqrt(jnp.diag(So))
-    R = So / jnp.outer(s, s)
-    Lc = jnp.linalg.cholesky(R)
-    z = jax.scipy.linalg.solve_triangular(Lc, (obs - mean[:n_obs]) / s, lower=True)
-    C = cov[n_obs:, :n_obs] / s  # cross-covariance on the observed correlation scale
-    K = jax.scipy.linalg.solve_triangular(Lc, C.T, lower=True)  # (n_obs, rest)
-    logdet = 2.0 * jnp.sum(jnp.log(jnp.diag(Lc))) + 2.0 * jnp.sum(jnp.log(s))
-    logp = -0.5 * (z @ z) - 0.5 * logdet - 0.5 * n_obs * _LOG_TWO_PI
-    cmean = mean[n_obs:] + K.T @ z
-    ccov = cov[n_obs:, n_obs:] - K.T @ K
+    s = [jnp.sqrt(cov[i, i]) for i in range(n_obs)]
+    R = [[cov[i, j] / (s[i] * s[j]) for j in range(n_obs)] for i in range(n_obs)]
+    L = [[None] * n_obs for _ in range(n_obs)]
+    for i in range(n_obs):
+        for j in range(i):
+            L[i][j] = (R[i][j] - sum(L[i][k] * L[j][k] for k in range(j))) / L[j][j]
+        L[i][i] = jnp.sqrt(R[i][i] - sum(L[i][k] * L[i][k] for k in range(i)))
+
+    def solve(b):  # L^{-1} b, b a list of n_obs entries (scalars or rows)
+        out = []
+        for i in range(n_obs):
+            out.append((b[i] - sum(L[i][k] * out[k] for k in range(i))) / L[i][i])
+        return out
+
+    z = solve([(obs[i] - mean[i]) / s[i] for i in range(n_obs)])
+    K = solve([cov[n_obs:, i] / s[i] for i in range(n_obs)])  # rows (rest,)
+    logdet = 2.0 * sum(jnp.log(L[i][i]) + jnp.log(s[i]) for i in range(n_obs))
+    logp = -0.5 * sum(zi * zi for zi in z) - 0.5 * logdet - 0.5 * n_obs * _LOG_TWO_PI
+    cmean = mean[n_obs:] + sum(K[i] * z[i] for i in range(n_obs))
+    ccov = cov[n_obs:, n_obs:] - sum(jnp.outer(K[i], K[i]) for i in range(n_obs))
     return logp, cmean, ccov
 
 
@@ -144,25 +156,38 @@ def _pair(cr: Crossing, m1, P1, Phi, Phi1, c, Sig, tau, with_position):
 def n2(cr: Crossing, m1, P1, Phi, Phi1, c, Sig, tau):
     """Joint density of upcrossings at t1 and t1 + tau (tau > 0), from the moments (m1, P1)
     at t1 and the propagators over tau: p(v1 = L, v2 = L) E[a1^+ a2^+ | v1 = v2 = L]."""
+    pre, mu, (s1, s2, rho) = n2_parts(cr, m1, P1, Phi, Phi1, c, Sig, tau)
+    return pre * positive_product_mean(mu[0], mu[1], s1, s2, rho)
+
+
+def n2_parts(cr: Crossing, m1, P1, Phi, Phi1, c, Sig, tau):
+    """`n2` up to its last factor: the density p(v1 = L, v2 = L) (0 where undefined), the
+    conditional means of (a1, a2) and their standard deviations and correlation, so that
+    n2 = density * E[a1^+ a2^+] (`positive_product_mean`)."""
     mean, cov = _pair(cr, m1, P1, Phi, Phi1, c, Sig, tau, False)
     ok = (cov[0, 0] > 0) & (cov[1, 1] > 0)
     cov = jnp.where(ok, cov, jnp.eye(4))
     logp, mu, var = _condition(mean, cov, 2, jnp.array([cr.level, 0.0]))
-    return jnp.where(ok, jnp.exp(logp) / tau * _product(mu, var), 0.0)
+    return jnp.where(ok, jnp.exp(logp) / tau, 0.0), mu, _spread(var)
 
 
 def n2_joint(cr: Crossing, m1, P1, Phi, Phi1, c, Sig, tau, x):
     """Joint density of an upcrossing at t1 (anywhere) and one at t1 + tau at position x."""
+    pre, mu, (s1, s2, rho) = n2_joint_parts(cr, m1, P1, Phi, Phi1, c, Sig, tau, x)
+    return pre * positive_product_mean(mu[0], mu[1], s1, s2, rho)
+
+
+def n2_joint_parts(cr: Crossing, m1, P1, Phi, Phi1, c, Sig, tau, x):
+    """`n2_joint` as `n2_parts` gives `n2`."""
     mean, cov = _pair(cr, m1, P1, Phi, Phi1, c, Sig, tau, True)
     ok = (cov[0, 0] > 0) & (cov[1, 1] > 0) & (cov[2, 2] > 0)
     cov = jnp.where(ok, cov, jnp.eye(5))
     logp, mu, var = _condition(mean, cov, 3, jnp.array([cr.level, 0.0, x]))
-    return jnp.where(ok, jnp.exp(logp) / tau * _product(mu, var), 0.0)
+    return jnp.where(ok, jnp.exp(logp) / tau, 0.0), mu, _spread(var)
 
 
-def _product(mu, var):
-    """E[a1^+ a2^+] for (a1, a2) ~ N(mu, var)."""
+def _spread(var):
+    """Standard deviations and correlation of a 2 x 2 covariance (floored at 1e-300)."""
     s1 = jnp.sqrt(jnp.maximum(var[0, 0], 1e-300))
     s2 = jnp.sqrt(jnp.maximum(var[1, 1], 1e-300))
-    rho = var[0, 1] / (s1 * s2)
-    return positive_product_mean(mu[0], mu[1], s1, s2, rho)
+    return s1, s2, var[0, 1] / (s1 * s2)
