@@ -384,3 +384,98 @@ def test_white_noise_closure_second_order(Langevin):
     diag = est.diagnostics(40.0, "decoupling", 2)
     assert diag["escape_rate_min"] > 0 and diag["min_density"] >= 0
     assert 0.9 < diag["mass"] <= 1.0
+
+
+# -- the fast evaluation paths against direct ones --------------------------------------------
+@pytest.mark.parametrize("params", [PUBLIC, WHITE], ids=["ou", "white-closure"])
+def test_grid_K2_equals_the_lag_rule_evaluated_directly(Langevin, params):
+    """K2(t) = int n2(t, s) ds on the grid, where the moments and propagators of the pairs
+    are composed from shared tables, against the same quadrature (`lag_rule`) with every
+    moment and propagator computed directly: equal to rounding."""
+    from stickslip._estimate import kernels, sources
+
+    est = ss.CrossingEstimator(Langevin(**params))
+    src, h = est._source, est.dt
+    K = src.second_order(src.grid(13.0, h), 1301)[0]
+    for k in (1, 7, 150, 777, 1300):
+        tau, w = sources.lag_rule(np.arange(1301)[k] * h)
+        ms, Ps = src.moments(np.maximum(k * h - tau, 0.0))
+        prop = kernels.lag_propagators(src.cr, tau)
+        direct = w @ np.asarray(kernels.n2_pairs(src.cr, ms[0], Ps[0], *prop, tau))
+        assert K[k] == pytest.approx(direct, rel=1e-11), k
+
+
+def test_shared_panels_are_those_of_the_graded_rule():
+    """`_panels` splits the graded Gauss-Legendre rule of many lengths into shared and own
+    panels: node for node the rule of `_graded`, including lengths at powers of two."""
+    from stickslip._estimate import sources
+
+    for first in (1e-6, 1e-3):
+        lengths = np.concatenate(
+            [np.arange(1, 3001) * 0.013, first * 2.0 ** np.arange(25), [first / 3, first]]
+        )
+        (x_sh, w_sh), used, (x_last, w_last) = sources._panels(lengths, first)
+        for i, length in enumerate(lengths):
+            x, w = sources._gauss(sources._graded(length, first))
+            np.testing.assert_array_equal(np.r_[x_sh[: used[i]], x_last[i]], x)
+            np.testing.assert_array_equal(np.r_[w_sh[: used[i]], w_last[i]], w)
+
+
+def test_bivariate_normal_branches_equal_the_full_formula():
+    """E[a1+ a2+] with only the branch of the bivariate normal each correlation needs
+    (Genz's 6-, 12-, 20-node rules, the expansion near |r| = 1) against both evaluated and
+    selected, to 1e-14 (Genz's rule is accurate to about 1e-15)."""
+    from stickslip._estimate.bvn import BRANCHES, branch_of, positive_product_mean
+
+    rng = np.random.default_rng(4)
+    n = 4000
+    m1, m2 = rng.normal(0, 2, n), rng.normal(0, 2, n)
+    s1, s2 = rng.uniform(0.1, 3, n), rng.uniform(0.1, 3, n)
+    rho = np.concatenate([rng.uniform(-1, 1, n - 6), [0.3, -0.75, 0.925, -0.925, 0.999999, 0]])
+    full = np.asarray(positive_product_mean(m1, m2, s1, s2, rho))
+    branch = branch_of(rho)
+    for b, name in enumerate(BRANCHES):
+        sel = branch == b
+        assert sel.any()
+        part = np.asarray(positive_product_mean(m1[sel], m2[sel], s1[sel], s2[sel], rho[sel], name))
+        np.testing.assert_allclose(part, full[sel], rtol=1e-13, atol=1e-14)
+
+
+def test_cumulative_without_sorting_equals_the_sorted_sum():
+    """Cell masses of boxes and points deposited without sorting (binary search in the
+    edges; pairs for narrow boxes, slopes for wide ones) against the sorted breakpoints,
+    with boxes of every width, points, and ends on the edges."""
+    from stickslip._estimate.estimator import _cumulative, _cumulative_sorted
+
+    rng = np.random.default_rng(5)
+    edges = np.linspace(-1.0, 6.0, 71)
+    n = 20_000
+    lo = np.concatenate([rng.normal(2, 2, n), np.repeat(edges[::5], 2)])
+    boxes = rng.exponential(0.2, n) * (rng.uniform(size=n) > 0.2)  # a fifth are points
+    width = np.concatenate([boxes, np.tile([0, 0.3], 15)])
+    hi, mass = lo + width, rng.normal(1, 1, lo.size)
+    for at in (edges, np.sort(rng.uniform(-2, 7, 500))):
+        np.testing.assert_allclose(
+            _cumulative(at, lo, hi, mass, pairwise=2), _cumulative_sorted(at, lo, hi, mass),
+            rtol=0, atol=1e-9,
+        )  # fmt: skip
+    wide = width > 0.05  # slopes and intercepts only: boxes wider than the spacing
+    np.testing.assert_allclose(
+        _cumulative(edges, lo[wide], hi[wide], mass[wide], pairwise=0),
+        _cumulative_sorted(edges, lo[wide], hi[wide], mass[wide]),
+        rtol=0, atol=1e-9,
+    )  # fmt: skip
+
+
+def test_position_densities_do_not_depend_on_what_was_asked_before(Langevin):
+    """The period density uses the grid times up to its last cell only; asked first, or
+    after the slip distance (which fills the whole horizon), it is the same."""
+    m = Langevin(**PUBLIC)
+    T = np.arange(0.1, 12.0, 0.2)
+    d = np.arange(-1.0, 4.0, 0.1) + 0.05
+    for args in (("decoupling", 2), ("truncation", 1, True)):
+        a = ss.CrossingEstimator(m, horizon=16.0)
+        first = a.period_density(T, *args)
+        b = ss.CrossingEstimator(m, horizon=16.0)
+        b.slip_distance_density(d, *args)
+        np.testing.assert_allclose(b.period_density(T, *args), first, rtol=1e-12, atol=1e-14)

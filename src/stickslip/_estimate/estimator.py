@@ -76,6 +76,8 @@ class CrossingEstimator:
       where measured, `"components"` is slightly the closer to simulation (slip-time L1
       0.337 against 0.348 for a lognormal threshold with sigma = 0.6; 0.371 against 0.387
       for a uniform one on [0.2, 2.5]; order 1, docs/models.md).
+    - `progress`: a progress bar for the long second-order integrals (default: on a
+      terminal, when they take more than a few seconds).
     """
 
     def __init__(
@@ -90,6 +92,7 @@ class CrossingEstimator:
         x_points: int = 96,
         joint_dt: float | None = None,
         mixing: str | None = None,
+        progress: bool | None = None,
     ):
         owner = "CrossingEstimator"
         if not isinstance(model, FrictionModel):
@@ -128,6 +131,7 @@ class CrossingEstimator:
         else:
             self.dt = check_positive(owner, "dt", 0.01 if dt is None else dt)
             self._source = self._gaussian(model, closure_variance, quadrature_nodes, x_points)
+            self._source.progress = progress
             self.t_complete = math.inf
         self.immediate_probability = self._source.immediate_probability
         self._cache: dict = {}
@@ -239,7 +243,7 @@ class CrossingEstimator:
         h, src = self.dt, self._source
         entry = src.grid(t_end, h)
         n = int(round(t_end / h)) + 1
-        second = src.second_order(entry)[:, :n] if order == 2 else None
+        second = src.second_order(entry, n) if order == 2 else None
         n1, K, w = self._mixed(entry["n1"][:, :n], second)
         if K is None:
             K = np.zeros_like(n1)
@@ -363,26 +367,47 @@ class CrossingEstimator:
             t_end *= 2
         return t_end
 
-    def _points(self, method, order, normalized):
-        """Point masses of F(x, t) dx dt: times, positions and masses (K, P)."""
+    def _points(self, method, order, normalized, t_stop=None):
+        """Point masses of F(x, t) dx dt: times, positions and masses (K, P). All grid
+        times up to the horizon, or (exact sources) only those that can fall before
+        `t_stop`: grid time t_k stands for [t_k - h/2, t_k + h/2], and the masses at t_k
+        depend on the series up to t_k alone."""
         t_end = self._grid_end(self._horizon())
+        h, src = self.dt, self._source
+        n = int(round(t_end / h)) + 1
+        if t_stop is not None and isinstance(src, GaussianSource):
+            n = min(n, max(2, int(math.floor(t_stop / h + 0.5)) + 2))
         key = ("points", method, order, normalized, t_end)
-        if key in self._cache:
-            return self._cache[key]
+        have = self._cache.get(key)
+        if have is None or have[0] < n:
+            have = (n, self._masses(method, order, normalized, t_end, n))
+            self._cache[key] = have
+        T, X, W, mass, X0 = have[1]
+        if have[0] > n:  # a longer prefix is at hand: time is the last axis
+            T, X, W, mass = (a[..., :n] for a in (T, X, W, mass))
+        return T, X, W, mass, X0
+
+    def _masses(self, method, order, normalized, t_end, n):
+        """`_points` over the first n grid times."""
         h, src = self.dt, self._source
         coarse = self.joint_dt or max(h, t_end / 300)
-        T, X, W, n1w, K2w, X0 = src.points(t_end, h, order, coarse)
+        T, X, W, n1w, K2w, X0 = src.points(t_end, h, order, coarse, n)
         entry = src.grid(t_end, h)
-        n = int(round(t_end / h)) + 1
+        n = T.shape[-1] if isinstance(src, GaussianSource) else int(round(t_end / h)) + 1
         grid = np.arange(n) * h
         n1 = entry["n1"][:, :n]
-        K = src.second_order(entry)[:, :n] if order == 2 else np.zeros_like(n1)
+        K = src.second_order(entry, n) if order == 2 else np.zeros_like(n1)
         if self.mixing == "process" and n1.shape[0] > 1:
             # every component sees the mixture process's exponent (and truncation cut)
             mix_n1, mix_K, _ = self._mixed(n1, K)
             n1 = np.repeat(mix_n1, src.n_components, axis=0)
             K = np.repeat(mix_K, src.n_components, axis=0)
         mass = np.zeros_like(n1w)
+        if isinstance(src, GaussianSource):  # the boxes sit at the grid times themselves
+            at_times = lambda Tc, f: f[:n]
+        else:
+            at_times = lambda Tc, f: np.interp(Tc, grid, f)
+
         for c in range(src.n_components):
             Tc = T[c]
             if method == "truncation":
@@ -395,16 +420,14 @@ class CrossingEstimator:
             else:
                 I1 = series.cumulative(n1[c], h)
                 if order == 1:
-                    mass[c] = n1w[c] * np.exp(-np.interp(Tc, grid, I1))
+                    mass[c] = n1w[c] * np.exp(-at_times(Tc, I1))
                 else:
                     G_ = K[c] - n1[c] * I1
                     S = I1 - series.cumulative(G_, h)
-                    rate = n1w[c] - (K2w[c] - n1w[c] * np.interp(Tc, grid, I1))
-                    mass[c] = rate * np.exp(-np.interp(Tc, grid, S))
+                    rate = n1w[c] - (K2w[c] - n1w[c] * at_times(Tc, I1))
+                    mass[c] = rate * np.exp(-at_times(Tc, S))
             mass[c] *= src.w[c]
-        out = (T, X, W, mass, X0)
-        self._cache[key] = out
-        return out
+        return T, X, W, mass, X0
 
     def slip_distance_density(self, d, method="decoupling", order=1, normalized=False):
         r"""Density of the slip distance $d = x_0 - x_{sl}$ (eq. 4),
@@ -429,21 +452,30 @@ class CrossingEstimator:
         self._check(method, order, normalized)
         points = np.asarray(points, float)
         edges = _edges(np.atleast_1d(points), kind)
-        T, X, W, mass, X0 = self._points(method, order, normalized)
-        mass, T = mass.ravel(), np.broadcast_to(T, X.shape).ravel()
-        if kind == "slip_distance":
-            x0 = np.broadcast_to(X0, X.shape).ravel()
-            lo, hi = x0 - X.ravel() - W.ravel() / 2, x0 - X.ravel() + W.ravel() / 2
-            cells = _deposit(edges, lo, hi, mass)
-        else:
-            nodes, weights = self._source.thresholds
-            if nodes.size == 1:  # fixed threshold: each component's own onset position
-                x0 = np.broadcast_to(X0, X.shape).ravel()
-                cells = self._fixed_threshold_periods(edges, T, X.ravel(), W.ravel(), x0, mass)
+        # a period is at least the slip time: later grid times cannot reach the cells
+        t_stop = edges[-1] if kind == "period" else None
+        T, X, W, all_mass, X0 = self._points(method, order, normalized, t_stop)
+        nodes, weights = self._source.thresholds
+        shape = all_mass.shape
+        # Boxes below 1e-14 / N of the total mass of the N are left out (together they move
+        # no cell by 1e-14 of it; with a random threshold they are about half of them: the
+        # tails of the position grid, the components of the law's outer nodes). The cells
+        # are sums over boxes: a few components at a time, ~1e6 boxes stay in the cache.
+        floor = 1e-14 * np.abs(all_mass).sum() / max(all_mass.size, 1)
+        step = max(1, 1_000_000 // max(1, math.prod(shape[1:])))
+        cells = np.zeros(edges.size - 1)
+        for first in range(0, shape[0], step):
+            part = slice(first, first + step)
+            keep = np.abs(all_mass[part]) > floor
+            T_, X_, W_, x0 = (np.broadcast_to(a, shape)[part][keep] for a in (T, X, W, X0))
+            mass = all_mass[part][keep]
+            if kind == "slip_distance":
+                lo, hi = x0 - X_ - W_ / 2, x0 - X_ + W_ / 2
+                cells += _deposit(edges, *_within(edges, lo, hi, mass))
+            elif nodes.size == 1:  # fixed threshold: each component's own onset position
+                cells += self._fixed_threshold_periods(edges, T_, X_, W_, x0, mass)
             else:  # the next threshold is independent of this cycle
-                cells = self._random_threshold_periods(
-                    edges, T, X.ravel(), W.ravel(), mass, nodes, weights
-                )
+                cells += self._random_threshold_periods(edges, T_, X_, W_, mass, nodes, weights)
         out = cells / np.diff(edges)
         if (out < 0).any():
             warnings.warn(
@@ -454,57 +486,80 @@ class CrossingEstimator:
             )
         return out.reshape(points.shape)
 
+    def _half(self):
+        """Half the time cell a grid time stands for (exact sources; simulated upcrossings
+        carry their own times)."""
+        return 0.5 * self.dt if isinstance(self._source, GaussianSource) else 0.0
+
     def _fixed_threshold_periods(self, edges, T, X, W, x0, mass):
         """Period cells for T = t + max(0, x0 - x) / v_b, boxes in x: the part of a box at
         x >= x0 sticks at T = t. Each grid time stands for [t - h/2, t + h/2] (its
         trapezoid cell): spread it over that, or whole rows of mass would fall on one side
         of a cell edge."""
-        half = 0.5 * self.dt if isinstance(self._source, GaussianSource) else 0.0
+        half = self._half()
         lo, hi = x0 - X - W / 2, x0 - X + W / 2
         span = np.where(hi > lo, hi - lo, 1.0)
         neg = np.where(hi > lo, np.clip(-lo, 0.0, span) / span, (hi <= 0).astype(float))
         a = T + np.maximum(lo, 0.0) / self.level
         b = T + np.maximum(hi, 0.0) / self.level
-        cells = _deposit(edges, T - half, T + half, mass * neg)
-        return cells + _deposit(edges, a - half, b + half, mass * (1 - neg))
+        cells = _deposit(edges, *_within(edges, T - half, T + half, mass * neg))
+        return cells + _deposit(edges, *_within(edges, a - half, b + half, mass * (1 - neg)))
 
     def _random_threshold_periods(self, edges, T, X, W, mass, nodes, weights):
         """Period cells for T = t + max(0, x0' - x) / v_b with x0' independent of (t, x) and
-        drawn from the discrete law (nodes, weights).
+        drawn from the discrete law (nodes, weights): the cells of
+        `_fixed_threshold_periods` averaged over the nodes, without a pass per node.
 
-        The mass is gathered on a grid, times on the estimator's grid h and positions in
-        bins of width at most v_b h / 2 (boxes split between bins); for each position bin
-        the law of the stick time (x0' - x)^+ / v_b on the time grid (each node shared
-        linearly between its two neighbouring grid times) is convolved with that bin's time
-        profile by FFT. Grid time k stands for [t_k - h/2, t_k + h/2]."""
-        h, vb = self.dt, self.level
-        k = np.rint(T / h).astype(np.int64)
-        n_t = int(k.max()) + 1
-        x_lo, x_hi = float((X - W / 2).min()), float((X + W / 2).max())
-        n_x = int(min(max(math.ceil((x_hi - x_lo) / (0.5 * vb * h)), 1), 4096))
-        bx = (x_hi - x_lo) / n_x or 1.0
-        # one deposit for every row: row k's x axis is shifted by k * (n_x + 1) bins
-        shift = k * (n_x + 1) * bx
-        row_edges = (x_lo + bx * np.arange(n_x + 1))[None, :] + (np.arange(n_t) * (n_x + 1) * bx)[
-            :, None
-        ]
-        M = _deposit(row_edges.ravel(), X - W / 2 + shift, X + W / 2 + shift, mass)
-        M = np.append(M, 0.0).reshape(n_t, n_x + 1)[:, :n_x]  # (time, position bin)
-        xc = x_lo + bx * (np.arange(n_x) + 0.5)
-        # stick-time kernel per position bin: (x0' - x)^+ / v_b on the grid, linear shares
-        tau = np.maximum(nodes[None, :] - xc[:, None], 0.0) / (vb * h)  # (n_x, nodes)
-        n_k = int(math.floor(tau.max())) + 2
-        base = np.floor(tau).astype(np.int64)
-        frac = tau - base
-        kernel = np.zeros((n_x, n_k))
-        rows = np.broadcast_to(np.arange(n_x)[:, None], tau.shape)
-        np.add.at(kernel, (rows, base), weights * (1 - frac))
-        np.add.at(kernel, (rows, base + 1), weights * frac)
-        size = n_t + n_k
-        spec = np.fft.rfft(M, size, axis=0) * np.fft.rfft(kernel.T, size, axis=0)
-        R = np.fft.irfft(spec, size, axis=0).sum(axis=1)[: n_t + n_k - 1]
-        t = np.arange(R.size) * h
-        return _deposit(edges, t - h / 2, t + h / 2, R)
+        For node x0' a box [lo, hi] in x is either above it (lo >= x0': T = t), below it
+        (hi <= x0': T from t + (x0' - hi) / v_b to t + (x0' - lo) / v_b, i.e. y + x0' / v_b
+        with y in [t - hi / v_b, t - lo / v_b]) or straddles it. The boxes above add their
+        mass times the weight of the nodes below them at T = t; those below a node add
+        their cells in y shifted by x0' / v_b: grouped by the first node above them, each
+        group's cumulative mass in y is evaluated at the cell edges shifted back for every
+        node of the group and above. The few straddling (box, node) pairs are deposited as
+        `_fixed_threshold_periods` does."""
+        half, vb = self._half(), self.level
+        order = np.argsort(nodes)
+        nodes, weights = nodes[order], weights[order]
+        lo, hi = X - W / 2, X + W / 2
+        below_lo = np.searchsorted(nodes, lo, side="right")  # nodes x0' <= lo
+        below_hi = np.searchsorted(nodes, hi, side="left")  # nodes x0' < hi
+        points = hi <= lo
+        below_hi = np.where(points, below_lo, below_hi)  # a point at x: x0' <= x sticks at t
+        cum_w = np.concatenate([[0.0], np.cumsum(weights)])
+        # at T = t: every box, weighted by the nodes it lies wholly above
+        cells = _deposit(edges, *_within(edges, T - half, T + half, mass * cum_w[below_lo]))
+        # straddled nodes (lo < x0' < hi), one (box, node) pair each
+        n_in = below_hi - below_lo
+        if n_in.any():
+            box = np.repeat(np.arange(T.size), n_in)
+            node = below_lo[box] + (np.arange(box.size) - np.repeat(np.cumsum(n_in) - n_in, n_in))
+            x0, w = nodes[node], weights[node] * mass[box]
+            span = hi[box] - lo[box]
+            up = (hi[box] - x0) / span  # the share above x0': T = t
+            t = T[box]
+            cells += _deposit(edges, *_within(edges, t - half, t + half, w * up))
+            b = t + (x0 - lo[box]) / vb
+            cells += _deposit(edges, *_within(edges, t - half, b + half, w * (1 - up)))
+        # wholly below nodes below_hi, below_hi + 1, ...: in y = t - x / v_b
+        y_lo, y_hi = T - hi / vb - half, T - lo / vb + half
+        order = np.argsort(below_hi, kind="stable")
+        bounds = np.searchsorted(below_hi[order], np.arange(nodes.size + 1))
+        y_lo, y_hi, mass = y_lo[order], y_hi[order], mass[order]
+        cum = np.zeros(edges.size)
+        for r in range(nodes.size):
+            group = slice(bounds[r], bounds[r + 1])
+            if bounds[r + 1] == bounds[r]:
+                continue
+            shift = nodes[r:] / vb  # (nodes above the group)
+            queries = (edges[None, :] - shift[:, None]).ravel()
+            at = np.argsort(queries)
+            Y = np.empty(queries.size)
+            # the boxes are at least 2 half = h wide: slopes and intercepts (`_cumulative`)
+            wide = 0 if half > 0 else 2
+            Y[at] = _cumulative(queries[at], y_lo[group], y_hi[group], mass[group], wide)
+            cum += weights[r:] @ Y.reshape(shift.size, edges.size)
+        return cells + np.diff(cum)
 
     def _check(self, method, order, normalized):
         check_choice("first_passage", "method", method, METHODS)
@@ -518,8 +573,50 @@ class CrossingEstimator:
 
 def _deposit(edges, lo, hi, mass):
     """Mass of uniform boxes [lo, hi] (points where lo == hi) falling in each cell of
-    `edges`: the cumulative mass at each edge is a sum of ramps (for boxes) and steps (for
-    points), evaluated through sorted breakpoints."""
+    `edges`."""
+    return np.diff(_cumulative(edges, lo, hi, mass))
+
+
+def _cumulative(at, lo, hi, mass, pairwise=2):
+    """Mass of uniform boxes [lo, hi] (points where lo == hi) at or below each value of
+    `at` (increasing). For a few values (cell edges) the boxes are not sorted: a box adds
+    its whole mass from the first value >= hi on (binary search in `at`) and, at the values
+    inside it, a share linear in the value: pair by pair for a box holding up to
+    `pairwise` values, else as a slope and an intercept summed over the boxes that hold
+    each value (a box holding three values is two value spacings wide, so its slope is
+    bounded and the sums keep their precision; `pairwise=0` where every box is known to be
+    wide). For many values and boxes of any width, `_cumulative_sorted`."""
+    n_at = at.size
+    if n_at > 256 and pairwise:
+        return _cumulative_sorted(at, lo, hi, mass)
+    box = hi > lo
+    inside = np.searchsorted(at, lo, side="right")  # first value > lo
+    whole = np.where(box, np.searchsorted(at, hi, side="left"), np.searchsorted(at, lo))
+    out = np.cumsum(np.bincount(whole, weights=mass, minlength=n_at + 1)[:n_at])
+    span = np.where(box, whole - inside, 0)
+    few = (span > 0) & (span <= pairwise)
+    if few.any():
+        (which,) = np.nonzero(few)
+        span_f = span[which]
+        i = np.repeat(which, span_f)
+        q = np.repeat(inside[which] - np.cumsum(span_f) + span_f, span_f) + np.arange(i.size)
+        share = (at[q] - lo[i]) / (hi[i] - lo[i])
+        out += np.bincount(q, weights=mass[i] * share, minlength=n_at)
+    many = span > pairwise
+    if many.any():
+        slope = mass[many] / (hi[many] - lo[many])
+        a, b = inside[many], whole[many]
+
+        def summed(w):
+            return np.cumsum(np.bincount(a, w, n_at + 1) - np.bincount(b, w, n_at + 1))[:n_at]
+
+        out += summed(slope) * at + summed(-slope * lo[many])
+    return out
+
+
+def _cumulative_sorted(at, lo, hi, mass):
+    """`_cumulative` through sorted breakpoints: a sum of ramps (boxes) and steps
+    (points)."""
     box = hi > lo
     density = np.where(box, mass / np.where(box, hi - lo, 1.0), 0.0)
     # sum_i density_i ((e - lo_i)^+ - (e - hi_i)^+): breakpoints with slopes +-density
@@ -528,12 +625,19 @@ def _deposit(edges, lo, hi, mass):
     order = np.argsort(p)
     p, c = p[order], c[order]
     cum_c, cum_cp = np.concatenate([[0], np.cumsum(c)]), np.concatenate([[0], np.cumsum(c * p)])
-    k = np.searchsorted(p, edges, side="right")
-    ramps = cum_c[k] * edges - cum_cp[k]
+    k = np.searchsorted(p, at, side="right")
+    ramps = cum_c[k] * at - cum_cp[k]
     pts = np.sort(lo[~box])
     w = mass[~box][np.argsort(lo[~box])]
-    steps = np.concatenate([[0], np.cumsum(w)])[np.searchsorted(pts, edges, side="right")]
-    return np.diff(ramps + steps)
+    steps = np.concatenate([[0], np.cumsum(w)])[np.searchsorted(pts, at, side="right")]
+    return ramps + steps
+
+
+def _within(edges, lo, hi, mass):
+    """The boxes that can change the cells of `edges`: a box wholly above the last edge
+    adds nothing, one wholly below the first adds the same to every cumulative value."""
+    keep = (hi >= edges[0]) & (lo <= edges[-1]) & (mass != 0)
+    return lo[keep], hi[keep], mass[keep]
 
 
 def _edges(points, name):

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import equinox as eqx
+import numpy as np
 
 from .._jax import jax, jnp
-from .._linear import propagators
+from .._linear import _taylor, propagators
 from . import gaussian as G
 
 _PAIR_CHUNK = 1 << 15  # pairs evaluated at once (bounds the memory of the n2 kernels)
@@ -86,12 +87,130 @@ def n2_pairs(cr, m1, P1, Phi, Phi1, c, Sig, tau):
 
 
 @eqx.filter_jit
-def n2_joint_pairs(cr, m1, P1, Phi, Phi1, c, Sig, tau, xs):
-    """n2(s; x, t) for a flat list of pairs, each with its own positions xs (n_pairs, J):
-    shape (n_pairs, J)."""
-    n_pairs = tau.shape[0]
+def short_lag_propagators(cr, h, taus):
+    """`propagators` at lags 0 <= tau <= h: the Taylor series alone (no doublings) when
+    |A| h <= 1/4, where it is exact to rounding (see `_linear`); else `propagators`."""
+    norm = jnp.max(jnp.sum(jnp.abs(cr.A), axis=0)) * h
 
-    def one(m, P, a, b_, cc, s, t, x_row):
-        return jax.vmap(lambda x: G.n2_joint(cr, m, P, a, b_, cc, s, t, x))(x_row)
+    def taylor(s):
+        Phi, Phi1, Sig = _taylor(cr.A, cr.B, s)
+        return Phi, Phi1, Phi1 @ cr.b, Sig
 
-    return _chunked(one, n_pairs, m1, P1, Phi, Phi1, c, Sig, tau, xs)
+    def full(s):
+        return propagators(cr.A, cr.b, cr.B, s)
+
+    return jax.lax.cond(norm <= 0.25, lambda: jax.vmap(taylor)(taus), lambda: jax.vmap(full)(taus))
+
+
+@eqx.filter_jit
+def grid_lag_propagators(cr, h, n):
+    """`propagators` at the lags j h, j < n (by the exact recursion of `grid_propagators`)."""
+    return G.grid_propagators(cr.A, cr.b, cr.B, h, n)
+
+
+def _table_pair(cr, ms, Ps, table, moment, carry, first, second):
+    """Moments at the earlier time and propagators over the lag of one pair given as rows of
+    tables: the moments of row `moment` carried over the lag of propagator row `carry`, and
+    the lag of row `first` followed by that of row `second` (row 0: the identity, for which
+    both compositions are exact)."""
+    Phi_t, Phi1_t, c_t, Sig_t = table
+    F, S = Phi_t[carry], Sig_t[carry]
+    m1 = F @ ms[moment] + c_t[carry]
+    P1 = F @ Ps[moment] @ F.T + S
+    Fa, Fb = Phi_t[first], Phi_t[second]
+    Phi = Fb @ Fa
+    Phi1 = Phi1_t[second] + Fb @ Phi1_t[first]
+    Sig = Fb @ Sig_t[first] @ Fb.T + Sig_t[second]
+    return m1, P1, Phi, Phi1, Phi1 @ cr.b, Sig
+
+
+_TABLE_CHUNK = 1 << 14  # pairs per call of the table kernels
+
+
+def _bucket(n):
+    """Table length padded to a power of two (>= 64), so that few shapes get compiled."""
+    return max(64, 1 << (int(n) - 1).bit_length())
+
+
+def table_pairs(cr, ms, Ps, table, rows, tau, positions=None):
+    """n2 (or, with `positions`, n2(s; x, t)) over pairs given by table rows (`rows`:
+    (n_pairs, 4) integers: moment, carry, first, second; see `_table_pair`). NumPy array
+    (n_pairs,) or (n_pairs, J).
+
+    In two passes of fixed-size chunks (the compiled code depends on the shapes of the
+    tables alone, however many pairs a call has): the Gaussian part of every pair first
+    (`n2_parts`), then the factor E[a1^+ a2^+], grouped by the formula its correlation
+    needs (Genz's rule for the bivariate normal: a 6-, 12- or 20-node quadrature, or the
+    expansion near |r| = 1; evaluated for every pair under `vmap`, the costliest of them
+    would be paid each time). `positions`: a table (n_t, J) and each pair's row in it (the
+    positions of its later time)."""
+    from .bvn import BRANCHES, branch_of
+
+    if positions is not None:
+        xs, k = positions
+    n = tau.shape[0]
+    parts = []
+    for lo in range(0, n, _TABLE_CHUNK):
+        hi = min(lo + _TABLE_CHUNK, n)
+        pad = _TABLE_CHUNK - (hi - lo)
+        r = np.pad(rows[lo:hi], ((0, pad), (0, 0))).astype(np.int32)  # row 0: harmless
+        t = np.pad(tau[lo:hi], (0, pad), constant_values=1.0)
+        if positions is None:
+            out = n2_parts_chunk(cr, ms, Ps, table, r, t)
+        else:
+            kk = np.pad(k[lo:hi], (0, pad)).astype(np.int32)
+            out = n2_joint_parts_chunk(cr, ms, Ps, table, r, t, xs, kk)
+        parts.append([np.asarray(a)[: hi - lo] for a in out])
+    if not parts:
+        return np.zeros((0,) if positions is None else (0, 0))
+    pre, m1, m2, s1, s2, rho = (np.concatenate(a) for a in zip(*parts, strict=True))
+    shape = pre.shape
+    s1, s2, rho = (np.broadcast_to(a.reshape(a.shape + (1,) * (pre.ndim - 1)), shape).ravel()
+                   for a in (s1, s2, rho))  # fmt: skip
+    pre, m1, m2 = pre.ravel(), m1.ravel(), m2.ravel()
+    value = np.zeros(pre.size)
+    branch = branch_of(rho)
+    for b, name in enumerate(BRANCHES):
+        (idx,) = np.nonzero((branch == b) & (pre != 0))
+        for lo in range(0, idx.size, _TABLE_CHUNK):
+            sel = idx[lo : lo + _TABLE_CHUNK]
+            args = [np.pad(a[sel], (0, _TABLE_CHUNK - sel.size), constant_values=1.0)
+                    for a in (m1, m2, s1, s2)]  # fmt: skip
+            args.append(np.pad(rho[sel], (0, _TABLE_CHUNK - sel.size)))
+            prod = np.asarray(product_chunk(*args, name))[: sel.size]
+            value[sel] = pre[sel] * prod
+    return value.reshape(shape)
+
+
+@eqx.filter_jit
+def product_chunk(m1, m2, s1, s2, rho, branch):
+    """E[a1^+ a2^+] for a chunk, by one formula of the bivariate normal (`bvn_upper`)."""
+    from .bvn import positive_product_mean
+
+    return positive_product_mean(m1, m2, s1, s2, rho, branch)
+
+
+@eqx.filter_jit
+def n2_parts_chunk(cr, ms, Ps, table, rows, tau):
+    """`gaussian.n2_parts` for a chunk of pairs given by table rows: density, means (2) and
+    (s1, s2, rho), each (chunk,)."""
+
+    def one(r, t):
+        pre, mu, spread = G.n2_parts(cr, *_table_pair(cr, ms, Ps, table, *r), t)
+        return (pre, mu[0], mu[1], *spread)
+
+    return jax.vmap(one)(rows, tau)
+
+
+@eqx.filter_jit
+def n2_joint_parts_chunk(cr, ms, Ps, table, rows, tau, xs, k):
+    """`gaussian.n2_joint_parts` for a chunk of pairs given by table rows, at the positions
+    xs[k] (J,) of each pair's later time: density and means (chunk, J), and
+    (s1, s2, rho) (chunk,) (they do not depend on x)."""
+
+    def one(r, t, kk):
+        args = _table_pair(cr, ms, Ps, table, *r)
+        pre, mu, spread = jax.vmap(lambda x: G.n2_joint_parts(cr, *args, t, x))(xs[kk])
+        return (pre, mu[:, 0], mu[:, 1], *(a[0] for a in spread))
+
+    return jax.vmap(one)(rows, tau, k)

@@ -14,6 +14,7 @@ next cycle's threshold).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -28,6 +29,8 @@ _XI_MAX = 8.5  # standardised positions covered (the rest of a normal law is bel
 _XI_COARSE = 33  # xi points of the second-order position-resolved correction
 _FIRST_PANEL = 1e-6  # the innermost panels: their share of the integral is negligible
 _GL_NODES = 8  # Gauss-Legendre nodes per panel
+_BLOCK = 224  # grid times per block of K2_grid: their short lags fit in _SHORT_ROWS
+_SHORT_ROWS = 8192  # 32 short lags per grid time (last panels) + the shared ones (< 1000)
 
 
 def _graded(length, first):
@@ -37,8 +40,11 @@ def _graded(length, first):
     return edges[np.concatenate([[True], np.diff(edges) > 0])]
 
 
+_LEGENDRE = np.polynomial.legendre.leggauss(_GL_NODES)
+
+
 def _gauss(edges):
-    x, w = np.polynomial.legendre.leggauss(_GL_NODES)
+    x, w = _LEGENDRE
     a, b = edges[:-1, None], edges[1:, None]
     return (0.5 * (b - a) * (x + 1.0) + a).ravel(), (0.5 * (b - a) * w).ravel()
 
@@ -56,6 +62,46 @@ def lag_rule(t):
     u, wu = _gauss(_graded(math.sqrt(0.5 * t), math.sqrt(_FIRST_PANEL)))
     s, ws = _gauss(_graded(0.5 * t, _FIRST_PANEL))
     return np.concatenate([u * u, t - s]), np.concatenate([2.0 * u * wu, ws])
+
+
+def _panels(lengths, first):
+    """The panels of `_graded(length, first)` for many lengths, split into what the lengths
+    share and what they do not: every panel but the last is one of the fixed geometric
+    panels [0, p], [p, 2p], [2p, 4p], ...; only the last, [.., length], is a length's own.
+    Returns the nodes and weights of the shared panels (in panel order), how many of them
+    each length uses, and the nodes and weights of each length's last panel (n, nodes)."""
+    # the edges of `_graded` (its count n from the same math.log2): 0, p 2^i (i < n - 1)
+    # and the length, less a repeated last edge
+    n = np.array([max(1, int(math.ceil(math.log2(max(L, first) / first))) + 1) for L in lengths])
+    n = n.astype(np.int64)
+    below = np.where(n >= 2, first * 2.0 ** np.maximum(n - 2, 0), 0.0)
+    repeated = (n >= 2) & (np.minimum(below, lengths) == lengths)
+    n_panels = n - repeated  # panels: edges - 1
+    lo = np.where(repeated, first * 2.0 ** np.maximum(n - 3, 0), below)
+    lo = np.where(repeated & (n == 2), 0.0, lo)
+    used = (n_panels - 1) * _GL_NODES
+    most = int(n_panels.max(initial=1))
+    longest = np.concatenate([[0.0], first * 2.0 ** np.arange(most - 1), [np.inf]])
+    x, w = _LEGENDRE
+    half = 0.5 * (lengths - lo)[:, None]
+    last = (half * (x + 1.0) + lo[:, None], half * w)
+    shared = _gauss(longest[:-1]) if longest.size > 2 else (np.zeros(0), np.zeros(0))
+    return shared, used, last
+
+
+@dataclasses.dataclass
+class _GridPairs:
+    """The (earlier time s, lag tau) pairs of `lag_rule` at the times k h of a uniform grid,
+    described through tables that many pairs share (see `GaussianSource._grid_pairs`)."""
+
+    k: np.ndarray  # grid index of the later time t of each pair
+    weight: np.ndarray  # quadrature weight
+    tau: np.ndarray  # the lag t - s
+    moment: np.ndarray  # grid time g h <= s: its moments are carried on to s
+    carry: np.ndarray  # row of the propagator table that carries them (lag s - g h)
+    first: np.ndarray  # short lag of the propagator table followed by grid lag `grid_lag`:
+    grid_lag: np.ndarray  # together the lag tau
+    lags: np.ndarray  # the short lags (< h) of the propagator table's rows 1, 2, ...
 
 
 class GaussianSource:
@@ -82,6 +128,10 @@ class GaussianSource:
         pos, inverse = np.unique(np.round(mixture[0] @ p, 14), return_inverse=True)
         self.thresholds = (pos, np.bincount(inverse, weights=weights))
         self._grids: dict = {}
+        self._K2: dict = {}  # K2 on the grid of step h, per h
+        self._profiles: dict = {}
+        self.progress = None  # see CrossingEstimator
+        self._boxes: dict = {}  # first-order boxes of the position-resolved densities
 
     def _onset(self, m0, P0, exact, quadrature_nodes):
         """Components for one Gaussian onset N(m0, P0): `(m0s, P0s, weights, p0)`."""
@@ -154,59 +204,193 @@ class GaussianSource:
 
     # -- grids -------------------------------------------------------------------------------
     def grid(self, t_end, h):
+        """Moments and n1 at t_k = k h for k < n, n >= t_end / h + 1 (rounded up to a power
+        of two: the grid is made by one exact recursion whose values do not depend on its
+        length, and few lengths get compiled)."""
         n = int(math.ceil(t_end / h - 1e-9)) + 1
         have = self._grids.get(h)
         if have is not None and have["n"] >= n:
             return have
+        n = max(8192, 1 << (n - 1).bit_length())
         ms, Ps = kernels.grid_moments(self.cr, jnp.asarray(self.m0s), jnp.asarray(self.P0s), h, n)
         n1 = np.array(kernels.n1_from(self.cr, ms, Ps))
         n1[:, 0] = 0.0
-        entry = dict(n=n, h=h, ms=ms, Ps=Ps, n1=n1, K2=None)
+        entry = dict(n=n, h=h, ms=ms, Ps=Ps, n1=n1)
         self._grids[h] = entry
         return entry
 
-    def second_order(self, entry):
-        if entry["K2"] is None:
-            t = np.arange(entry["n"]) * entry["h"]
-            entry["K2"] = self.K2(t)
-        return entry["K2"]
+    def second_order(self, entry, n):
+        """K2 at the first `n` times of the grid of `entry`. Kept per step h: a longer grid
+        (a longer horizon) computes K2 only at its new times."""
+        h = entry["h"]
+        have = self._K2.get(h, np.zeros((self.n_components, 0)))
+        if have.shape[1] < n:
+            have = np.concatenate([have, self.K2_grid(entry, have.shape[1], n)], axis=1)
+            self._K2[h] = have
+        return have[:, :n]
 
-    def K2(self, times, X=None):
-        """K2(t) = int_0^t n2(t, s) ds per component at `times` (n,), or, with positions X
-        (K, J, n), the position-resolved K2(x, t) at X (K, J, n), by the lag quadrature of
-        `lag_rule`."""
-        rules = [lag_rule(t) for t in times]
-        k = np.concatenate([np.full(r[0].size, i) for i, r in enumerate(rules)])
-        tau = np.concatenate([r[0] for r in rules])
-        wts = np.concatenate([r[1] for r in rules])
-        s = np.maximum(np.asarray(times)[k] - tau, 0.0)
-        ut, ti = np.unique(s, return_inverse=True)
-        ul, li = np.unique(tau, return_inverse=True)
-        ms, Ps = self.moments(ut)
-        prop = kernels.lag_propagators(self.cr, jnp.asarray(ul))
-        lagged = [a[li] for a in prop]
-        n = len(times)
-        shape = (self.n_components, n) if X is None else (self.n_components, X.shape[1], n)
+    def K2_grid(self, entry, start, stop, X=None):
+        """K2(t) = int_0^t n2(t, s) ds per component at the grid times k h of `entry`,
+        start <= k < stop: (K, stop - start); with positions X (K, J, stop - start), the
+        position-resolved K2(x, t) there. The quadrature is `lag_rule`'s, evaluated through
+        tables (`_grid_pairs`), in blocks of `_BLOCK` grid times whose tables have one
+        shape (compiled once)."""
+        h = entry["h"]
+        n_out = stop - start
+        shape = (self.n_components, n_out) if X is None else (self.n_components, X.shape[1], n_out)
         out = np.zeros(shape)
-        for c in range(self.n_components):
-            args = (self.cr, ms[c][ti], Ps[c][ti], *lagged, jnp.asarray(tau))
-            if X is None:
-                vals = np.asarray(kernels.n2_pairs(*args))
-                out[c] = np.bincount(k, weights=wts * vals, minlength=n)
-            else:
-                vals = np.asarray(kernels.n2_joint_pairs(*args, jnp.asarray(X[c].T)[k]))
-                for ix in range(X.shape[1]):
-                    out[c, ix] = np.bincount(k, weights=wts * vals[:, ix], minlength=n)
+        if "lag_props" not in entry:
+            entry["lag_props"] = [
+                np.asarray(a) for a in kernels.grid_lag_propagators(self.cr, h, entry["n"])
+            ]
+        d = self._g.size
+        ident = (np.eye(d)[None], np.zeros((1, d, d)), np.zeros((1, d)), np.zeros((1, d, d)))
+        ms_all, Ps_all = self._host(entry)
+        blocks = range(start, stop, _BLOCK)
+        bar = self._bar(len(blocks) * self.n_components * (1 if X is None else 4))
+        for lo in blocks:
+            if bar is not None:
+                bar.update(self.n_components * (1 if X is None else 4))
+            hi = min(lo + _BLOCK, stop)
+            pairs = self._grid_pairs(entry, lo, hi)
+            if pairs.k.size == 0:
+                continue
+            # the propagator table: the identity, the short lags (< h), the grid lags j h
+            n_rows = max(_SHORT_ROWS, kernels._bucket(pairs.lags.size))
+            lags = np.pad(pairs.lags, (0, n_rows - pairs.lags.size))
+            short = kernels.short_lag_propagators(self.cr, h, lags)
+            table = tuple(
+                np.concatenate([i, np.asarray(a), g])
+                for i, a, g in zip(ident, short, entry["lag_props"], strict=True)
+            )
+            second = 1 + n_rows + pairs.grid_lag
+            rows = np.stack([pairs.moment, pairs.carry, pairs.first, second], axis=1)
+            local = pairs.k - lo
+            for c in range(self.n_components):
+                args = (self.cr, ms_all[c], Ps_all[c], table, rows, pairs.tau)
+                if X is None:
+                    vals = kernels.table_pairs(*args)
+                    out[c, lo - start : hi - start] = np.bincount(
+                        local, weights=pairs.weight * vals, minlength=hi - lo
+                    )
+                else:
+                    xs = X[c, :, lo - start : hi - start].T  # (hi - lo, J)
+                    xs = np.pad(xs, ((0, _BLOCK - (hi - lo)), (0, 0)), mode="edge")
+                    vals = kernels.table_pairs(*args, positions=(xs, local))
+                    for ix in range(X.shape[1]):
+                        out[c, ix, lo - start : hi - start] = np.bincount(
+                            local, weights=pairs.weight * vals[:, ix], minlength=hi - lo
+                        )
+        if bar is not None:
+            bar.close()
         return out
 
-    def positions(self, entry, n_t, n_xi):
+    def _bar(self, work):
+        """A progress bar for `work` steps of K2 (about 0.1 s each on 2 cores), or None:
+        shown when asked for (`progress=True`), or by default on a terminal when the work
+        takes more than about 2 s."""
+        show = self.progress
+        if show is None:
+            import sys
+
+            show = work >= 20 and sys.stderr.isatty()
+        if not show:
+            return None
+        from tqdm.auto import tqdm
+
+        return tqdm(total=work, desc="n2 integrals", unit="step", leave=False)
+
+    def _grid_pairs(self, entry, start, stop):
+        """The pairs (s, tau) of `lag_rule(t)` for t = k h, start <= k < stop, as rows of
+        tables (see `kernels._table_pair`).
+
+        The moments at s and the propagator over tau cost a matrix exponential each if
+        computed directly. Here every time is a grid time plus a short lag below h: the
+        moments at s are the grid moments at g h <= s carried on over s - g h, and the
+        propagator over tau is that of a short lag followed by one of the grid lags j h (the
+        grid moments and grid propagators come from one exact recursion each). Short lags
+        are shared where the rule shares nodes: in the u-half all panels but the last are
+        the same for every t (so are their lags tau_j, and s = k h - tau_j is the grid time
+        (k - q_j) h plus q_j h - tau_j); in the s-half the nodes s_i of all panels but the
+        last are shared (tau = k h - s_i is q_i h - s_i followed by (k - q_i) h). Only the
+        last panels (8 + 8 nodes per t) need short lags of their own. Row 0 of the
+        propagator table is the identity, then come the `lags` rows; `grid_lag` indexes
+        the grid lags."""
+        h, n_grid = entry["h"], entry["n"]
+        ks = np.arange(max(start, 1), stop)  # t = 0 has no lag
+        t = np.arange(n_grid)[ks] * h  # as np.arange(n) * h: the times of the grid
+        sq = math.sqrt(_FIRST_PANEL)
+        (u_sh, wu_sh), u_used, (u_last, wu_last) = _panels(np.sqrt(0.5 * t), sq)
+        (s_sh, ws_sh), s_used, (s_last, ws_last) = _panels(0.5 * t, _FIRST_PANEL)
+        tau_sh, wtau_sh = u_sh * u_sh, 2.0 * u_sh * wu_sh
+        lags: list = []
+
+        def short(values):
+            """Rows of the short lags `values` (each in [0, h])."""
+            rows = 1 + sum(v.size for v in lags) + np.arange(values.size)
+            lags.append(values)
+            return rows
+
+        def below(x):
+            """Grid steps g with g h <= x (floating point), at most the last grid time."""
+            g = np.minimum(np.floor(x / h).astype(np.int64), n_grid - 1)
+            return g - (g * h > x)
+
+        def above(x):
+            q = np.ceil(x / h).astype(np.int64)
+            return q + (q * h < x)
+
+        def expand(used):
+            k = np.repeat(np.arange(ks.size), used)
+            j = np.arange(k.size) - np.repeat(np.cumsum(used) - used, used)
+            return k, j
+
+        parts = []
+        # u-half, shared panels: s = (k - q_j) h + eps_j; tau_j = j_j h + delta_j
+        k, j = expand(u_used)
+        q = above(tau_sh)
+        eps = short(q * h - tau_sh)
+        g = below(tau_sh)
+        delta = short(tau_sh - g * h)
+        parts.append((k, wtau_sh[j], tau_sh[j], ks[k] - q[j], eps[j], delta[j], g[j]))
+        # s-half, shared panels: s_i = g_i h + eps_i; tau = (q_i h - s_i) + (k - q_i) h
+        k, j = expand(s_used)
+        g = below(s_sh)
+        eps = short(s_sh - g * h)
+        q = above(s_sh)
+        delta = short(q * h - s_sh)
+        parts.append((k, ws_sh[j], t[k] - s_sh[j], g[j], eps[j], delta[j], ks[k] - q[j]))
+        # the last panels: short lags of their own
+        k = np.repeat(np.arange(ks.size), _GL_NODES)
+        u = u_last.ravel()
+        last = ((u * u, 2.0 * u * wu_last.ravel()), (t[k] - s_last.ravel(), ws_last.ravel()))
+        for tau, w in last:
+            s_ = np.maximum(t[k] - tau, 0.0)
+            g, gt = below(s_), below(tau)
+            parts.append((k, w, tau, g, short(s_ - g * h), short(tau - gt * h), gt))
+
+        def column(i, dtype=float):
+            return np.concatenate([np.asarray(p[i], dtype) for p in parts])
+
+        return _GridPairs(
+            k=ks[column(0, np.int64)],
+            weight=column(1),
+            tau=column(2),
+            moment=column(3, np.int64),
+            carry=column(4, np.int64),
+            first=column(5, np.int64),
+            grid_lag=column(6, np.int64),
+            lags=np.concatenate(lags) if lags else np.zeros(0),
+        )
+
+    def positions(self, entry, n_t, n_xi, start=0):
         """Positions at an upcrossing on a uniform grid of the standardised position
         xi in [-8.5, 8.5] under the Gaussian law of x given v = L, per component and grid
         time, as boxes: centres X and widths (K, n_xi, n_t). The law is narrow at short
         times (short slips stick on a thin ridge x ~ x0 + v_b t that no fixed grid
         resolves) and wide later; boxes rather than points keep histograms free of
-        aliasing at any cell size."""
-        ms, Ps = np.asarray(entry["ms"][:, :n_t]), np.asarray(entry["Ps"][:, :n_t])
+        aliasing at any cell size. `start`: only the grid times from it on."""
+        ms, Ps = (a[:, start:n_t] for a in self._host(entry))
         g, p = self._g, self._p
         svv = np.einsum("i,knij,j->kn", g, Ps, g)
         sxv = np.einsum("i,knij,j->kn", p, Ps, g)
@@ -220,32 +404,31 @@ class GaussianSource:
         width = np.broadcast_to(sd[:, None, :] * (xi[1] - xi[0]), X.shape)
         return X, width
 
-    def points(self, t_end, h, order, coarse_h):
-        """Boxes of n1(x, t) dx dt and K2(x, t) dx dt at the positions of every grid time.
+    def points(self, t_end, h, order, coarse_h, n_t=None):
+        """Boxes of n1(x, t) dx dt and K2(x, t) dx dt at the positions of the grid times
+        up to t_end, or of the first `n_t` of them (each grid time's values do not depend on
+        the later ones; the trapezoid weights are those of the grid up to t_end).
 
         K2(x, t) is computed on a coarser grid, in time (`coarse_h`) and in xi
         (`_XI_COARSE` points): its profile over xi is interpolated onto the fine grid and
         scaled to K2(t) on the fine grid, so that it sums to the marginal term exactly
         (n1(x, t), which carries the thin short-slip ridge, is exact on the fine grid)."""
         entry = self.grid(t_end, h)
-        n_t = int(round(t_end / h)) + 1
+        n_all = int(round(t_end / h)) + 1
+        n_t = n_all if n_t is None else min(n_t, n_all)
         t = np.arange(n_t) * h
-        X, width = self.positions(entry, n_t, self.x_points)
-        ms, Ps = entry["ms"][:, :n_t], entry["Ps"][:, :n_t]
-        n1x = np.array(kernels.n1_joint_nodes(self.cr, ms, Ps, jnp.asarray(X)))
-        n1x[:, :, 0] = 0.0
-        dt_w = series.trapezoid_weights(n_t, h)
+        X, width, n1w = self._first_order(entry, n_all, n_t)
+        dt_w = series.trapezoid_weights(n_all, h)[:n_t]
         K2x = None
         if order == 2:
-            coarse = self.grid(t_end, coarse_h)
-            n_c = int(round(t_end / coarse_h)) + 1
-            tc = np.arange(n_c) * coarse_h
-            Xc, _ = self.positions(coarse, n_c, _XI_COARSE)
-            profile = self.K2(tc, Xc)  # (K, coarse xi, n_c), per unit x
+            tc = np.arange(int(round(t_end / coarse_h)) + 1) * coarse_h
+            n_c = min(tc.size, int(np.searchsorted(tc, t[-1])) + 1)  # tc[n_c - 1] >= t[-1]
+            tc = tc[:n_c]
+            profile = self._profile(t_end, coarse_h, n_c)  # (K, coarse xi, n_c), per unit x
             xi_c = np.linspace(-_XI_MAX, _XI_MAX, _XI_COARSE)
             xi_f = np.linspace(-_XI_MAX, _XI_MAX, self.x_points)
-            K_fine = self.second_order(entry)[:, :n_t]
-            K2x = np.zeros_like(n1x)
+            K_fine = self.second_order(entry, n_t)
+            K2x = np.zeros(X.shape)
             for c in range(self.n_components):
                 # per unit xi at coarse times -> fine times -> fine xi
                 over_t = np.array([np.interp(t, tc, row) for row in profile[c]])
@@ -255,7 +438,74 @@ class GaussianSource:
                 K2x[c] = share * K_fine[c] * dt_w
         T = np.broadcast_to(t, X.shape)
         X0 = self.x0.reshape((-1,) + (1,) * (X.ndim - 1))
-        return T, X, width, n1x * width * dt_w, K2x, X0
+        return T, X, width, n1w, K2x, X0
+
+    def _first_order(self, entry, n_all, n_t):
+        """Positions X (K, J, n_t), widths and the weights n1(x, t) dx dt of the boxes of
+        the first n_t times of the grid of `entry` cut at n_all times (trapezoid weights
+        of that grid). Kept, and extended when more times are asked for: the boxes of a
+        time do not depend on later ones."""
+        key = (entry["h"], n_all)
+        have = self._boxes.get(key)
+        shape = (self.n_components, self.x_points, n_all)
+        if have is None:
+            have = dict(done=0, X=np.empty(shape), wd=np.empty(shape[::2]), n1w=np.empty(shape))
+            self._boxes[key] = have
+        done = have["done"]
+        if done < n_t:
+            X, width = self.positions(entry, n_t, self.x_points, start=done)
+            n1x = self._n1_joint(entry, X, done)
+            if done == 0:
+                n1x[:, :, 0] = 0.0
+            dt_w = series.trapezoid_weights(n_all, entry["h"])[done:n_t]
+            have["X"][:, :, done:n_t] = X
+            have["wd"][:, done:n_t] = width[:, 0, :]
+            have["n1w"][:, :, done:n_t] = n1x * width * dt_w
+            have["done"] = n_t
+        X = have["X"][:, :, :n_t]
+        width = np.broadcast_to(have["wd"][:, None, :n_t], X.shape)
+        return X, width, have["n1w"][:, :, :n_t]
+
+    def _n1_joint(self, entry, X, start):
+        """n1(x, t) at the positions X (K, J, n) of the grid times start, start + 1, ...,
+        in blocks of grid times of one size (one compiled shape)."""
+        ms, Ps = self._host(entry)
+        n = X.shape[2]
+        out = np.empty(X.shape)
+        block = 256
+        for lo in range(0, n, block):
+            hi = min(lo + block, n)
+            a, b = start + lo, min(start + lo + block, ms.shape[1])
+            Xb, mb, Pb = X[:, :, lo:hi], ms[:, a:b], Ps[:, a:b]
+            if hi - lo < block:  # the last block: padded to the one shape
+                Xb = np.concatenate([Xb, np.repeat(Xb[:, :, -1:], block - (hi - lo), axis=2)], 2)
+            if b - a < block:
+                mb = np.concatenate([mb, np.repeat(mb[:, -1:], block - (b - a), axis=1)], 1)
+                Pb = np.concatenate([Pb, np.repeat(Pb[:, -1:], block - (b - a), axis=1)], 1)
+            out[:, :, lo:hi] = np.asarray(kernels.n1_joint_nodes(self.cr, mb, Pb, Xb))[
+                :, :, : hi - lo
+            ]
+        return out
+
+    def _host(self, entry):
+        """The grid moments of `entry` as NumPy arrays (kept)."""
+        if "host" not in entry:
+            entry["host"] = (np.asarray(entry["ms"]), np.asarray(entry["Ps"]))
+        return entry["host"]
+
+    def _profile(self, t_end, coarse_h, n_c):
+        """K2(x, t) at `_XI_COARSE` positions at the first `n_c` times of the coarse grid
+        (kept, and extended when more are asked for)."""
+        key = (coarse_h, int(round(t_end / coarse_h)))
+        have = self._profiles.get(key)
+        done = 0 if have is None else have.shape[2]
+        if done < n_c:
+            coarse = self.grid(t_end, coarse_h)
+            Xc, _ = self.positions(coarse, n_c, _XI_COARSE)
+            new = self.K2_grid(coarse, done, n_c, Xc[:, :, done:])
+            have = new if have is None else np.concatenate([have, new], axis=2)
+            self._profiles[key] = have
+        return have[:, :, :n_c]
 
 
 class EmpiricalSource:
@@ -302,10 +552,10 @@ class EmpiricalSource:
         K2[0] *= 2.0
         return dict(n=n, h=h, n1=n1[None], K2=K2[None])
 
-    def second_order(self, entry):
-        return entry["K2"]
+    def second_order(self, entry, n):
+        return entry["K2"][:, :n]
 
-    def points(self, t_end, h, order, coarse_h):
+    def points(self, t_end, h, order, coarse_h, n_t=None):
         keep = self.t <= t_end
         w = np.full(keep.sum(), 1.0 / self.n_slip)
         K2 = (self.index[keep] / self.n_slip)[None] if order == 2 else None
