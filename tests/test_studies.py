@@ -219,8 +219,7 @@ REDUCED = {
         "sweep.parameters={model.params.v_b: [0.5, 1.25, 2.0]}",
     ],
     "fig7": ["simulation.n_paths=1000", "simulation.cycles.t_max=100"],
-    # one method: each period density with a random threshold costs ~20 s (FFT over nodes)
-    "random_threshold": ["simulation.n_paths=2000", "analytic=[{method: decoupling}]"],
+    "random_threshold": ["simulation.n_paths=2000"],
     "public_auto": ["tolerance=0.1"],  # method: auto sizes the run itself
 }
 

@@ -76,8 +76,8 @@ class CrossingEstimator:
       where measured, `"components"` is slightly the closer to simulation (slip-time L1
       0.337 against 0.348 for a lognormal threshold with sigma = 0.6; 0.371 against 0.387
       for a uniform one on [0.2, 2.5]; order 1, docs/models.md).
-    - `progress`: a progress bar for the long second-order integrals (default: on a
-      terminal, when they take more than a few seconds).
+    - `progress`: a progress bar for the second-order integrals that take more than
+      about 2 s (default: on a terminal).
     """
 
     def __init__(

@@ -235,66 +235,69 @@ class GaussianSource:
         position-resolved K2(x, t) there. The quadrature is `lag_rule`'s, evaluated through
         tables (`_grid_pairs`), in blocks of `_BLOCK` grid times whose tables have one
         shape (compiled once)."""
-        h = entry["h"]
         n_out = stop - start
         shape = (self.n_components, n_out) if X is None else (self.n_components, X.shape[1], n_out)
         out = np.zeros(shape)
-        if "lag_props" not in entry:
-            entry["lag_props"] = [
-                np.asarray(a) for a in kernels.grid_lag_propagators(self.cr, h, entry["n"])
-            ]
-        d = self._g.size
-        ident = (np.eye(d)[None], np.zeros((1, d, d)), np.zeros((1, d)), np.zeros((1, d, d)))
-        ms_all, Ps_all = self._host(entry)
         blocks = range(start, stop, _BLOCK)
-        bar = self._bar(len(blocks) * self.n_components * (1 if X is None else 4))
+        step = self.n_components * (1 if X is None else 4)  # cost of a block, ~0.1 s
+        bar = self._bar(len(blocks) * step)
         for lo in blocks:
-            if bar is not None:
-                bar.update(self.n_components * (1 if X is None else 4))
             hi = min(lo + _BLOCK, stop)
-            pairs = self._grid_pairs(entry, lo, hi)
-            if pairs.k.size == 0:
-                continue
-            # the propagator table: the identity, the short lags (< h), the grid lags j h
-            n_rows = max(_SHORT_ROWS, kernels._bucket(pairs.lags.size))
-            lags = np.pad(pairs.lags, (0, n_rows - pairs.lags.size))
-            short = kernels.short_lag_propagators(self.cr, h, lags)
-            table = tuple(
-                np.concatenate([i, np.asarray(a), g])
-                for i, a, g in zip(ident, short, entry["lag_props"], strict=True)
-            )
-            second = 1 + n_rows + pairs.grid_lag
-            rows = np.stack([pairs.moment, pairs.carry, pairs.first, second], axis=1)
-            local = pairs.k - lo
-            for c in range(self.n_components):
-                args = (self.cr, ms_all[c], Ps_all[c], table, rows, pairs.tau)
-                if X is None:
-                    vals = kernels.table_pairs(*args)
-                    out[c, lo - start : hi - start] = np.bincount(
-                        local, weights=pairs.weight * vals, minlength=hi - lo
-                    )
-                else:
-                    xs = X[c, :, lo - start : hi - start].T  # (hi - lo, J)
-                    xs = np.pad(xs, ((0, _BLOCK - (hi - lo)), (0, 0)), mode="edge")
-                    vals = kernels.table_pairs(*args, positions=(xs, local))
-                    for ix in range(X.shape[1]):
-                        out[c, ix, lo - start : hi - start] = np.bincount(
-                            local, weights=pairs.weight * vals[:, ix], minlength=hi - lo
-                        )
+            self._K2_block(entry, lo, hi, out[..., lo - start : hi - start], X, start)
+            if bar is not None:
+                bar.update(step)
         if bar is not None:
             bar.close()
         return out
 
+    def _K2_block(self, entry, lo, hi, out, X, start):
+        """`K2_grid` at the grid times lo <= k < hi, into `out` (K, [J,] hi - lo); X: the
+        positions of `K2_grid` (from grid time `start` on) or None."""
+        h = entry["h"]
+        pairs = self._grid_pairs(entry, lo, hi)
+        if pairs.k.size == 0:
+            return
+        if "lag_props" not in entry:
+            entry["lag_props"] = [
+                np.asarray(a) for a in kernels.grid_lag_propagators(self.cr, h, entry["n"])
+            ]
+        # the propagator table: the identity, the short lags (< h), the grid lags j h
+        d = self._g.size
+        ident = (np.eye(d)[None], np.zeros((1, d, d)), np.zeros((1, d)), np.zeros((1, d, d)))
+        n_rows = max(_SHORT_ROWS, kernels._bucket(pairs.lags.size))
+        short = kernels.short_lag_propagators(
+            self.cr, h, np.pad(pairs.lags, (0, n_rows - pairs.lags.size))
+        )
+        table = tuple(
+            np.concatenate([i, np.asarray(a), g])
+            for i, a, g in zip(ident, short, entry["lag_props"], strict=True)
+        )
+        second = 1 + n_rows + pairs.grid_lag
+        rows = np.stack([pairs.moment, pairs.carry, pairs.first, second], axis=1)
+        local = pairs.k - lo
+        ms_all, Ps_all = self._host(entry)
+        for c in range(self.n_components):
+            args = (self.cr, ms_all[c], Ps_all[c], table, rows, pairs.tau)
+            if X is None:
+                vals = kernels.table_pairs(*args)
+                out[c] = np.bincount(local, weights=pairs.weight * vals, minlength=hi - lo)
+            else:
+                xs = X[c, :, lo - start : hi - start].T  # (hi - lo, J)
+                xs = np.pad(xs, ((0, _BLOCK - (hi - lo)), (0, 0)), mode="edge")
+                vals = kernels.table_pairs(*args, positions=(xs, local))
+                for ix in range(X.shape[1]):
+                    w = pairs.weight * vals[:, ix]
+                    out[c, ix] = np.bincount(local, weights=w, minlength=hi - lo)
+
     def _bar(self, work):
-        """A progress bar for `work` steps of K2 (about 0.1 s each on 2 cores), or None:
-        shown when asked for (`progress=True`), or by default on a terminal when the work
-        takes more than about 2 s."""
+        """A progress bar for `work` steps of K2 (about 0.1 s each on 2 cores) when they
+        take more than about 2 s: with `progress=True`, or by default on a terminal."""
         show = self.progress
         if show is None:
             import sys
 
-            show = work >= 20 and sys.stderr.isatty()
-        if not show:
+            show = sys.stderr.isatty()
+        if not show or work < 20:
             return None
         from tqdm.auto import tqdm
 

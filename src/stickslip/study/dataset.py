@@ -57,11 +57,13 @@ def units_of(model, kind: str) -> str:
     return units.get(kind, kind if kind == "blocks" else f"{kind} units")
 
 
-def assemble(study: Study, points, edges) -> xr.Dataset:
+def assemble(study: Study, points, edges, progress: bool = False) -> xr.Dataset:
+    """The Dataset of a study's points; `progress`: a bar over the theory evaluations."""
     import stickslip
 
     model = study.model.instance
-    per_point = [_one(study, p, edges) for p in points]
+    with _TheoryBar(study, points, progress) as bar:
+        per_point = [_one(study, p, edges, bar) for p in points]
     ds = xr.concat(per_point, dim="point", data_vars="all", coords="minimal", join="outer")
     for name in list(ds.data_vars):  # grids and labels are shared, not per point
         if name.endswith("_edges") or name == "method_label":
@@ -121,7 +123,41 @@ def _plain(obj):
     return repr(obj)
 
 
-def _one(study: Study, point, edges) -> xr.Dataset:
+class _TheoryBar:
+    """A progress bar over the level-crossing evaluations of a study (one step per density
+    and method), naming the one under way; nothing unless enabled."""
+
+    def __init__(self, study: Study, points, enabled: bool):
+        outs = study.resolved_outputs()
+        total = 0
+        for p in points:
+            methods = len(p.study.analytic)
+            total += methods * sum(q in outs for q in THEORY_DENSITIES)
+            if p.exact is not None:
+                total += ("n1" in outs) + ("n2" in outs)
+        self.bar = None
+        if enabled and total:
+            from tqdm.auto import tqdm
+
+            self.bar = tqdm(total=total, desc="theory", unit="density", leave=False)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        if self.bar is not None:
+            self.bar.close()
+
+    def start(self, name: str):
+        if self.bar is not None:
+            self.bar.set_postfix_str(name, refresh=True)
+
+    def done(self):
+        if self.bar is not None:
+            self.bar.update()
+
+
+def _one(study: Study, point, edges, bar) -> xr.Dataset:
     outs = study.resolved_outputs()
     data: dict = {}
     coords: dict = {}
@@ -145,7 +181,9 @@ def _one(study: Study, point, edges) -> xr.Dataset:
         if q in THEORY_DENSITIES and methods:
             rows, errs, secs = [], [], []
             for a in point.study.analytic:
+                bar.start(f"{q} {a.key}")
                 values, seconds, notes = theory_density(point, a, q, e)
+                bar.done()
                 point.warnings.extend(notes)
                 rows.append(values)
                 secs.append(seconds)
@@ -172,12 +210,14 @@ def _one(study: Study, point, edges) -> xr.Dataset:
         if point.exact is not None:
             import time
 
+            bar.start(q)
             t0 = time.perf_counter()
             if q == "n1":
                 value = cell_average(point.exact.n1, e, point.exact.dt / 4)
             else:
                 value = cell_average_2d(point.exact.n2, e)
             data[f"seconds_theory_{q}"] = ((), time.perf_counter() - t0)
+            bar.done()
             data[f"theory_{q}"] = (dims, np.asarray(value, float))
         if ens is not None and ens.upcrossings is not None:
             if q == "n1":

@@ -101,7 +101,7 @@ def run_study(
     grids = _grids(study, points)
     from .dataset import assemble
 
-    ds = assemble(study, points, grids)
+    ds = assemble(study, points, grids, progress=progress)
     ds.attrs["seconds_theory_densities"] = time.perf_counter() - t0
     if out_dir is not None:
         from .write import write_results
@@ -232,7 +232,7 @@ def _compute(point: _Point, progress: bool, say):
     if lg and ("exact" in sources or "n1" in outs or "n2" in outs):
         t0 = time.perf_counter()
         point.exact = ss.CrossingEstimator(
-            model, dt=opts.dt, horizon=opts.horizon, mixing=opts.mixing
+            model, dt=opts.dt, horizon=opts.horizon, mixing=opts.mixing, progress=progress
         )
         point.timings["estimator_setup"] = time.perf_counter() - t0
     if "empirical" in sources:
