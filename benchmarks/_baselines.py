@@ -16,8 +16,16 @@ def _matrices(omega0, zeta, D, tau):
     return A, B
 
 
-def exact_dropping(n_paths, dt, t_max, seed, *, omega0, zeta, D, v_b, x0, tau):
-    """Exact Gaussian stepping of (x, v, eta); finished paths are dropped from the arrays."""
+def exact_dropping(n_paths, dt, t_max, seed, **params):
+    """Exact Gaussian stepping of (x, v, eta); finished paths are dropped from the arrays.
+    Returns `(slip_time, path_steps)`."""
+    T, _, steps = exact_dropping_cycles(n_paths, dt, t_max, seed, **params)
+    return T, steps
+
+
+def exact_dropping_cycles(n_paths, dt, t_max, seed, *, omega0, zeta, D, v_b, x0, tau):
+    """`exact_dropping` that also returns the slip distance: `(slip_time, slip_distance,
+    path_steps)`, the stick position by the same linear interpolation as the time."""
     A, B = _matrices(omega0, zeta, D, tau)
     M = np.block([[-A, B @ B.T], [np.zeros((3, 3)), A.T]]) * dt
     E = scipy.linalg.expm(M)
@@ -28,6 +36,7 @@ def exact_dropping(n_paths, dt, t_max, seed, *, omega0, zeta, D, v_b, x0, tau):
     rng = np.random.default_rng(seed)
     X = np.tile([x0, v_b, 0.0], (n_paths, 1))
     T = np.full(n_paths, np.nan)
+    d = np.full(n_paths, np.nan)
     idx = np.arange(n_paths)
     k = 0
     steps = 0
@@ -38,12 +47,14 @@ def exact_dropping(n_paths, dt, t_max, seed, *, omega0, zeta, D, v_b, x0, tau):
         hit = Xn[:, 1] >= v_b
         if hit.any():
             v0, v1 = X[hit, 1], Xn[hit, 1]
-            T[idx[hit]] = (k - 1 + (v_b - v0) / (v1 - v0)) * dt
+            f = (v_b - v0) / (v1 - v0)
+            T[idx[hit]] = (k - 1 + f) * dt
+            d[idx[hit]] = x0 - (X[hit, 0] + f * (Xn[hit, 0] - X[hit, 0]))
             keep = ~hit
             X, idx = Xn[keep], idx[keep]
         else:
             X = Xn
-    return T, steps
+    return T, d, steps
 
 
 def euler_all(n_paths, dt, t_max, seed, *, omega0, zeta, D, v_b, x0, tau):
