@@ -54,6 +54,8 @@ def test_throughput_benchmark_runs(tmp_path):
             str(ROOT / "benchmarks" / "throughput.py"),
             "--n-paths",
             "1000",
+            "--pass-n",
+            "20000",
             "--json",
             str(tmp_path / "b.json"),
         ],
@@ -62,6 +64,7 @@ def test_throughput_benchmark_runs(tmp_path):
     )
     assert run.returncode == 0, run.stderr
     assert "numpy_exact_dropping / stickslip_exact_continuous" in run.stdout
+    assert "ratio (NumPy / stickslip, compiled, equal accuracy)" in run.stdout
 
 
 def test_estimator_benchmark_runs():
