@@ -503,11 +503,11 @@ class _Run:
             real = slot >= 0
             if refine:
                 cand = np.nonzero(real & (ks >= 0))[0]
-                found = self._refine(cand, X_prev, X, ks, p, miss)
+                found, frac, state = self._refine(cand, X_prev, X, ks, p, miss)
                 hit, back = cand[found], cand[~found]
                 rows = slot[hit]
-                t_stick[rows] = (ks[hit] + self._frac[found]) * self.dt
-                stick_state[:, rows] = self._state[:, found]
+                t_stick[rows] = (ks[hit] + frac[found]) * self.dt
+                stick_state[:, rows] = state[:, found]
                 offset[back] = ks[back] + 1.0  # refuted: resume at the next step
                 ks[back] = SLIPPING
                 ks[hit] = INACTIVE
@@ -534,14 +534,12 @@ class _Run:
         return X0[:, :count], stick_state, t_stick, located, miss_end[:count]
 
     def _refine(self, cand, X_prev, X, ks, p, miss):
-        """Refine the candidate steps `cand` of the buffer exactly (bridge detector): sets
-        `self._frac`, `self._state` for them, adds their certified bounds to `miss`, and
-        returns whether each crossed."""
+        """Refine the candidate steps `cand` of the buffer exactly (bridge detector): adds
+        their certified bounds to `miss` and returns, for each, whether it crossed, where
+        (fraction of its step) and the state there."""
         n = cand.size
-        self._frac = np.zeros(n)
-        self._state = np.zeros((X.shape[0], n))
         if n == 0:
-            return np.zeros(0, dtype=bool)
+            return np.zeros(0, dtype=bool), np.zeros(0), np.zeros((X.shape[0], 0))
         self.stats["candidates"] += n
         if self._splitter is None:
             self._splitter = bridge.Splitter(
@@ -551,11 +549,10 @@ class _Run:
             self._splitter, self.model.stick_level, self.depths, self.tol,
             X_prev[:, cand], X[:, cand], p[cand], ks[cand].astype(np.uint32),
         )  # fmt: skip
-        self._frac, self._state = frac, state
         miss[cand] += add
         self.stats["unresolved"] += int(np.sum(unresolved))
         self.stats["refined_nodes"] += int(splits)
-        return found
+        return found, frac, state
 
     def _locate_chunk(self, X_end, X_prev_end, k_end, path, count, t_stick, stick_state, located):
         """Locate each stick inside its step (all detectors but the bridge), in batches that
