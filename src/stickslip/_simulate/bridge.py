@@ -18,7 +18,8 @@ Gauss-Markov state):
 1. every step, evaluate $E[N_h]$ for each slipping path (Gauss-Legendre, `QUADRATURE`
    nodes); a step that ends at or above $L$, or whose bound exceeds the tolerance, is a
    *candidate*;
-2. a candidate step is refined depth first, earliest half first: the bridge midpoint is
+2. a candidate step is refined, earliest half first (computed level by level over all
+   candidates, which gives the same result as depth first): the bridge midpoint is
    sampled exactly (a conditional Gaussian, with noise keyed by path, step and tree node),
    a half that ends at or above $L$ holds a crossing, a half that ends below with a bound
    at or below the tolerance is certified crossing-free, any other half is split again;
@@ -167,12 +168,10 @@ def depth_for(A, h: float, scale: float = LOCATE_SCALE) -> int:
     return int(min(MAX_DEPTH, max(1, math.ceil(need))))
 
 
-def _rows(table, j):
-    """Rows of a `(..., J)` table at level `j`: level 0 for every path (`j` None), shapes
-    `(..., 1)`, or one level per path, shapes `(..., n)`."""
-    if j is None:
-        return table[..., :1]
-    return jnp.take(table, j, axis=-1)
+def _rows(table):
+    """Rows of a `(..., J)` table at its first level, shapes `(..., 1)`: the whole step for
+    the tables of a run, or the one level of a table `_unpack` made."""
+    return table[..., :1]
 
 
 def _dot(M, X):
@@ -187,9 +186,9 @@ def crossing_value(T: BridgeTables, X):
     return _dot(T.crossing[:, :1], X)
 
 
-def expected_upcrossings(T: BridgeTables, j, Xa, Xb, level, cheap: bool = False):
+def expected_upcrossings(T: BridgeTables, Xa, Xb, level, cheap: bool = False):
     """Rice's expected number of upcrossings of `level` by the bridge from `Xa` to `Xb`
-    (each `(d, n)`) over an interval of level `j` (None: the whole step).
+    (each `(d, n)`) over the interval of the tables' first level.
 
     `cheap`: one exponential instead of one per node, with the smallest standardised gap
     at every node, so a larger value (the simulator's every-step screen: at small steps the
@@ -197,7 +196,7 @@ def expected_upcrossings(T: BridgeTables, j, Xa, Xb, level, cheap: bool = False)
     by the refinement)."""
     # One elementwise expression per quadrature node, summed in a Python loop: XLA then
     # fuses the whole bound into one pass (a (Q, n) array reduced over Q ran ~5x slower).
-    rows = lambda t: _rows(t, j)
+    rows = _rows
     vP, vG, vq, aP, aG, aq = (rows(t) for t in (T.v_P, T.v_G, T.v_q, T.a_P, T.a_G, T.a_q))
     inv_sv, kappa, s_a, w = (rows(t) for t in (T.inv_sv, T.kappa, T.s_a, T.weight))
     total = jnp.zeros(jnp.broadcast_shapes(Xa.shape[1:], Xb.shape[1:]))
@@ -250,13 +249,13 @@ def expected_upcrossings(T: BridgeTables, j, Xa, Xb, level, cheap: bool = False)
     return jnp.where(reach, jnp.inf, total)
 
 
-def midpoint(T: BridgeTables, j, Xa, Xb, z):
-    """A draw of the bridge at the middle of an interval of level `j` (one per path)."""
+def midpoint(T: BridgeTables, Xa, Xb, z):
+    """A draw of the bridge at the middle of the interval of the tables' first level."""
     return (
-        _dot(_rows(T.mid_P, j), Xa)
-        + _dot(_rows(T.mid_G, j), Xb)
-        + _rows(T.mid_q, j)
-        + _dot(_rows(T.mid_L, j), z)
+        _dot(_rows(T.mid_P), Xa)
+        + _dot(_rows(T.mid_G), Xb)
+        + _rows(T.mid_q)
+        + _dot(_rows(T.mid_L), z)
     )
 
 
@@ -292,11 +291,11 @@ def _split(rows, j, level, ends, ids, key, *, layout):
     z = _rng.tree_normals(key, ids[0], ids[1], ids[2], d)
     # Materialise the draw once: XLA would otherwise re-derive it (three Threefry hashes)
     # inside each of its consumers.
-    Xm = jax.lax.optimization_barrier(midpoint(T_parent, None, Xa, Xb, z))
+    Xm = jax.lax.optimization_barrier(midpoint(T_parent, Xa, Xb, z))
     left_above = crossing_value(T_parent, Xm) >= level
     right_above = crossing_value(T_parent, Xb) >= level
-    p_left = expected_upcrossings(T_child, None, Xa, Xm, level)
-    p_right = expected_upcrossings(T_child, None, Xm, Xb, level)
+    p_left = expected_upcrossings(T_child, Xa, Xm, level)
+    p_right = expected_upcrossings(T_child, Xm, Xb, level)
     flags = jnp.stack([left_above, right_above]).astype(Xm.dtype)
     return jnp.concatenate([Xm, flags, p_left[None], p_right[None]])
 

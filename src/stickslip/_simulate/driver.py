@@ -341,14 +341,13 @@ class _Run:
             nodes=_nodes_for(model, dt, detect == "cubic") if solver == "exact" else 1,
             detect=detect,
         )
-        self.depth = 0
+        self.depths = None  # (location, certification) levels of the bridge detector
         if detect == "bridge":
             A = model.linear_gaussian().A
             self.depths = (
                 bridge.depth_for(A, dt, bridge.LOCATE_SCALE),
                 bridge.depth_for(A, dt, bridge.CERTIFY_SCALE),
             )
-            self.depth = self.depths[0]
         self.tol = float(crossing_tol)
         self.model = _to_arrays(model)
         self.keys = {
@@ -382,7 +381,7 @@ class _Run:
             t_max=self.t_max,
             detector=cfg.detect,
             interpolation_nodes=cfg.nodes,
-            **({"crossing_tol": self.tol, "refine_depths": self.depths} if self.depth else {}),
+            **({"crossing_tol": self.tol, "refine_depths": self.depths} if self.depths else {}),
             **extra,
         )
 

@@ -104,7 +104,7 @@ class AbstractCrossingSolver(diffrax.AbstractItoSolver):
             p = jnp.where(var > 0, jnp.exp(jnp.minimum(expo, 0.0)), 0.0)
             inside = u < p
         elif self.detect == "bridge":
-            bound = bridge.expected_upcrossings(self.inner.bridge, None, X, X1, level, cheap=True)
+            bound = bridge.expected_upcrossings(self.inner.bridge, X, X1, level, cheap=True)
             inside = bound > tol
         at_end = c1 >= level
         if self.detect == "none":
