@@ -6,7 +6,6 @@ import abc
 
 import equinox as eqx
 import numpy as np
-from scipy import special, stats
 
 from stickslip import ParameterError
 from stickslip._errors import check_nonnegative, check_positive, check_real
@@ -47,6 +46,8 @@ class ThresholdLaw(eqx.Module):
         dist = self.frozen()
         z, w = np.polynomial.hermite_e.hermegauss(nodes)
         # the upper tail through the survival function, for precision
+        from scipy import special  # scipy.stats and special load lazily: they take ~0.6 s
+
         values = np.where(z > 0, dist.isf(special.ndtr(-z)), dist.ppf(special.ndtr(z)))
         return values, w / w.sum()
 
@@ -79,6 +80,8 @@ class TruncatedNormal(ThresholdLaw):
         return self.mean + jnp.where(sd > 0, sd * lam, 0.0)
 
     def frozen(self):
+        from scipy import stats
+
         return stats.truncnorm(-self.mean / self.sd, np.inf, loc=self.mean, scale=self.sd)
 
     @property
@@ -103,6 +106,8 @@ class LogNormal(ThresholdLaw):
         return self.median * jnp.exp(0.5 * jnp.asarray(self.sigma, float) ** 2)
 
     def frozen(self):
+        from scipy import stats
+
         return stats.lognorm(self.sigma, scale=self.median)
 
     @property
@@ -135,6 +140,8 @@ class Uniform(ThresholdLaw):
         return 0.5 * (jnp.asarray(self.low, float) + self.high)
 
     def frozen(self):
+        from scipy import stats
+
         return stats.uniform(self.low, self.high - self.low)
 
     @property
@@ -162,6 +169,8 @@ class Weibull(ThresholdLaw):
         )
 
     def frozen(self):
+        from scipy import stats
+
         return stats.weibull_min(self.shape, scale=self.scale)
 
     @property

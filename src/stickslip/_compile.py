@@ -1,35 +1,278 @@
-"""Ahead-of-time compilation with a process-wide cache, so compile time is measured apart
-from run time (benchmarks report them separately) and paid once per shape."""
+"""Compiled code of the simulator: ahead-of-time compilation (compile time is measured apart
+from run time), a bounded in-process cache, and shape-polymorphic export.
+
+`call(fn, *args, paths=n)` traces `fn` once with the path axis (the last axis of every
+array argument whose last dimension is `n`) left symbolic (`jax.export`), then compiles
+that one trace for each buffer size it meets. The exported trace is also written to disk
+(beside JAX's persistent compilation cache, see `stickslip._jax`), so a new process neither
+traces nor, with the compilation cache warm, compiles. A trace that cannot be exported
+(say a user model whose code needs concrete sizes) falls back to one trace per shape.
+
+Disk entries are keyed by the versions of stickslip's sources (and those of every class in
+the static arguments), jax, jaxlib, diffrax and equinox, the function and the static
+arguments; arguments whose text form is not reproducible (objects printed by address) are
+not written to disk.
+"""
 
 from __future__ import annotations
 
+import collections
+import dataclasses
+import functools
+import hashlib
+import importlib.metadata
+import inspect
+import os
+import pathlib
+import pickle
+import re
+import sys
 import time
+import warnings
 
 import equinox as eqx
 
 from ._jax import jax
 
-_cache: dict = {}
+MAX_ENTRIES = 64  # compiled executables kept in memory (least recently used dropped)
+
+_cache: collections.OrderedDict = collections.OrderedDict()
+_exported: dict = {}
+stats = {"traces": 0, "compiles": 0, "exported_loaded": 0, "executables_loaded": 0}
 
 
 class Timer:
-    """Accumulates the seconds spent compiling during one run."""
+    """Accumulates the seconds spent tracing and compiling during one run."""
 
     def __init__(self):
         self.compile_seconds = 0.0
 
 
-def call(fn, *args, timer: Timer | None = None):
+def clear() -> None:
+    """Drop every compiled executable and trace held in memory (disk entries stay)."""
+    _cache.clear()
+    _exported.clear()
+    jax.clear_caches()
+
+
+def call(fn, *args, timer: Timer | None = None, paths: int | None = None):
     """Call `fn` (an `eqx.filter_jit` function) through a compiled executable cached by the
-    structure, shapes and dtypes of the array arguments and the value of the others."""
+    structure, shapes and dtypes of the array arguments and the value of the others.
+
+    With `paths`, the size of the path axis, the trace is shape-polymorphic in that axis
+    and kept on disk (see the module docs); `paths=0`: kept on disk, no path axis."""
+    compiled, flat, leaves = executable(fn, *args, timer=timer, paths=paths)
+    return compiled(*leaves) if flat else compiled(*args)
+
+
+def executable(fn, *args, timer: Timer | None = None, paths: int | None = None):
+    """`(compiled, flat, leaves)`: the executable `call` would run on `args`; it takes the
+    array leaves `leaves` if `flat`, else `args` themselves."""
     dynamic, static = eqx.partition(args, eqx.is_array)
     leaves, treedef = jax.tree_util.tree_flatten(dynamic)
     key = (fn, treedef, tuple((x.shape, str(x.dtype)) for x in leaves), static)
-    compiled = _cache.get(key)
-    if compiled is None:
+    entry = _cache.get(key)
+    if entry is None:
         start = time.perf_counter()
-        compiled = fn.lower(*args).compile()
+        entry = _compile(fn, args, leaves, treedef, static, paths)
         if timer is not None:
             timer.compile_seconds += time.perf_counter() - start
-        _cache[key] = compiled
-    return compiled(*args)
+        _cache[key] = entry
+        while len(_cache) > MAX_ENTRIES:
+            _cache.popitem(last=False)
+    else:
+        _cache.move_to_end(key)
+    return entry + (leaves,)
+
+
+def _compile(fn, args, leaves, treedef, static, paths):
+    """`(executable, takes_flat_leaves)` for one shape."""
+    if paths is not None:
+        shapes = tuple((tuple(x.shape), str(x.dtype)) for x in leaves)
+        file = _disk_file("executable", fn, treedef, shapes, static)
+        compiled = _load_executable(file)
+        if compiled is not None:
+            stats["executables_loaded"] += 1
+            return compiled, True
+        exported = _export(fn, leaves, treedef, static, paths)
+        if exported is not None:
+            stats["compiles"] += 1
+            compiled = jax.jit(exported.call).lower(*leaves).compile()
+            _save_executable(file, compiled)
+            return compiled, True
+    stats["traces"] += 1
+    stats["compiles"] += 1
+    jitted = fn if hasattr(fn, "lower") else eqx.filter_jit(fn)
+    return jitted.lower(*args).compile(), False
+
+
+def _poly_specs(leaves, paths):
+    """Shape specs of the leaves with their path axis symbolic."""
+    from jax import export
+
+    (n,) = export.symbolic_shape("n")
+    specs = []
+    for x in leaves:
+        shape = tuple(x.shape)
+        if paths and shape and shape[-1] == paths:
+            shape = shape[:-1] + (n,)
+        specs.append(jax.ShapeDtypeStruct(shape, x.dtype))
+    return specs
+
+
+def _export(fn, leaves, treedef, static, paths):
+    """The shape-polymorphic trace of `fn` for these arguments (memory, then disk, then a
+    new trace); `None` where it cannot be exported."""
+    specs = _poly_specs(leaves, paths)
+    poly_shapes = tuple((str(s.shape), str(s.dtype)) for s in specs)
+    key = (fn, treedef, poly_shapes, static)
+    if key in _exported:
+        return _exported[key]
+    file = _disk_file("exported", fn, treedef, poly_shapes, static)
+    exported = _load_exported(file)
+    if exported is None:
+        from jax import export
+
+        def flat_fn(*flat):
+            dynamic = jax.tree_util.tree_unflatten(treedef, flat)
+            return fn(*eqx.combine(dynamic, static))
+
+        try:
+            exported = export.export(jax.jit(flat_fn))(*specs)
+        except Exception as err:  # not shape-polymorphic: one trace per shape instead
+            warnings.warn(
+                f"stickslip: {_name(fn)} cannot be traced once for every buffer size "
+                f"({type(err).__name__}); tracing it per size",
+                RuntimeWarning,
+                stacklevel=4,
+            )
+            exported = None
+        else:
+            stats["traces"] += 1
+            _save(file, lambda: exported.serialize())
+    else:
+        stats["exported_loaded"] += 1
+    _exported[key] = exported
+    return exported
+
+
+# -- disk entries --------------------------------------------------------------------------------
+def _name(fn) -> str:
+    inner = getattr(fn, "__wrapped__", fn)
+    return f"{getattr(inner, '__module__', '?')}.{getattr(inner, '__qualname__', repr(inner))}"
+
+
+_ADDRESS = re.compile(r" at 0x[0-9a-fA-F]+")
+
+
+def _classes(tree, found: set) -> set:
+    """Every class of the dataclass / equinox nodes in `tree` (recursively)."""
+    if dataclasses.is_dataclass(tree) and not isinstance(tree, type):
+        found.add(type(tree))
+        for f in dataclasses.fields(tree):
+            _classes(getattr(tree, f.name, None), found)
+    elif isinstance(tree, (tuple, list)):
+        for item in tree:
+            _classes(item, found)
+    elif isinstance(tree, dict):
+        for item in tree.values():
+            _classes(item, found)
+    return found
+
+
+@functools.cache
+def _source_hash(file: str) -> str:
+    try:
+        return hashlib.sha256(pathlib.Path(file).read_bytes()).hexdigest()
+    except OSError:
+        return "?"
+
+
+@functools.lru_cache(maxsize=1)
+def _environment() -> str:
+    """Versions of the libraries and of stickslip's own sources."""
+    parts = []
+    for dist in ("jax", "jaxlib", "diffrax", "equinox"):
+        try:
+            parts.append(f"{dist}={importlib.metadata.version(dist)}")
+        except importlib.metadata.PackageNotFoundError:
+            parts.append(f"{dist}=?")
+    try:
+        device = jax.devices()[0]
+        parts.append(f"{device.platform}:{device.device_kind}:{device.client.platform_version}")
+    except Exception:
+        parts.append("device=?")
+    root = pathlib.Path(__file__).parent
+    for file in sorted(root.rglob("*.py")):
+        parts.append(f"{file.relative_to(root)}:{_source_hash(str(file))}")
+    return "\n".join(parts)
+
+
+def _disk_file(kind, fn, treedef, shapes, static) -> pathlib.Path | None:
+    """Where the disk entry of this `kind` ("exported" or "executable") lives; `None` if it
+    has none (no cache directory, or arguments without a reproducible text form)."""
+    where = jax.config.jax_compilation_cache_dir
+    if not where:
+        return None
+    static_text = repr(static)
+    if _ADDRESS.search(static_text):
+        return None
+    classes = sorted(_classes(static, set()), key=lambda c: (c.__module__, c.__qualname__))
+    sources = []
+    for cls in classes:
+        module = sys.modules.get(cls.__module__)
+        try:
+            file = inspect.getsourcefile(module) if module else None
+        except TypeError:
+            file = None
+        sources.append(f"{cls.__module__}.{cls.__qualname__}:{_source_hash(file) if file else '?'}")
+    text = "\n".join([_environment(), _name(fn), str(treedef), repr(shapes), static_text, *sources])
+    digest = hashlib.sha256(text.encode()).hexdigest()[:40]
+    return pathlib.Path(where) / f"stickslip-{kind}" / f"{digest}.bin"
+
+
+def _load_exported(file):
+    if file is None or not file.exists():
+        return None
+    from jax import export
+
+    try:
+        return export.deserialize(bytearray(file.read_bytes()))
+    except Exception:  # a damaged or foreign entry: trace again (and overwrite it)
+        return None
+
+
+def _load_executable(file):
+    if file is None or not file.exists():
+        return None
+    from jax.experimental.serialize_executable import deserialize_and_load
+
+    try:
+        blob, in_tree, out_tree = pickle.loads(file.read_bytes())
+        return deserialize_and_load(blob, in_tree, out_tree)
+    except Exception:  # damaged, or made by another runtime: compile again
+        return None
+
+
+def _save_executable(file, compiled) -> None:
+    from jax.experimental.serialize_executable import serialize
+
+    blob, in_tree, out_tree = serialize(compiled)
+    # Only built-in containers survive pickling intact (not, e.g., equinox modules).
+    if "CustomNode" in str(in_tree) + str(out_tree):
+        return
+    _save(file, lambda: pickle.dumps((blob, in_tree, out_tree)))
+
+
+def _save(file, blob) -> None:
+    """Write `blob()` to `file` atomically (a concurrent reader sees all of it or nothing)."""
+    if file is None:
+        return
+    try:
+        data = blob()
+        file.parent.mkdir(parents=True, exist_ok=True)
+        tmp = file.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_bytes(data)
+        os.replace(tmp, file)
+    except Exception:  # a read-only cache, or no serialiser: keep it in memory only
+        pass

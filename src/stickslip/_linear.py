@@ -22,19 +22,22 @@ And `jax.scipy.linalg.expm` under `vmap` hung XLA's CPU runtime on repeated call
 
 from __future__ import annotations
 
+import numpy as np
+
 from ._jax import jax, jnp
 
 _MAX_DOUBLINGS = 48  # enough for |A tau| up to 1e14
 _ORDER = 20
 
 
-def _taylor(A, B, tau):
-    """Phi, Phi1, Sigma over a lag with |A tau| <= 1/2 (see the module docstring)."""
+def _taylor(A, B, tau, xp=jnp):
+    """Phi, Phi1, Sigma over a lag with |A tau| <= 1/2 (see the module docstring). `tau`
+    may be a stack of lags shaped `(n, 1, 1)`; `xp` is `jax.numpy` or `numpy`."""
     d = A.shape[0]
     At = A * tau
-    term = jnp.eye(d)  # (A tau)^k / k!
-    Phi = jnp.eye(d)
-    Phi1 = jnp.eye(d) * tau
+    term = xp.eye(d)  # (A tau)^k / k!
+    Phi = xp.eye(d)
+    Phi1 = xp.eye(d) * tau
     Om = B @ B.T  # Omega_k
     coef = tau  # tau^(k+1) / (k+1)!
     Sig = Om * coef
@@ -45,7 +48,7 @@ def _taylor(A, B, tau):
         Om = A @ Om + Om @ A.T
         coef = coef * tau / (k + 1)
         Sig = Sig + Om * coef
-    return Phi, Phi1, 0.5 * (Sig + Sig.T)
+    return Phi, Phi1, 0.5 * (Sig + xp.swapaxes(Sig, -1, -2))
 
 
 def propagators(A, b, B, tau):
@@ -63,6 +66,27 @@ def propagators(A, b, B, tau):
     # A fixed trip count with masked steps keeps vmapped lags in one loop.
     Phi, Phi1, Sig = jax.lax.fori_loop(0, _MAX_DOUBLINGS, double, (Phi, Phi1, Sig))
     return Phi, Phi1, Phi1 @ b, 0.5 * (Sig + Sig.T)
+
+
+def propagators_host(A, b, B, tau):
+    """`propagators` in NumPy, for an array of lags `tau` at once: each of the four results
+    has the shape of `tau` in front. The same series and doublings, with no compilation
+    (the simulator builds its step tables with it once per run)."""
+    A, b, B = (np.asarray(x, dtype=np.float64) for x in (A, b, B))
+    tau = np.asarray(tau, dtype=np.float64)
+    t = tau.reshape(-1, 1, 1)
+    norm = np.max(np.sum(np.abs(A), axis=0)) * np.abs(t)
+    s = np.ceil(np.log2(np.maximum(norm, 1e-300) / 0.5))
+    s = np.clip(s, 0, _MAX_DOUBLINGS).astype(np.int64)
+    Phi, Phi1, Sig = _taylor(A, B, t / 2.0**s, xp=np)
+    T = lambda M: np.swapaxes(M, -1, -2)
+    for i in range(int(s.max(initial=0))):
+        doubled = (Phi @ Phi, Phi1 + Phi @ Phi1, Sig + Phi @ Sig @ T(Phi))
+        Phi, Phi1, Sig = (
+            np.where(i < s, new, old) for new, old in zip(doubled, (Phi, Phi1, Sig), strict=True)
+        )
+    out = (Phi, Phi1, Phi1 @ b, 0.5 * (Sig + T(Sig)))
+    return tuple(x.reshape(tau.shape + x.shape[1:]) for x in out)
 
 
 def stationary(A, b, B):

@@ -21,6 +21,7 @@ ENTRY_POINT_GROUP = "stickslip.models"
 
 _cache: dict[str, type[FrictionModel]] | None = None
 _runtime: dict[str, type[FrictionModel]] = {}
+_named_cache: dict[str, type[FrictionModel] | None] = {}
 
 
 class PluginWarning(UserWarning):
@@ -69,10 +70,22 @@ def _discover() -> dict[str, type[FrictionModel]]:
     return _cache
 
 
+def _named(name: str) -> type[FrictionModel] | None:
+    """The plugin `name` alone, loading only its entry points (importing every plugin costs
+    a second or more); `None` if none loads under that name."""
+    if _cache is not None:
+        return _cache.get(name) or _runtime.get(name)
+    if name not in _named_cache:
+        entries = [ep for ep in entry_points(group=ENTRY_POINT_GROUP) if ep.name == name]
+        _named_cache[name] = _load(entries).get(name) if entries else None
+    return _named_cache[name] or _runtime.get(name)
+
+
 def refresh_models() -> None:
     """Forget the cached plugin scan; the next lookup rescans the entry points."""
     global _cache
     _cache = None
+    _named_cache.clear()
 
 
 def list_models() -> dict[str, type[FrictionModel]]:
@@ -113,6 +126,9 @@ def get_model(name: str | type[FrictionModel]) -> type[FrictionModel]:
         if issubclass(name, FrictionModel):
             return name
         raise PluginError(f"{name!r} is not a subclass of stickslip.FrictionModel")
+    found = _named(name)
+    if found is not None:
+        return found
     models = list_models()
     try:
         return models[name]

@@ -36,13 +36,21 @@ def seed_key(seed: int) -> np.ndarray:
     if not 0 <= seed < 2**64:
         raise ValueError("seed must be an integer in [0, 2**64)")
     lo, hi = seed & 0xFFFFFFFF, seed >> 32
-    base = jnp.array([0x5EED5EED, 0x0DDBA11], dtype=jnp.uint32)
-    w0, w1 = threefry2x32(base, jnp.uint32(lo), jnp.uint32(hi))
-    return np.array([w0, w1], dtype=np.uint32)
+    return _host_threefry(np.array([0x5EED5EED, 0x0DDBA11], dtype=np.uint32), lo, hi)
+
+
+def _host_threefry(key, x0: int, x1: int) -> np.ndarray:
+    """`threefry2x32` of two integers in NumPy (no compilation), as a key."""
+    one = lambda x: np.array([x], dtype=np.uint32)  # arrays: uint32 sums wrap silently
+    w0, w1 = threefry2x32(np.asarray(key, dtype=np.uint32), one(x0), one(x1))
+    return np.array([w0[0], w1[0]], dtype=np.uint32)
 
 
 def stream_key(root, stream: int, cycle: int = 0):
-    """Key of one stream (and cycle) under a root key. Works on host or traced values."""
+    """Key of one stream (and cycle) under a root key: in NumPy for a NumPy root, else traced
+    (the same bits either way)."""
+    if isinstance(root, np.ndarray):
+        return _host_threefry(root, stream, cycle)
     w0, w1 = threefry2x32(
         jnp.asarray(root, dtype=jnp.uint32), jnp.uint32(stream), jnp.uint32(cycle)
     )
@@ -50,7 +58,7 @@ def stream_key(root, stream: int, cycle: int = 0):
 
 
 def _rotl(x, r: int):
-    return (x << jnp.uint32(r)) | (x >> jnp.uint32(32 - r))
+    return (x << np.uint32(r)) | (x >> np.uint32(32 - r))
 
 
 def threefry2x32(key, x0, x1):
@@ -59,7 +67,7 @@ def threefry2x32(key, x0, x1):
     which XLA cannot fuse with the arithmetic around it (measured 2x slower here).
     Bit-identical to `jax.extend.random.threefry_2x32` (tested)."""
     k0, k1 = key[0], key[1]
-    ks = (k0, k1, k0 ^ k1 ^ jnp.uint32(0x1BD11BDA))
+    ks = (k0, k1, k0 ^ k1 ^ np.uint32(0x1BD11BDA))
     rotations = ((13, 15, 26, 6), (17, 29, 16, 24))
     x0 = x0 + ks[0]
     x1 = x1 + ks[1]
@@ -68,7 +76,7 @@ def threefry2x32(key, x0, x1):
             x0 = x0 + x1
             x1 = _rotl(x1, r) ^ x0
         x0 = x0 + ks[(i + 1) % 3]
-        x1 = x1 + ks[(i + 2) % 3] + jnp.uint32(i + 1)
+        x1 = x1 + ks[(i + 2) % 3] + np.uint32(i + 1)
     return x0, x1
 
 

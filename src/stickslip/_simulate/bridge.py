@@ -38,14 +38,13 @@ from __future__ import annotations
 
 import functools
 import math
-import time
 
 import equinox as eqx
 import numpy as np
 
-from .. import _rng
+from .. import _compile, _rng
 from .._jax import jax, jnp
-from .._linear import propagators
+from .._linear import propagators, propagators_host
 from .._solver.exact import psd_factor, psd_pinv
 
 QUADRATURE = 8  # Gauss-Legendre nodes of the Rice integral on one (sub-)interval
@@ -99,62 +98,72 @@ class BridgeTables(eqx.Module):
     length: jax.Array
 
 
-def bridge_tables(A, b, B, crossing, h) -> BridgeTables:
+def bridge_tables(A, b, B, crossing, h, host: bool = False) -> BridgeTables:
     """The `BridgeTables` of $dX = (AX + b)dt + B\\,dW$ with crossing functional `crossing`
-    for the step `h` (traceable; `h` may be a runtime value)."""
+    for the step `h`: traceable (`h` may be a runtime value), or with `host=True` computed in
+    NumPy outside any trace (no compilation)."""
+    xp = np if host else jnp
     J = MAX_DEPTH + 1
-    lengths = h / 2.0 ** jnp.arange(J)
-    frac = jnp.concatenate([jnp.array([0.5]), jnp.asarray(_U)])  # midpoint, then nodes
+    lengths = h / 2.0 ** xp.arange(J)
+    frac = xp.concatenate([xp.array([0.5]), xp.asarray(_U)])  # midpoint, then nodes
     s = lengths[:, None] * frac[None, :]  # (J, Q + 1)
-    prop = jax.vmap(lambda t: propagators(A, b, B, t))
+    if host:
+        A, b, B = (np.asarray(x, dtype=np.float64) for x in (A, b, B))
+        prop = lambda t: propagators_host(A, b, B, t)
+    else:
+        vmapped = jax.vmap(lambda t: propagators(A, b, B, t))
+        prop = lambda t: tuple(x.reshape(t.shape + x.shape[1:]) for x in vmapped(t.ravel()))
     Phi_l, _, c_l, S_l = prop(lengths)
-    flat = lambda t: prop(t.ravel())
-    Phi_s, _, c_s, S_s = (x.reshape(s.shape + x.shape[1:]) for x in flat(s))
-    Phi_r, _, _, _ = (x.reshape(s.shape + x.shape[1:]) for x in flat(lengths[:, None] - s))
-    Sp = jax.vmap(psd_pinv)(S_l)  # (J, d, d)
-    G = S_s @ jnp.swapaxes(Phi_r, -1, -2) @ Sp[:, None]
+    Phi_s, _, c_s, S_s = prop(s)
+    Phi_r = prop(lengths[:, None] - s)[0]
+    Sp = psd_pinv(S_l, xp)  # (J, d, d)
+    G = S_s @ xp.swapaxes(Phi_r, -1, -2) @ Sp[:, None]
     P = Phi_s - G @ Phi_l[:, None]
-    q = c_s - jnp.einsum("jqik,jk->jqi", G, c_l)
+    q = c_s - xp.einsum("jqik,jk->jqi", G, c_l)
     K = S_s - G @ Phi_r @ S_s
-    K = 0.5 * (K + jnp.swapaxes(K, -1, -2))
-    cvec = jnp.asarray(crossing, dtype=jnp.float64)
+    K = 0.5 * (K + xp.swapaxes(K, -1, -2))
+    cvec = xp.asarray(crossing, dtype=xp.float64)
     rvec = A.T @ cvec  # a = r.X + c.b
     ra = cvec @ b
     quad = slice(1, None)
-    v_P = jnp.einsum("i,jqik->jqk", cvec, P[:, quad])
-    v_G = jnp.einsum("i,jqik->jqk", cvec, G[:, quad])
-    v_q = jnp.einsum("i,jqi->jq", cvec, q[:, quad])
-    a_P = jnp.einsum("i,jqik->jqk", rvec, P[:, quad])
-    a_G = jnp.einsum("i,jqik->jqk", rvec, G[:, quad])
-    a_q = jnp.einsum("i,jqi->jq", rvec, q[:, quad]) + ra
+    v_P = xp.einsum("i,jqik->jqk", cvec, P[:, quad])
+    v_G = xp.einsum("i,jqik->jqk", cvec, G[:, quad])
+    v_q = xp.einsum("i,jqi->jq", cvec, q[:, quad])
+    a_P = xp.einsum("i,jqik->jqk", rvec, P[:, quad])
+    a_G = xp.einsum("i,jqik->jqk", rvec, G[:, quad])
+    a_q = xp.einsum("i,jqi->jq", rvec, q[:, quad]) + ra
     Kq = K[:, quad]
-    var_v = jnp.einsum("i,jqik,k->jq", cvec, Kq, cvec)
-    cov = jnp.einsum("i,jqik,k->jq", cvec, Kq, rvec)
-    var_a = jnp.einsum("i,jqik,k->jq", rvec, Kq, rvec)
-    tiny = jnp.finfo(jnp.float64).tiny
-    var_v = jnp.maximum(var_v, tiny)
-    s_a = jnp.sqrt(jnp.maximum(var_a - cov * cov / var_v, tiny))
-    last = lambda a: jnp.moveaxis(a, 0, -1)  # level axis last: per-path gathers need no copy
+    var_v = xp.einsum("i,jqik,k->jq", cvec, Kq, cvec)
+    cov = xp.einsum("i,jqik,k->jq", cvec, Kq, rvec)
+    var_a = xp.einsum("i,jqik,k->jq", rvec, Kq, rvec)
+    tiny = xp.finfo(xp.float64).tiny
+    var_v = xp.maximum(var_v, tiny)
+    s_a = xp.sqrt(xp.maximum(var_a - cov * cov / var_v, tiny))
+
+    # Level axis last: per-path gathers need no copy.
+    def last(a):
+        return np.ascontiguousarray(np.moveaxis(a, 0, -1)) if host else jnp.moveaxis(a, 0, -1)
+
     return jax.tree_util.tree_map(
         last,
         BridgeTables(
             mid_P=P[:, 0],
             mid_G=G[:, 0],
             mid_q=q[:, 0],
-            mid_L=jax.vmap(psd_factor)(K[:, 0]),
+            mid_L=psd_factor(K[:, 0], xp),
             v_P=v_P,
             v_G=v_G,
             v_q=v_q,
             a_P=a_P,
             a_G=a_G,
             a_q=a_q,
-            inv_sv=1.0 / jnp.sqrt(var_v),
+            inv_sv=1.0 / xp.sqrt(var_v),
             kappa=cov / var_v,
             s_a=s_a,
-            weight=lengths[:, None] * jnp.asarray(_W)[None, :] * jnp.ones((1, QUADRATURE)),
-            crossing=jnp.broadcast_to(cvec, (J,) + cvec.shape),
-            rate=jnp.broadcast_to(rvec, (J,) + rvec.shape),
-            rate_offset=jnp.broadcast_to(ra, (J,)),
+            weight=lengths[:, None] * xp.asarray(_W)[None, :] * xp.ones((1, QUADRATURE)),
+            crossing=xp.broadcast_to(cvec, (J,) + cvec.shape),
+            rate=xp.broadcast_to(rvec, (J,) + rvec.shape),
+            rate_offset=xp.broadcast_to(ra, (J,)),
             length=lengths,
         ),
     )
@@ -264,7 +273,7 @@ def level_tables(T: BridgeTables):
     refinement pass instead of thirty), with the structure to unpack a row."""
     leaves, treedef = jax.tree_util.tree_flatten(T)
     shapes = tuple(leaf.shape[:-1] for leaf in leaves)
-    rows = jnp.concatenate([leaf.reshape(-1, leaf.shape[-1]) for leaf in leaves], axis=0).T
+    rows = np.concatenate([np.reshape(leaf, (-1, leaf.shape[-1])) for leaf in leaves], axis=0).T
     return rows, (treedef, shapes)
 
 
@@ -280,7 +289,7 @@ def _unpack(rows, j, layout):
     return jax.tree_util.tree_unflatten(treedef, out)
 
 
-def _split(rows, j, level, ends, ids, key, *, layout):
+def _split(rows, j, level, ends, ids, key, layout):
     """Split intervals of level `j` at their midpoints. `ends` stacks the states at both ends
     `(2d, n)`; `ids` the path, step and tree node `(3, n)`, which key the exact bridge draw
     at the midpoint. Returns one array `(d + 4, n)`: the midpoint state, whether each half
@@ -301,35 +310,33 @@ def _split(rows, j, level, ends, ids, key, *, layout):
 
 
 class Splitter:
-    """`_split` for one run's tables, level and key, as a plain `jax.jit` function of arrays
-    only: a refinement makes a few hundred small calls, and the generic compile cache's
-    Python overhead (~0.5 ms a call) exceeded their run time. Arguments and results are
-    packed for the same reason. First calls of each padded size are timed as compilation."""
+    """`_split` for one run's tables, level and key. A refinement makes a few hundred small
+    calls, so each padded size's executable is called directly (the generic call's Python
+    overhead, ~0.5 ms, exceeded their run time); it is traced once for every size
+    (`_compile`, path axis symbolic). Arguments and results are packed for the same reason."""
 
     def __init__(self, tables: BridgeTables, level, key, timer=None):
-        self.rows, layout = level_tables(tables)
-        self.level = jnp.asarray(level, dtype=jnp.float64)
-        self.key = jnp.asarray(key, dtype=jnp.uint32)
+        rows, self.layout = level_tables(tables)
+        self.rows = np.asarray(rows)
+        self.level = np.asarray(level, dtype=np.float64)
+        self.key = np.asarray(key, dtype=np.uint32)
         self.crossing = np.asarray(tables.crossing[:, 0])
-        if layout not in _SPLITS:
-            _SPLITS[layout] = (jax.jit(functools.partial(_split, layout=layout)), set())
-        self.fn, self.sizes = _SPLITS[layout]
+        self.sizes: dict = {}
         self.timer = timer
 
     def __call__(self, j: int, ends, ids):
-        args = (self.rows, np.int32(j), self.level, ends, ids, self.key)
-        key = (ends.shape, ids.shape)
-        if key in self.sizes:
-            return np.asarray(self.fn(*args))
-        start = time.perf_counter()
-        out = np.asarray(self.fn(*args))
-        if self.timer is not None:  # the first call of a shape: mostly compilation
-            self.timer.compile_seconds += time.perf_counter() - start
-        self.sizes.add(key)
-        return out
+        args = (self.rows, np.asarray(j, dtype=np.int32), self.level, ends, ids, self.key)
+        size = ends.shape[-1]
+        if size not in self.sizes:
+            compiled, flat, _ = _compile.executable(
+                _split, *args, self.layout, timer=self.timer, paths=size
+            )
+            self.sizes[size] = compiled if flat else functools.partial(_tail, compiled, self.layout)
+        return np.asarray(self.sizes[size](*args))
 
 
-_SPLITS: dict = {}  # layout -> (jitted split, shapes compiled); bounded by the model layouts
+def _tail(compiled, layout, *args):
+    return compiled(*args, layout)
 
 
 def first_crossing(splitter, level, depths, tol, Xa, Xb, path, step):

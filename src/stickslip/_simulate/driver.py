@@ -15,7 +15,7 @@ import numpy as np
 from .. import _compile, _rng
 from .._errors import ParameterError, check_choice, check_int, check_positive
 from .._jax import jax, jnp
-from .._model import FrictionModel, _to_arrays
+from .._model import FrictionModel, LinearGaussian, _to_arrays
 from .._solver import EulerMaruyama, ExactGaussian, PathwiseBrownian, SlipTerm
 from .._solver.base import over_paths
 from . import bridge, localise
@@ -30,6 +30,7 @@ DEFAULT_CHUNK = 2**20  # about 100 bytes of state per path: 100 MB
 # the cubic pieces' relative error (h_sub rho)^4 / 384 stays below 1e-10.
 _NODE_SCALE = 0.0125
 _MAX_NODES = 256
+_LOOP_NODES = 2  # the stepping loop's solver: it never interpolates (see `_Run`)
 # The far end of every solve (in steps); events end the solves long before. A power of two:
 # diffrax's step times t0 + (t1 - t0) * j / n are then exact integers.
 _HORIZON = float(2**30)
@@ -42,22 +43,30 @@ class _Config:
     solver: str
     monitor: str
     smooth: bool
-    nodes: int
     detect: str  # the in-step test: "grid", "cubic", "brownian", "bridge" or "none"
 
 
 @eqx.filter_jit
-def _make_solver(model, cfg: _Config, dt):
+def _linear_gaussian(model):
+    lg = model.linear_gaussian()
+    return None if lg is None else tuple(getattr(lg, f) for f in _LG_FIELDS)
+
+
+_LG_FIELDS = tuple(f.name for f in dataclasses.fields(LinearGaussian))
+
+
+def _make_solver(lg, cfg: _Config, dt: float, nodes: int):
+    """The run's slip solver, its tables computed in NumPy (nothing to compile). `nodes` are
+    the interpolation nodes of the exact solver's dense output."""
     if cfg.solver == "exact":
-        lg = model.linear_gaussian()
         tables = None
         if cfg.detect == "bridge":
-            tables = bridge.bridge_tables(lg.A, lg.b, lg.B, lg.crossing, dt)
-        return ExactGaussian(lg.A, lg.b, lg.B, dt, nodes=cfg.nodes, bridge=tables)
+            tables = bridge.bridge_tables(lg.A, lg.b, lg.B, lg.crossing, dt, host=True)
+        return ExactGaussian(lg.A, lg.b, lg.B, dt, nodes=nodes, bridge=tables, host=True)
     return EulerMaruyama()
 
 
-def _detector(model, solver: str, monitor: str, smooth: bool, dt: float) -> str:
+def _detector(lg, solver: str, monitor: str, smooth: bool, dt: float) -> str:
     """The in-step stick test of a run (static): exact in law (`"bridge"`) wherever the slip
     is linear-Gaussian with noise reaching the differentiable crossing variable."""
     if monitor == "grid":
@@ -65,11 +74,10 @@ def _detector(model, solver: str, monitor: str, smooth: bool, dt: float) -> str:
     if not smooth:
         return "brownian"
     if solver == "exact":
-        from .._linear import propagators
+        from .._linear import propagators_host
 
-        lg = model.linear_gaussian()
         c = np.asarray(lg.crossing, dtype=float)
-        Sigma = np.asarray(propagators(lg.A, lg.b, lg.B, dt)[3])
+        Sigma = propagators_host(lg.A, lg.b, lg.B, dt)[3]
         if float(c @ Sigma @ c) > 0.0:
             return "bridge"
     return "cubic"  # noise-free (exact flow) or Euler-Maruyama
@@ -166,8 +174,8 @@ def _next_pow2(n: int) -> int:
     return 1 << max(0, (int(n) - 1).bit_length())
 
 
-def _nodes_for(model: FrictionModel, dt: float, warn: bool) -> int:
-    A = np.asarray(model.linear_gaussian().A, dtype=float)
+def _nodes_for(A, dt: float, warn: bool) -> int:
+    A = np.asarray(A, dtype=float)
     rho = float(np.max(np.abs(np.linalg.eigvals(A)))) if A.size else 0.0
     m = max(2, math.ceil(dt * rho / _NODE_SCALE))
     if m > _MAX_NODES and warn:
@@ -321,10 +329,16 @@ class _Run:
         self, owner, model, solver, monitor, dt, t_max, root, bar=None,
         crossing_tol=DEFAULT_CROSSING_TOL,
     ):  # fmt: skip
-        has_lg = model.linear_gaussian() is not None
+        self.timer = _compile.Timer()
+        self.model = _to_arrays(model)
+        # The slip's linear-Gaussian description on the host (one compiled call: evaluated
+        # op by op, its first use in a process compiles each operation).
+        lg = self.call(_linear_gaussian, self.model, paths=0)
+        if lg is not None:
+            lg = LinearGaussian(**{f: np.asarray(x) for f, x in zip(_LG_FIELDS, lg, strict=True)})
         if solver == "auto":
-            solver = "exact" if has_lg else "euler"
-        if solver == "exact" and not has_lg:
+            solver = "exact" if lg is not None else "euler"
+        if solver == "exact" and lg is None:
             raise ParameterError(
                 owner,
                 "solver",
@@ -333,23 +347,24 @@ class _Run:
                 solver,
             )
         smooth = bool(model.crossing_is_smooth)
-        detect = _detector(model, solver, monitor, smooth, dt)
+        detect = _detector(lg, solver, monitor, smooth, dt)
         self.cfg = _Config(
             solver=solver,
             monitor=monitor,
             smooth=smooth,
-            nodes=_nodes_for(model, dt, detect == "cubic") if solver == "exact" else 1,
             detect=detect,
         )
+        # Interpolation nodes of the in-step location (`_locate`; the exact solver's only
+        # dt-dependent static). The stepping loop never interpolates: its solver has a fixed
+        # count, so one compiled loop serves every dt.
+        self.nodes = _nodes_for(lg.A, dt, detect == "cubic") if solver == "exact" else 1
         self.depths = None  # (location, certification) levels of the bridge detector
         if detect == "bridge":
-            A = model.linear_gaussian().A
             self.depths = (
-                bridge.depth_for(A, dt, bridge.LOCATE_SCALE),
-                bridge.depth_for(A, dt, bridge.CERTIFY_SCALE),
+                bridge.depth_for(lg.A, dt, bridge.LOCATE_SCALE),
+                bridge.depth_for(lg.A, dt, bridge.CERTIFY_SCALE),
             )
         self.tol = float(crossing_tol)
-        self.model = _to_arrays(model)
         self.keys = {
             "step": _rng.stream_key(root, _rng.STEP),
             "bridge": _rng.stream_key(root, _rng.BRIDGE),
@@ -360,9 +375,11 @@ class _Run:
         }
         self.dt, self.t_max, self.bar = dt, t_max, bar
         self.n_steps = max(1, math.ceil(t_max / dt - 1e-9))
-        self.timer = _compile.Timer()
-        self.dt_arr = jnp.asarray(dt, dtype=jnp.float64)
-        self.solver = self.call(_make_solver, self.model, self.cfg, self.dt_arr)
+        self.dt_arr = np.asarray(dt, dtype=np.float64)
+        self.solver = _make_solver(lg, self.cfg, dt, _LOOP_NODES)
+        self.locator = self.solver
+        if solver == "exact" and detect != "bridge":
+            self.locator = _make_solver(lg, self.cfg, dt, self.nodes)
         self.stats = {"path_steps": 0, "buffers": 0}
         if detect == "bridge":
             self.stats.update(candidates=0, refined_nodes=0, unresolved=0)
@@ -380,13 +397,13 @@ class _Run:
             dt=self.dt,
             t_max=self.t_max,
             detector=cfg.detect,
-            interpolation_nodes=cfg.nodes,
+            interpolation_nodes=self.nodes,
             **({"crossing_tol": self.tol, "refine_depths": self.depths} if self.depths else {}),
             **extra,
         )
 
-    def call(self, fn, *args):
-        return _compile.call(fn, *args, timer=self.timer)
+    def call(self, fn, *args, paths=None):
+        return _compile.call(fn, *args, timer=self.timer, paths=paths)
 
     def first_passages(self, paths, chunk_size):
         """Onset state, stick state, stick time (`nan` if none by the last step) and whether
@@ -398,9 +415,10 @@ class _Run:
     def cycle_outputs(self, X0, stick_state, t_stick, next_onset):
         """The per-path outputs of an `Ensemble` from the raw first-passage results."""
         T_st, x_sl = (
-            np.asarray(a) for a in self.call(_finish, self.model, stick_state, next_onset)
+            np.asarray(a)
+            for a in self.call(_finish, self.model, stick_state, next_onset, paths=X0.shape[-1])
         )
-        x_start = np.asarray(self.call(_finish, self.model, X0, X0)[1])
+        x_start = np.asarray(self.call(_finish, self.model, X0, X0, paths=X0.shape[-1])[1])
         stuck = np.isfinite(t_stick) & (t_stick <= self.t_max)
         nan = np.where(stuck, 1.0, np.nan)
         stick_state *= nan  # no stick state for the paths that never stuck
@@ -442,12 +460,19 @@ class _Run:
             count[rows] = np.asarray(c)[: rows.size].astype(np.int64)
             times[rows] = np.asarray(t)[:, : rows.size].T
             positions[rows] = np.asarray(x)[:, : rows.size].T
-        pos = np.asarray(self.call(_finish, self.model, X0, X0)[1])
+        pos = np.asarray(self.call(_finish, self.model, X0, X0, paths=X0.shape[-1])[1])
         return Upcrossings(times, positions, count, immediate.copy(), pos, self.t_max, self.dt)
 
     def onsets(self, paths, counter=0):
         return np.asarray(
-            self.call(_onset, self.model, self.keys["onset"], paths, jnp.uint32(counter))
+            self.call(
+                _onset,
+                self.model,
+                self.keys["onset"],
+                paths,
+                np.uint32(counter),
+                paths=paths.size,
+            )  # fmt: skip
         )
 
     def _chunk(self, paths):
@@ -465,7 +490,7 @@ class _Run:
         immediate = np.zeros(size, dtype=bool)
         if cfg.smooth:
             # A crossing variable already rising at onset ends the slip at once (T_sl = 0).
-            rate = np.asarray(self.call(_onset_rate, model, X0))
+            rate = np.asarray(self.call(_onset_rate, model, X0, paths=size))
             immediate[:count] = rate[:count] >= 0.0
             k_stick[immediate] = INACTIVE
         if self.bar is not None:
@@ -481,8 +506,8 @@ class _Run:
         # Buffer: states, modes, path counters, each path's next global step, miss bounds.
         X, X_prev, ks, p = X0, X0, k_stick, path
         offset, miss = np.zeros(size), np.zeros(size)
-        horizon = jnp.asarray(float(self.n_steps))
-        tol = jnp.asarray(self.tol)
+        horizon = np.asarray(float(self.n_steps))
+        tol = np.asarray(self.tol)
         while True:
             n_slip = int(np.sum(ks == SLIPPING))
             if n_slip == 0:
@@ -492,7 +517,8 @@ class _Run:
                 np.array(a)
                 for a in self.call(
                     _advance, model, self.solver, cfg, X, X_prev, ks, miss, p, offset, horizon,
-                    self.dt_arr, keys["step"], keys["bridge"], jnp.asarray(stop_at), tol,
+                    self.dt_arr, keys["step"], keys["bridge"], np.asarray(stop_at), tol,
+                    paths=size,
                 )
             )  # fmt: skip
             taken = int(round(float(taken)))
@@ -563,9 +589,9 @@ class _Run:
             rows = done[start : start + batch]
             rows_padded = np.concatenate([rows, np.repeat(rows[:1], batch - rows.size)])
             frac, state, found = self.call(
-                _locate, model, self.solver, cfg, X_prev_end[:, rows_padded],
+                _locate, model, self.locator, cfg, X_prev_end[:, rows_padded],
                 X_end[:, rows_padded], k_end[rows_padded], path[rows_padded], self.dt_arr,
-                keys["z"], keys["u"],
+                keys["z"], keys["u"], paths=batch,
             )  # fmt: skip
             n = rows.size
             t_stick[rows] = (k_end[rows] + np.asarray(frac)[:n]) * self.dt

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import diffrax
 import equinox as eqx
+import numpy as np
 
 from .._jax import jax, jnp
-from .._linear import propagators
+from .._linear import propagators, propagators_host
 from .base import AbstractSlipSolver
 
 # Above this state dimension the transition uses a matrix product; below it, an unrolled sum
@@ -25,29 +26,31 @@ def transition(A, b, B, h):
     return Phi, c, Sigma
 
 
-def _scaled(Sigma):
-    """Scale a covariance to a correlation matrix; components without noise get scale 1."""
-    s = jnp.sqrt(jnp.clip(jnp.diag(Sigma), 0.0))
-    s = jnp.where(s > 0, s, 1.0)
-    return s, Sigma / jnp.outer(s, s)
+def _scaled(Sigma, xp):
+    """Scale covariances (`(..., d, d)`) to correlation matrices; components without noise
+    get scale 1."""
+    s = xp.sqrt(xp.maximum(xp.diagonal(Sigma, axis1=-2, axis2=-1), 0.0))
+    s = xp.where(s > 0, s, 1.0)
+    return s, Sigma / (s[..., :, None] * s[..., None, :])
 
 
-def psd_factor(Sigma):
+def psd_factor(Sigma, xp=jnp):
     """`L` with `L @ L.T == Sigma` for a covariance that may be singular or badly scaled
     (e.g. the position variance of a 3-state slip is ~h^5): factor the correlation matrix by
-    its eigen-decomposition and scale back, which keeps small variances accurate."""
-    s, R = _scaled(Sigma)
-    w, V = jnp.linalg.eigh(R)
-    return s[:, None] * (V * jnp.sqrt(jnp.clip(w, 0.0)))
+    its eigen-decomposition and scale back, which keeps small variances accurate. Works on
+    stacks `(..., d, d)`; `xp` is `jax.numpy` or `numpy`."""
+    s, R = _scaled(Sigma, xp)
+    w, V = xp.linalg.eigh(R)
+    return s[..., :, None] * (V * xp.sqrt(xp.maximum(w, 0.0))[..., None, :])
 
 
-def psd_pinv(Sigma):
+def psd_pinv(Sigma, xp=jnp):
     """Pseudo-inverse of a covariance through its correlation matrix (see `psd_factor`)."""
-    s, R = _scaled(Sigma)
+    s, R = _scaled(Sigma, xp)
     # Correlations of a few-state slip are well conditioned; 1e-12 only drops true null
     # directions (components that no noise reaches).
-    Rp = jnp.linalg.pinv(R, rtol=1e-12)
-    return Rp / jnp.outer(s, s)
+    Rp = xp.linalg.pinv(R, rtol=1e-12)
+    return Rp / (s[..., :, None] * s[..., None, :])
 
 
 def apply(M, X):
@@ -80,7 +83,9 @@ class ExactGaussian(AbstractSlipSolver):
 
     **Arguments:** `A`, `b`, `B` (see `LinearGaussian`), `h` (the step length), `nodes`
     (interpolation sub-steps per step), `bridge` (optional: the bridge coefficients of the
-    exact stick detector, `stickslip._simulate.bridge.BridgeTables`, for the same step).
+    exact stick detector, `stickslip._simulate.bridge.BridgeTables`, for the same step),
+    `host` (compute the tables in NumPy, outside any trace: no compilation; the simulator
+    builds its solver this way once per run).
     """
 
     A: jax.Array
@@ -95,19 +100,24 @@ class ExactGaussian(AbstractSlipSolver):
     bridge: eqx.Module | None
     nodes: int = eqx.field(static=True)
 
-    def __init__(self, A, b, B, h, nodes: int = 8, bridge=None):
+    def __init__(self, A, b, B, h, nodes: int = 8, bridge=None, host: bool = False):
         M = nodes
+        xp = np if host else jnp
         self.bridge = bridge
-        s = h * jnp.arange(M + 1) / M
-        Phi, c, Sig = jax.vmap(lambda t: transition(A, b, B, t))(s)
+        s = h * xp.arange(M + 1) / M
+        if host:
+            A, b, B = (np.asarray(x, dtype=np.float64) for x in (A, b, B))
+            Phi, _, c, Sig = propagators_host(A, b, B, s)
+        else:
+            Phi, c, Sig = jax.vmap(lambda t: transition(A, b, B, t))(s)
         self.A, self.b, self.nodes = A, b, nodes
         self.Phi, self.c = Phi[M], c[M][:, None]
         # Scaled to take the control's increments N(0, h) rather than unit normals.
-        self.L = psd_factor(Sig[M]) / jnp.sqrt(h)
+        self.L = psd_factor(Sig[M], xp) / xp.sqrt(h)
         # Bridge mean at the sub-nodes: E[X(s_j) | X_k, X_{k+1}] = Phi_j X_k + c_j + G_j r,
         # with r = X_{k+1} - Phi X_k - c, and its time derivative. Phi(h - s_j) is node M - j.
-        Sp = psd_pinv(Sig[M])
-        PhiT_rev = jnp.swapaxes(Phi[::-1], 1, 2)
+        Sp = psd_pinv(Sig[M], xp)
+        PhiT_rev = xp.swapaxes(Phi[::-1], 1, 2)
         dSig = A @ Sig + Sig @ A.T + B @ B.T
         self.node_Phi, self.node_c = Phi, c
         self.node_G = Sig @ PhiT_rev @ Sp
