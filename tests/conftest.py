@@ -34,10 +34,7 @@ def _release_compiled_code():
     import sys
 
     if "stickslip._compile" in sys.modules and _rss() > RELEASE_RSS:
-        sys.modules["stickslip._compile"]._cache.clear()
-        import jax
-
-        jax.clear_caches()
+        sys.modules["stickslip._compile"].clear_caches()
 
 
 @pytest.fixture(scope="session")

@@ -51,6 +51,8 @@ _LAZY = {
     "first_passage_density": ".selection",
     "MethodChoice": ".selection",
     "SelectionError": ".selection",
+    "clear_caches": "._compile",
+    "cache_info": "._compile",
 }
 
 __all__ = [

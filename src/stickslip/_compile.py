@@ -48,11 +48,19 @@ class Timer:
         self.compile_seconds = 0.0
 
 
-def clear() -> None:
-    """Drop every compiled executable and trace held in memory (disk entries stay)."""
+def clear_caches() -> None:
+    """Drop the simulator's compiled executables and traces held in memory, and JAX's own
+    caches (the disk entries stay: the next run loads instead of compiling)."""
     _cache.clear()
     _exported.clear()
     jax.clear_caches()
+
+
+def cache_info() -> dict:
+    """Counts since the process started: `traces` (functions traced), `compiles` (XLA
+    compilations), `exported_loaded` / `executables_loaded` (traces and executables read
+    from disk), and `entries` (executables held in memory, at most `MAX_ENTRIES`)."""
+    return dict(stats, entries=len(_cache), max_entries=MAX_ENTRIES)
 
 
 def call(fn, *args, timer: Timer | None = None, paths: int | None = None):

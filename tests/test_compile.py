@@ -1,0 +1,87 @@
+"""Compiled-code reuse: one trace per model structure (any dt, any buffer size), traces and
+executables reused from disk by a new process, a bounded in-process cache."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+
+import stickslip as ss
+from stickslip import _compile
+
+WHITE = dict(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0)  # white noise: the smallest loop
+
+SCRIPT = """
+import json, sys
+import numpy as np
+import stickslip as ss
+m = ss.get_model("langevin")(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0)
+e = ss.simulate(m, 300, float(sys.argv[1]), 50.0, seed=3)
+print(json.dumps({"info": ss.cache_info(), "slip_time": np.nan_to_num(e.slip_time).tolist()}))
+"""
+
+
+def _fresh_process(cache_dir, dt):
+    env = dict(os.environ, STICKSLIP_CACHE_DIR=str(cache_dir))
+    out = subprocess.run(
+        [sys.executable, "-c", SCRIPT, str(dt)], env=env, capture_output=True, text=True,
+        check=True, timeout=600,
+    )  # fmt: skip
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_a_new_step_size_reuses_the_compiled_code():
+    """OU noise (the exact detector): nothing is compiled again for a new dt."""
+    model = ss.get_model("langevin")(**WHITE, tau=0.1)
+    ss.simulate(model, 100, 0.05, 20.0, seed=1)
+    before = ss.cache_info()
+    for dt in (0.02, 0.1, 0.3, 0.7):
+        ens = ss.simulate(model, 100, dt, 20.0, seed=1)
+        assert ens.stats["compile_seconds"] == 0.0
+    after = ss.cache_info()
+    assert (after["traces"], after["compiles"]) == (before["traces"], before["compiles"])
+
+
+def test_white_noise_recompiles_only_the_locator_per_node_count():
+    """White noise (Brownian-bridge location): the stepping loop is shared by every dt; only
+    the stick locator, whose interpolation nodes follow dt (powers of two), is compiled per
+    node count."""
+    model = ss.get_model("langevin")(**WHITE)
+    nodes = set()
+    ss.simulate(model, 100, 0.3, 20.0, seed=1)
+    before = ss.cache_info()
+    for dt in (0.3, 0.2, 0.1, 0.05):
+        nodes.add(ss.simulate(model, 100, dt, 20.0, seed=1).info["interpolation_nodes"])
+    after = ss.cache_info()
+    assert after["compiles"] - before["compiles"] <= len(nodes) - 1
+
+
+def test_a_new_process_neither_traces_nor_compiles(tmp_path):
+    """The second process loads every executable from disk and gets the same numbers; the
+    first one's third dt traced nothing either."""
+    first = _fresh_process(tmp_path, 0.1)
+    assert first["info"]["compiles"] > 0
+    second = _fresh_process(tmp_path, 0.1)
+    assert second["info"]["traces"] == 0 and second["info"]["compiles"] == 0
+    assert second["info"]["executables_loaded"] > 0
+    assert second["slip_time"] == first["slip_time"]
+    # A damaged entry is compiled again, with the same result.
+    for entry in (tmp_path / "stickslip-executable").iterdir():
+        entry.write_bytes(b"not an executable")
+    third = _fresh_process(tmp_path, 0.1)
+    assert third["info"]["compiles"] > 0 and third["slip_time"] == first["slip_time"]
+
+
+def test_the_in_process_cache_is_bounded_and_can_be_cleared(monkeypatch):
+    model = ss.get_model("langevin")(**WHITE)
+    monkeypatch.setattr(_compile, "MAX_ENTRIES", 3)
+    a = ss.simulate(model, 300, 0.1, 20.0, seed=2)  # several buffer sizes, more than 3 entries
+    assert ss.cache_info()["entries"] <= 3
+    ss.clear_caches()
+    assert ss.cache_info()["entries"] == 0
+    b = ss.simulate(model, 300, 0.1, 20.0, seed=2)
+    np.testing.assert_array_equal(a.slip_time, b.slip_time)
