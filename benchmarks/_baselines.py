@@ -57,27 +57,30 @@ def exact_dropping_cycles(n_paths, dt, t_max, seed, *, omega0, zeta, D, v_b, x0,
     return T, d, steps
 
 
-def euler_all(n_paths, dt, t_max, seed, *, omega0, zeta, D, v_b, x0, tau):
-    """Euler-Maruyama over all paths at every step (masked), until all stuck or t_max."""
+def euler_dropping(n_paths, dt, t_max, seed, *, omega0, zeta, D, v_b, x0, tau):
+    """Euler-Maruyama of (x, v, eta); finished paths are dropped from the arrays (the fair
+    baseline: the work is that of the slipping paths, as in the simulator). Returns
+    `(slip_time, path_steps)`."""
     rng = np.random.default_rng(seed)
-    x = np.full(n_paths, x0)
-    v = np.full(n_paths, v_b)
+    x = np.full(n_paths, float(x0))
+    v = np.full(n_paths, float(v_b))
     e = np.zeros(n_paths)
     T = np.full(n_paths, np.nan)
-    alive = np.ones(n_paths, dtype=bool)
+    idx = np.arange(n_paths)
     g = np.sqrt(2 * D * dt) / tau
     k = 0
     steps = 0
-    while alive.any() and k * dt < t_max:
+    while idx.size and k * dt < t_max:
         xn = x + v * dt
         vn = v + (-(omega0**2) * x - zeta * v + e) * dt
-        en = e - e / tau * dt + g * rng.standard_normal(n_paths)
-        steps += n_paths
+        en = e - e / tau * dt + g * rng.standard_normal(idx.size)
+        steps += idx.size
         k += 1
-        hit = alive & (vn >= v_b)
-        T[hit] = (k - 1 + (v_b - v[hit]) / (vn[hit] - v[hit])) * dt
-        alive &= ~hit
-        x = np.where(alive, xn, x)
-        v = np.where(alive, vn, v)
-        e = np.where(alive, en, e)
+        hit = vn >= v_b
+        if hit.any():
+            T[idx[hit]] = (k - 1 + (v_b - v[hit]) / (vn[hit] - v[hit])) * dt
+            keep = ~hit
+            x, v, e, idx = xn[keep], vn[keep], en[keep], idx[keep]
+        else:
+            x, v, e = xn, vn, en
     return T, steps

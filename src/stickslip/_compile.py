@@ -37,6 +37,15 @@ from ._jax import jax
 MAX_ENTRIES = 64  # compiled executables kept in memory (least recently used dropped)
 
 _cache: collections.OrderedDict = collections.OrderedDict()
+_cache_hits = [0]  # hits of JAX's own persistent cache (see `_compile`)
+
+
+def _count_hits(event: str, **kwargs) -> None:
+    if event == "/jax/compilation_cache/cache_hits":
+        _cache_hits[0] += 1
+
+
+jax.monitoring.register_event_listener(_count_hits)
 _exported: dict = {}
 stats = {"traces": 0, "compiles": 0, "exported_loaded": 0, "executables_loaded": 0}
 
@@ -96,17 +105,21 @@ def executable(fn, *args, timer: Timer | None = None, paths: int | None = None):
 def _compile(fn, args, leaves, treedef, static, paths):
     """`(executable, takes_flat_leaves)` for one shape."""
     if paths is not None:
-        shapes = tuple((tuple(x.shape), str(x.dtype)) for x in leaves)
-        file = _disk_file("executable", fn, treedef, shapes, static)
-        compiled = _load_executable(file)
-        if compiled is not None:
-            stats["executables_loaded"] += 1
-            return compiled, True
         exported = _export(fn, leaves, treedef, static, paths)
         if exported is not None:
+            file = _executable_file(exported, leaves)
+            compiled = _load_executable(file)
+            if compiled is not None:
+                stats["executables_loaded"] += 1
+                return compiled, True
             stats["compiles"] += 1
+            hits = _cache_hits[0]
             compiled = jax.jit(exported.call).lower(*leaves).compile()
-            _save_executable(file, compiled)
+            # An executable that JAX itself loaded from its persistent cache cannot be
+            # serialised again (XLA's CPU runtime then loses its functions: "Function ...
+            # not found" when the copy runs); only freshly compiled ones are written.
+            if _cache_hits[0] == hits:
+                _save_executable(file, compiled)
             return compiled, True
     stats["traces"] += 1
     stats["compiles"] += 1
@@ -196,9 +209,9 @@ def _source_hash(file: str) -> str:
         return "?"
 
 
-@functools.lru_cache(maxsize=1)
-def _environment() -> str:
-    """Versions of the libraries and of stickslip's own sources."""
+@functools.cache
+def _environment(sources: bool = True) -> str:
+    """Versions of the libraries and the device (and of stickslip's own sources)."""
     parts = []
     for dist in ("jax", "jaxlib", "diffrax", "equinox"):
         try:
@@ -210,6 +223,8 @@ def _environment() -> str:
         parts.append(f"{device.platform}:{device.device_kind}:{device.client.platform_version}")
     except Exception:
         parts.append("device=?")
+    if not sources:
+        return "\n".join(parts)
     root = pathlib.Path(__file__).parent
     for file in sorted(root.rglob("*.py")):
         parts.append(f"{file.relative_to(root)}:{_source_hash(str(file))}")
@@ -217,8 +232,8 @@ def _environment() -> str:
 
 
 def _disk_file(kind, fn, treedef, shapes, static) -> pathlib.Path | None:
-    """Where the disk entry of this `kind` ("exported" or "executable") lives; `None` if it
-    has none (no cache directory, or arguments without a reproducible text form)."""
+    """Where the disk entry of this `kind` of trace lives; `None` if it has none (no cache
+    directory, or arguments without a reproducible text form)."""
     where = jax.config.jax_compilation_cache_dir
     if not where:
         return None
@@ -237,6 +252,18 @@ def _disk_file(kind, fn, treedef, shapes, static) -> pathlib.Path | None:
     text = "\n".join([_environment(), _name(fn), str(treedef), repr(shapes), static_text, *sources])
     digest = hashlib.sha256(text.encode()).hexdigest()[:40]
     return pathlib.Path(where) / f"stickslip-{kind}" / f"{digest}.bin"
+
+
+def _executable_file(exported, leaves) -> pathlib.Path | None:
+    """The disk entry of the executable of `exported` for these concrete shapes: keyed by
+    the traced module itself (so a source change that leaves the trace alone keeps it)."""
+    where = jax.config.jax_compilation_cache_dir
+    if not where:
+        return None
+    digest = hashlib.sha256(_environment(sources=False).encode())
+    digest.update(bytes(exported.mlir_module_serialized))
+    digest.update(repr([(tuple(x.shape), str(x.dtype)) for x in leaves]).encode())
+    return pathlib.Path(where) / "stickslip-executable" / f"{digest.hexdigest()[:40]}.bin"
 
 
 def _load_exported(file):

@@ -455,7 +455,8 @@ class _Run:
                 cfg = dataclasses.replace(cfg, detect="cubic")
             c, t, x = self.call(
                 record, self.model, self.solver, cfg, X, p, self.dt_arr,
-                self.keys["step"], self.keys["bridge"], self.n_steps, max_crossings,
+                self.keys["step"], self.keys["bridge"], np.asarray(float(self.n_steps)),
+                max_crossings, paths=size,
             )  # fmt: skip
             count[rows] = np.asarray(c)[: rows.size].astype(np.int64)
             times[rows] = np.asarray(t)[:, : rows.size].T

@@ -95,18 +95,19 @@ class UpcrossingRecorder(AbstractCrossingSolver):
 
 @eqx.filter_jit
 def record(model, solver, cfg, X, path, dt, step_key, bridge_key, n_steps, max_crossings):
-    """Run the free process from the onset states X for n_steps, logging upcrossings."""
-    from .driver import solve
+    """Run the free process from the onset states X for `n_steps` (a runtime value: one
+    compiled solve serves every t_max), logging upcrossings."""
+    from .driver import _HORIZON, solve
 
     n = X.shape[1]
     empty = jnp.full((max_crossings, n), jnp.nan)
 
-    def full(t, y, args, **kwargs):
-        return jnp.all(y[1][0] >= max_crossings)
+    def done(t, y, args, **kwargs):
+        return jnp.all(y[1][0] >= max_crossings) | (t >= n_steps)
 
     sol = solve(
         model, solver, cfg, (X, (jnp.zeros(n), empty, empty)), path, dt, (step_key, bridge_key),
-        0.0, t1=float(n_steps), saveat=diffrax.SaveAt(t1=True), event=diffrax.Event(full),
+        0.0, t1=_HORIZON, saveat=diffrax.SaveAt(t1=True), event=diffrax.Event(done),
         wrapper=UpcrossingRecorder,
     )  # fmt: skip
     _, (count, times, positions) = sol.ys
