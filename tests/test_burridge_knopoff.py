@@ -27,6 +27,7 @@ def _gaps(run):
     )
 
 
+@pytest.mark.slow
 def test_one_block_with_linear_friction_is_langevin(BK):
     """N = 1, F(V) = F_k + mu V: the Langevin model with omega0^2 = k_p, zeta = mu,
     x0 = (F_s - F_k - mu v_b) / k_p. A block that sticks beyond its static limit releases

@@ -139,6 +139,7 @@ def _n1_with(Ia, model):
     return n1
 
 
+@pytest.mark.slow
 def test_eq12_as_printed_is_E_minus_and_simulation_picks_E_plus(upcrossings, Langevin):
     """Eq. (12) as printed, sqrt(s^2/2pi) exp(-mu^2/2s^2) - (mu/2) erfc(mu/(sqrt2 s)), equals
     E[a^-]; the upcrossing density needs E[a^+]. Simulated upcrossings decide: n1 with E[a^+]
@@ -173,6 +174,7 @@ def test_eq12_as_printed_is_E_minus_and_simulation_picks_E_plus(upcrossings, Lan
     assert np.max(np.abs(z_printed)) > 20
 
 
+@pytest.mark.slow
 def test_empirical_n1_agrees_with_exact(upcrossings, exact, Langevin):
     emp = ss.CrossingEstimator(Langevin(**PUBLIC), ensemble=upcrossings, dt=0.1)
     assert not emp.exact
@@ -306,6 +308,7 @@ def test_densities_carry_the_mass_of_F(Langevin):
         )
 
 
+@pytest.mark.slow
 def test_position_densities_against_simulated_upcrossings(upcrossings, Langevin):
     """First-order truncation counts every upcrossing: its slip-distance 'density' is the
     histogram of x0 - x over all upcrossings before the horizon, which the simulation gives
@@ -321,6 +324,7 @@ def test_position_densities_against_simulated_upcrossings(upcrossings, Langevin)
     assert np.mean(z**2) < 2.0
 
 
+@pytest.mark.slow
 def test_stationary_onset_is_a_mixture_with_an_atom(Langevin):
     """eta0 = 'stationary': p0 = P(a(0) >= 0) re-sticks at once; the rest is a quadrature over
     a(0) < 0 that converges (32 against 64 nodes) and matches simulated upcrossings."""
@@ -365,12 +369,13 @@ def test_bad_arguments(exact, Langevin):
         ss.CrossingEstimator(Langevin(**PUBLIC), dt=0.0)
 
 
-def test_joint_density_integrates_to_n1(exact, upcrossings, Langevin):
+def test_joint_density_integrates_to_n1(exact, Langevin):
     x = np.linspace(-20, 20, 8001)  # the position law is about 2 wide at t = 10
     for t in (0.5, 3.0, 10.0):
         joint = exact.n1_joint(x, np.array([t]))[:, 0]
         assert np.trapezoid(joint, x) == pytest.approx(exact.n1(t), rel=1e-6)
-    emp = ss.CrossingEstimator(Langevin(**PUBLIC), ensemble=upcrossings, dt=0.5)
+    small = ss.simulate(Langevin(**PUBLIC), 2000, 0.005, 8.0, seed=21, record_upcrossings=16)
+    emp = ss.CrossingEstimator(Langevin(**PUBLIC), ensemble=small, dt=0.5)
     cells_x = np.arange(-12.0, 12.0, 0.25) + 0.125  # covers every recorded position
     cells_t = np.arange(0.5, 7.0, 0.5)  # the grid times: n1 there is the cell average
     joint = emp.n1_joint(cells_x, cells_t)

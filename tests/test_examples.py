@@ -47,6 +47,7 @@ def test_white_noise_example():
     assert "Brownian bridge" in run.stdout
 
 
+@pytest.mark.slow
 def test_throughput_benchmark_runs(tmp_path):
     run = subprocess.run(
         [
@@ -67,6 +68,7 @@ def test_throughput_benchmark_runs(tmp_path):
     assert "ratio (NumPy / stickslip, compiled, equal accuracy)" in run.stdout
 
 
+@pytest.mark.slow
 def test_estimator_benchmark_runs():
     run = subprocess.run(
         [sys.executable, str(ROOT / "benchmarks" / "estimator.py"), "--quick"],

@@ -77,6 +77,7 @@ def crossings(lognormal):
     return ss.simulate(lognormal, 100_000, 0.005, 6.0, seed=3, record_upcrossings=16)
 
 
+@pytest.mark.slow
 def test_mixture_n1_and_Fg1_agree_with_simulated_crossings(lognormal, crossings):
     """The exact mixture n1 against the empirical one (cells of 0.1 from t = 0.1), and the
     first-order decoupling F_g1 of the mixed process against the empirical estimator's,
