@@ -221,7 +221,7 @@ def _compute(point: _Point, progress: bool, say):
         point.cycles = ss.simulate_cycles(
             model,
             sim.cycles.n_paths,
-            sim.dt,
+            sim.cycles.dt or sim.dt,
             sim.cycles.t_max,
             sim.seed,
             solver=sim.solver,

@@ -113,6 +113,11 @@ class Cycles(Base):
 
     n_paths: int = Field(2, ge=1, le=64, description="Paths to run through many cycles.")
     t_max: PositiveFloat = Field(60.0, description="Length of each path's run (time units).")
+    dt: PositiveFloat | None = Field(
+        None,
+        description="Time step of these runs (default: the simulation's dt). A time series "
+        "needs a fine step to look smooth; the slip statistics of the exact detector do not.",
+    )
 
 
 class Simulation(Base):
