@@ -210,6 +210,22 @@ def _source_hash(file: str) -> str:
 
 
 @functools.cache
+def _package_hash(top: str) -> str:
+    """The sources of a model's whole top-level package (or module): a trace depends on every
+    helper its classes call, not only on the file that defines them."""
+    module = sys.modules.get(top)
+    try:
+        file = inspect.getsourcefile(module) if module else None
+    except TypeError:
+        file = None
+    if file is None:
+        return f"{top}:?"
+    path = pathlib.Path(file)
+    files = sorted(path.parent.rglob("*.py")) if path.name == "__init__.py" else [path]
+    return top + ":" + ",".join(_source_hash(str(f)) for f in files)
+
+
+@functools.cache
 def _environment(sources: bool = True) -> str:
     """Versions of the libraries and the device (and of stickslip's own sources)."""
     parts = []
@@ -241,14 +257,8 @@ def _disk_file(kind, fn, treedef, shapes, static) -> pathlib.Path | None:
     if _ADDRESS.search(static_text):
         return None
     classes = sorted(_classes(static, set()), key=lambda c: (c.__module__, c.__qualname__))
-    sources = []
-    for cls in classes:
-        module = sys.modules.get(cls.__module__)
-        try:
-            file = inspect.getsourcefile(module) if module else None
-        except TypeError:
-            file = None
-        sources.append(f"{cls.__module__}.{cls.__qualname__}:{_source_hash(file) if file else '?'}")
+    sources = [f"{c.__module__}.{c.__qualname__}" for c in classes]
+    sources += [_package_hash(c.__module__.split(".")[0]) for c in classes]
     text = "\n".join([_environment(), _name(fn), str(treedef), repr(shapes), static_text, *sources])
     digest = hashlib.sha256(text.encode()).hexdigest()[:40]
     return pathlib.Path(where) / f"stickslip-{kind}" / f"{digest}.bin"
