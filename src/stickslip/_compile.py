@@ -1,17 +1,19 @@
 """Compiled code of the simulator: ahead-of-time compilation (compile time is measured apart
-from run time), a bounded in-process cache, and shape-polymorphic export.
+from run time), a bounded in-process cache, shape-polymorphic traces and executables kept on
+disk.
 
 `call(fn, *args, paths=n)` traces `fn` once with the path axis (the last axis of every
 array argument whose last dimension is `n`) left symbolic (`jax.export`), then compiles
-that one trace for each buffer size it meets. The exported trace is also written to disk
-(beside JAX's persistent compilation cache, see `stickslip._jax`), so a new process neither
-traces nor, with the compilation cache warm, compiles. A trace that cannot be exported
-(say a user model whose code needs concrete sizes) falls back to one trace per shape.
+that one trace for each buffer size it meets. Traces and executables are written to the
+cache directory (the one of JAX's persistent compilation cache, see `stickslip._jax`), so a
+new process neither traces nor compiles. A trace that cannot be exported (say a user model
+whose code needs concrete sizes) falls back to one trace per shape, in memory only.
 
-Disk entries are keyed by the versions of stickslip's sources (and those of every class in
-the static arguments), jax, jaxlib, diffrax and equinox, the function and the static
-arguments; arguments whose text form is not reproducible (objects printed by address) are
-not written to disk.
+Traces are keyed by the sources of stickslip and of the packages of every class in the
+static arguments, the versions of jax, jaxlib, diffrax and equinox, the device, the function
+and the static arguments (arguments whose text form is not reproducible, objects printed by
+address, keep theirs in memory only). Executables are keyed by the traced module itself, the
+shapes, the versions and the device. A damaged entry is traced or compiled again.
 """
 
 from __future__ import annotations
@@ -36,7 +38,9 @@ from ._jax import jax
 
 MAX_ENTRIES = 64  # compiled executables kept in memory (least recently used dropped)
 
-_cache: collections.OrderedDict = collections.OrderedDict()
+_cache: collections.OrderedDict = collections.OrderedDict()  # executables, LRU
+_exported: dict = {}  # shape-polymorphic traces (few: one per function and model structure)
+stats = {"traces": 0, "compiles": 0, "exported_loaded": 0, "executables_loaded": 0}
 _cache_hits = [0]  # hits of JAX's own persistent cache (see `_compile`)
 
 
@@ -46,8 +50,6 @@ def _count_hits(event: str, **kwargs) -> None:
 
 
 jax.monitoring.register_event_listener(_count_hits)
-_exported: dict = {}
-stats = {"traces": 0, "compiles": 0, "exported_loaded": 0, "executables_loaded": 0}
 
 
 class Timer:
