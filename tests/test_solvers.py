@@ -51,6 +51,24 @@ def _setup(Langevin, solver, n, tau=0.1):
     return model, SlipTerm(model, control), (X0, None)
 
 
+def test_host_built_solver_equals_the_traced_one(Langevin):
+    """The simulator builds its exact solver in NumPy (`host=True`): the same tables as the
+    traced build, which the tests below check against the transition law."""
+    m = Langevin(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=0.1)
+    lg = m.linear_gaussian()
+    for h in (0.01, 0.7, 5.0):
+        traced = ExactGaussian(lg.A, lg.b, lg.B, h, nodes=16)
+        host = ExactGaussian(lg.A, lg.b, lg.B, h, nodes=16, host=True)
+        for name in ("Phi", "c", "node_Phi", "node_c", "node_G", "node_dG"):
+            a, b = np.asarray(getattr(traced, name)), getattr(host, name)
+            assert isinstance(b, np.ndarray)
+            np.testing.assert_allclose(
+                b, a, rtol=1e-12, atol=1e-14 * np.max(np.abs(a)), err_msg=name
+            )
+        LL = lambda s: np.asarray(s.L) @ np.asarray(s.L).T  # the factor's sign is free
+        np.testing.assert_allclose(LL(host), LL(traced), rtol=1e-12, atol=1e-300)
+
+
 def test_exact_step_has_the_transition_law(Langevin):
     n, h = 200_000, 0.01
     m = Langevin(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=0.1)

@@ -245,8 +245,15 @@ def _environment(sources: bool = True) -> str:
         return "\n".join(parts)
     root = pathlib.Path(__file__).parent
     for file in sorted(root.rglob("*.py")):
-        parts.append(f"{file.relative_to(root)}:{_source_hash(str(file))}")
+        name = file.relative_to(root)
+        if name.parts[0] not in _UNTRACED:
+            parts.append(f"{name}:{_source_hash(str(file))}")
     return "\n".join(parts)
+
+
+# Parts of the package that no traced function of the simulator imports (an edit there keeps
+# the traces on disk); everything else counts.
+_UNTRACED = ("study", "cli", "_estimate", "selection.py", "stability.py", "__init__.py")
 
 
 def _disk_file(kind, fn, treedef, shapes, static) -> pathlib.Path | None:
