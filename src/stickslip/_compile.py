@@ -151,7 +151,7 @@ def _export(fn, leaves, treedef, static, paths):
     key = (fn, treedef, poly_shapes, static)
     if key in _exported:
         return _exported[key]
-    file = _disk_file("exported", fn, treedef, poly_shapes, static)
+    file = _trace_file(fn, treedef, poly_shapes, static)
     exported = _load_exported(file)
     if exported is None:
         from jax import export
@@ -256,8 +256,8 @@ def _environment(sources: bool = True) -> str:
 _UNTRACED = ("study", "cli", "_estimate", "selection.py", "stability.py", "__init__.py")
 
 
-def _disk_file(kind, fn, treedef, shapes, static) -> pathlib.Path | None:
-    """Where the disk entry of this `kind` of trace lives; `None` if it has none (no cache
+def _trace_file(fn, treedef, shapes, static) -> pathlib.Path | None:
+    """Where the disk entry of a trace lives; `None` if it has none (no cache
     directory, or arguments without a reproducible text form)."""
     where = jax.config.jax_compilation_cache_dir
     if not where:
@@ -270,7 +270,7 @@ def _disk_file(kind, fn, treedef, shapes, static) -> pathlib.Path | None:
     sources += [_package_hash(c.__module__.split(".")[0]) for c in classes]
     text = "\n".join([_environment(), _name(fn), str(treedef), repr(shapes), static_text, *sources])
     digest = hashlib.sha256(text.encode()).hexdigest()[:40]
-    return pathlib.Path(where) / f"stickslip-{kind}" / f"{digest}.bin"
+    return pathlib.Path(where) / "stickslip-exported" / f"{digest}.bin"
 
 
 def _executable_file(exported, leaves) -> pathlib.Path | None:

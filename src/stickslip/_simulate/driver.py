@@ -495,7 +495,7 @@ class _Run:
                 paths,
                 np.uint32(counter),
                 paths=paths.size,
-            )  # fmt: skip
+            )
         )
 
     def _chunk(self, paths):
