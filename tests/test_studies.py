@@ -221,6 +221,7 @@ REDUCED = {
     "fig7": ["simulation.n_paths=1000", "simulation.cycles.t_max=100"],
     "random_threshold": ["simulation.n_paths=2000"],
     "public_auto": ["tolerance=0.1"],  # method: auto sizes the run itself
+    "ou_exact_theory": ["simulation.n_paths=1000", "simulation.t_max=10"],
     # Free runs recording upcrossings: the cost is paths x t_max / dt.
     "fig4_left": ["simulation.n_paths=1000", "simulation.t_max=10"],
     "fig4_right": ["simulation.n_paths=1000", "simulation.t_max=10"],

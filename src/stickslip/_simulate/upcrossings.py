@@ -85,10 +85,12 @@ class UpcrossingRecorder(AbstractCrossingSolver):
         t_cross = (jnp.round(t0) + self.offset + frac) * self.dt
         pos = over_paths(model.position)
         x_cross = pos(X) + frac * (pos(X1) - pos(X))
-        slot = jnp.arange(times.shape[0])[:, None] == count[None, :]
-        write = up[None, :] & slot
-        times = jnp.where(write, t_cross[None, :], times)
-        positions = jnp.where(write, x_cross[None, :], positions)
+        # one scatter per step (O(n), not O(K n)); a path with no upcrossing, or a full
+        # record, writes out of bounds and is dropped
+        slot = jnp.where(up, count, times.shape[0]).astype(jnp.int32)
+        cols = jnp.arange(times.shape[1])
+        times = times.at[slot, cols].set(t_cross, mode="drop")
+        positions = positions.at[slot, cols].set(x_cross, mode="drop")
         y1 = (X1, (count + up, times, positions))
         return y1, None, dict(y0=y0, y1=y1), (inner_state, self._uniforms(t1)), result
 
