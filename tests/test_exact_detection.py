@@ -231,3 +231,97 @@ def test_certified_steps_have_small_rice_counts(Langevin, h):
     # Where the bridge mean reaches the level (a peak the nodes could step over) the bound
     # is infinite: such a step is always refined.
     assert np.all(exact[np.isinf(ours)] > 1e-3)
+
+
+# -- the compiled refinement against a depth-first one -------------------------------------
+
+
+# Compiled like the simulator's (eagerly evaluated, the float32 normals can differ in their
+# last bits: XLA contracts multiply-adds in compiled code).
+_midpoint = jax.jit(
+    lambda T, a, b, key, *ids: bridge.midpoint(T, a, b, ss._rng.tree_normals(key, *ids, 3))
+)
+_bound = jax.jit(bridge.expected_upcrossings)
+
+
+def _depth_first(T_levels, key, level, depths, tol, Xa, Xb, path, step):
+    """The refinement of the module docstring, depth first and one candidate at a time, in
+    plain Python: the same draws (keyed by path, step and tree node) and the same bounds,
+    none of the compiled version's breadth-first bookkeeping (buffers, compaction, owners,
+    hand-backs). Returns `(found, frac, state, miss)` for one candidate."""
+    locate, certify = depths
+    c = np.asarray(T_levels[0].crossing)[:, 0]
+    miss = 0.0
+
+    def draw(j, pos, a, b):
+        ids = (np.uint32([path]), np.uint32([step]), np.uint32([2**j + pos]))
+        return np.asarray(_midpoint(T_levels[j], a[:, None], b[:, None], key, *ids))[:, 0]
+
+    def bound(j, a, b):
+        return float(_bound(T_levels[j], a[:, None], b[:, None], level)[0])
+
+    def search(j, pos, a, b):
+        """First crossing inside interval `pos` of level `j` (open: it ends above the level
+        or its bound is above tol)."""
+        nonlocal miss
+        m = draw(j, pos, a, b)
+        for r, (x0, x1) in enumerate(((a, m), (m, b))):
+            k, p = j + 1, 2 * pos + r
+            if c @ x1 >= level:
+                onset = c @ x0 >= level
+                if k >= locate and (not onset or k == certify):
+                    f = 0.5 if onset else (level - c @ x0) / (c @ x1 - c @ x0)
+                    return True, (p + f) / 2.0**k, x0 + f * (x1 - x0)
+                return search(k, p, x0, x1)  # it holds a crossing: found in there
+            q = bound(k, x0, x1)
+            if q <= tol:
+                miss += q
+            elif k == certify:
+                miss += min(q, 1.0)
+            else:
+                hit = search(k, p, x0, x1)
+                if hit[0]:
+                    return hit
+        return False, 1.0, b
+
+    found, frac, state = search(0, 0, Xa, Xb)
+    return found, frac, state, miss
+
+
+@pytest.mark.parametrize("dt", [0.1, 1.6])
+def test_compiled_refinement_is_the_depth_first_one(Langevin, dt, monkeypatch):
+    """Candidate steps of a real run, refined by the simulator (breadth first, compiled,
+    small buffers so that every hand-back is exercised) and by the depth-first reference:
+    the same sticks, to rounding. The breadth-first miss bound may be larger: it sums the
+    bounds of halves that a crossing found later, at a deeper level, places after the
+    stick."""
+    from stickslip._simulate import driver
+
+    monkeypatch.setattr(bridge, "CAPACITIES", (256, 512))
+    model = Langevin(**PUBLIC)
+    run = driver._Run("test", driver._to_arrays(model), "auto", "continuous", dt, 30.0,
+                      ss._rng.seed_key(5))  # fmt: skip
+    got = []
+    original = bridge.Refiner.first_crossing
+
+    def spy(self, Xa, Xb, path, step):
+        out = original(self, Xa, Xb, path, step)
+        got.append(((Xa, Xb, path, step), out))
+        return out
+
+    monkeypatch.setattr(bridge.Refiner, "first_crossing", spy)
+    run.first_passages(np.arange(600, dtype=np.uint32), 600)
+    T = run.solver.bridge
+    levels = [jax.tree_util.tree_map(lambda x, j=j: np.asarray(x)[..., j : j + 1], T)
+              for j in range(bridge.MAX_DEPTH + 1)]  # fmt: skip
+    checked = 0
+    for (Xa, Xb, path, step), (found, frac, state, miss, _, _) in got:
+        for i in range(0, Xa.shape[1], 7):  # a sample of the candidates of every pass
+            ref = _depth_first(levels, run.keys["tree"], 1.0, run.depths, run.tol,
+                               Xa[:, i], Xb[:, i], path[i], step[i])  # fmt: skip
+            assert found[i] == ref[0]
+            assert frac[i] == pytest.approx(ref[1], abs=1e-12)
+            np.testing.assert_allclose(state[:, i], ref[2], atol=1e-12)
+            assert miss[i] >= ref[3] * (1 - 1e-9)  # (summed in another order)
+            checked += 1
+    assert checked > 150 and sum(np.sum(o[0]) for _, o in got) > 100

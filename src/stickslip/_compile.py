@@ -116,7 +116,7 @@ def _compile(fn, args, leaves, treedef, static, paths):
                 return compiled, True
             stats["compiles"] += 1
             hits = _cache_hits[0]
-            compiled = jax.jit(exported.call).lower(*leaves).compile()
+            compiled = _fresh(jax.jit(exported.call).lower(*leaves))
             # An executable that JAX itself loaded from its persistent cache cannot be
             # serialised again (XLA's CPU runtime then loses its functions: "Function ...
             # not found" when the copy runs); only freshly compiled ones are written.
@@ -127,6 +127,18 @@ def _compile(fn, args, leaves, treedef, static, paths):
     stats["compiles"] += 1
     jitted = fn if hasattr(fn, "lower") else eqx.filter_jit(fn)
     return jitted.lower(*args).compile(), False
+
+
+def _fresh(lowered):
+    """Compile `lowered` without JAX's persistent cache: this module keeps the executable
+    itself, and one that JAX loaded from its cache could not be kept (above), so an entry
+    there without one here would be loaded from JAX's cache by every new process."""
+    enabled = jax.config.jax_enable_compilation_cache
+    jax.config.update("jax_enable_compilation_cache", False)
+    try:
+        return lowered.compile()
+    finally:
+        jax.config.update("jax_enable_compilation_cache", enabled)
 
 
 def _poly_specs(leaves, paths):

@@ -289,188 +289,269 @@ def _unpack(rows, j, layout):
     return jax.tree_util.tree_unflatten(treedef, out)
 
 
-def _split(rows, j, level, ends, ids, key, layout):
-    """Split intervals of level `j` at their midpoints. `ends` stacks the states at both ends
-    `(2d, n)`; `ids` the path, step and tree node `(3, n)`, which key the exact bridge draw
-    at the midpoint. Returns one array `(d + 4, n)`: the midpoint state, whether each half
-    ends at or above `level` (as 0/1) and each half's bound on an upcrossing inside it."""
-    d = ends.shape[0] // 2
-    Xa, Xb = ends[:d], ends[d:]
-    T_parent, T_child = _unpack(rows, j, layout), _unpack(rows, j + 1, layout)
-    z = _rng.tree_normals(key, ids[0], ids[1], ids[2], d)
-    # Materialise the draw once: XLA would otherwise re-derive it (three Threefry hashes)
-    # inside each of its consumers.
-    Xm = jax.lax.optimization_barrier(midpoint(T_parent, Xa, Xb, z))
-    left_above = crossing_value(T_parent, Xm) >= level
-    right_above = crossing_value(T_parent, Xb) >= level
-    p_left = expected_upcrossings(T_child, Xa, Xm, level)
-    p_right = expected_upcrossings(T_child, Xm, Xb, level)
-    flags = jnp.stack([left_above, right_above]).astype(Xm.dtype)
-    return jnp.concatenate([Xm, flags, p_left[None], p_right[None]])
+# Status of a refinement call (`_refine_levels`).
+_GO, _DONE, _SHRINK, _GROW = 0, 1, 2, 3
+# Interval buffers of a refinement call: each is a compilation (about 2 s on 2 cores), so
+# the small ones, where a pass costs little whatever its size, are few.
+CAPACITIES = (256, 4096, 16384, 32768, 65536)
+SHRINK = 4  # a call hands back once its buffer is less than 1 / SHRINK full (and a smaller
+#             one holds the intervals): measured faster than at 1/2 or 1/8
 
 
-class Splitter:
-    """`_split` for one run's tables, level and key. A refinement makes a few hundred small
-    calls, so each padded size's executable is called directly (the generic call's Python
-    overhead, ~0.5 ms, exceeded their run time); it is traced once for every size
-    (`_compile`, path axis symbolic). Arguments and results are packed for the same reason."""
+def _refine_levels(
+    rows_t, j0, depths, level, tol, key, shrink_at, a, b, owner, pos, path, step, count, layout
+):
+    """Refine the open intervals of one tree level after another, inside one compiled call.
 
-    def __init__(self, tables: BridgeTables, level, key, timer=None):
+    The intervals are the first `count` columns of a buffer of capacity `C` (the last axis):
+    end states `a`, `b` `(d, C)`, `owner` (the candidate each belongs to, `< C`; an owner's
+    intervals are contiguous and in time order), position `pos` in their level, and the
+    path and step counters of their candidate. A pass splits every interval at its exact
+    bridge midpoint (noise keyed by path, step and tree node), decides each half as
+    `Refiner.first_crossing` describes, and compacts the halves still open into the buffer,
+    in order. Passes run from level `j0` while at least `shrink_at` intervals are open. The
+    call returns to the host when the refinement is done (`_DONE`), when fewer are open
+    (`_SHRINK`: a smaller buffer is cheaper), or when the next level would
+    overflow the buffer (`_GROW`: that level is left undone). It returns the buffer and,
+    per owner, what its passes found: `found`, `frac` (fraction of the step), `state`, `miss`
+    (summed bounds of certified halves) and `unresolved`, and the number of intervals split.
+
+    The two halves of every interval are kept as two planes, left and right, never
+    interleaved: XLA evaluated both operands of an interleaving for every element (measured
+    1.8x the cost of the bounds)."""
+    d, C = a.shape
+    rows = rows_t.T
+    locate, certify = depths[0], depths[1]
+    slots = jnp.arange(C, dtype=jnp.int32)
+
+    def draw(j, pos, path, step):
+        # The bridge noise of the midpoints of level j, keyed by path, step and tree node. It
+        # is drawn a level ahead and carried: a carried value is materialised once, where XLA
+        # re-derived a draw (Threefry hashes and the inverse error function) inside each of
+        # its consumers.
+        node = (jnp.left_shift(1, j) + pos).astype(jnp.uint32)
+        return _rng.tree_normals(key, path, step, node, d)
+
+    def one_level(carry):
+        j, a, b, owner, pos, path, step, z, count = carry[:9]
+        found, frac, state, miss, unres, splits = carry[9:-1]
+        Tp, Tc = _unpack(rows, j, layout), _unpack(rows, j + 1, layout)
+        valid = slots < count
+        Xm = midpoint(Tp, a, b, z)
+        va, vm, vb = crossing_value(Tp, a), crossing_value(Tp, Xm), crossing_value(Tp, b)
+        # Each half: ends above the level, bound on an upcrossing inside (l: left, r: right).
+        above_l, above_r = valid & (vm >= level), valid & (vb >= level)
+        # The bounds are computed in a branch of their own so that they are materialised once
+        # (XLA re-derived them inside each consumer; an optimization barrier did not stop it).
+        p_l, p_r = jax.lax.cond(
+            count >= 0,
+            lambda: (
+                expected_upcrossings(Tc, a, Xm, level),
+                expected_upcrossings(Tc, Xm, b, level),
+            ),
+            lambda: (jnp.zeros(C), jnp.zeros(C)),
+        )
+        # Keep each owner's halves up to and including its first one that ends above (halves
+        # in time order: 2i + r).
+        idx = jnp.where(valid, owner, C)
+        never = 2 * C
+        first = jnp.full(C, never, jnp.int32)
+        first = first.at[idx].min(jnp.where(above_l, 2 * slots, never), mode="drop")
+        first = first.at[idx].min(jnp.where(above_r, 2 * slots + 1, never), mode="drop")
+        first = first[jnp.minimum(idx, C - 1)]
+        keep_l, keep_r = valid & (2 * slots <= first), valid & (2 * slots + 1 <= first)
+        cert_l = keep_l & ~above_l & (p_l <= tol)
+        cert_r = keep_r & ~above_r & (p_r <= tol)
+        und_l, und_r = keep_l & ~above_l & ~cert_l, keep_r & ~above_r & ~cert_r
+        hit_l, hit_r = keep_l & above_l, keep_r & above_r
+        last_level = j + 1 == certify
+        # Locate (past the location depth: move the location earlier). A half that starts at
+        # the level (the slip onset, v(0) = L, a(0) < 0) holds a return to it somewhere
+        # inside: it is split on to the last level and placed at its middle, so that the slip
+        # time stays positive.
+        onset_l, onset_r = va >= level, vm >= level
+        locating = j + 1 >= locate
+        now_l = hit_l & locating & (~onset_l | last_level)
+        now_r = hit_r & locating & (~onset_r | last_level)
+
+        def place(found, frac, state):
+            # Each owner's located half, if any (at most one: its first that ends above).
+            pick = jnp.full(C, -1, jnp.int32)
+            pick = pick.at[jnp.where(now_l, owner, C)].set(2 * slots, mode="drop")
+            pick = pick.at[jnp.where(now_r, owner, C)].set(2 * slots + 1, mode="drop")
+            has, i, r = pick >= 0, jnp.maximum(pick, 0) >> 1, (pick & 1).astype(bool)
+            X0 = jnp.where(r, Xm[:, i], a[:, i])
+            X1 = jnp.where(r, b[:, i], Xm[:, i])
+            c0, c1 = jnp.where(r, vm[i], va[i]), jnp.where(r, vb[i], vm[i])
+            f = jnp.clip((level - c0) / jnp.where(c1 > c0, c1 - c0, 1.0), 0.0, 1.0)
+            f = jnp.where(jnp.where(r, onset_r[i], onset_l[i]), 0.5, f)
+            at = jnp.ldexp(2 * pos[i] + r + f, -(j + 1))
+            return found | has, jnp.where(has, at, frac), jnp.where(has, X0 + f * (X1 - X0), state)
+
+        found, frac, state = jax.lax.cond(locating, place, lambda *x: x, found, frac, state)
+
+        # Certified halves add their bounds to the miss bound; at the last level, so do the
+        # halves left undecided (at most 1 each), and their owner is unresolved.
+        def added(cert, und, p):
+            return jnp.where(cert, p, jnp.where(und & last_level, jnp.minimum(p, 1.0), 0.0))
+
+        # (Two scatters: a stacked operand made XLA evaluate both parts for every element.)
+        add = added(cert_l, und_l, p_l) + added(cert_r, und_r, p_r)
+        miss = miss.at[idx].add(add, mode="drop")
+        left_over = ((und_l | und_r) & last_level).astype(jnp.int32)
+        unres = unres | (jnp.zeros(C, jnp.int32).at[idx].add(left_over, mode="drop") > 0)
+        # Compact the halves still open into the buffer, in time order.
+        open_l, open_r = und_l | (hit_l & ~now_l), und_r | (hit_r & ~now_r)
+        n_open = open_l.astype(jnp.int32) + open_r
+        before = jnp.cumsum(n_open, dtype=jnp.int32) - n_open
+        total = jnp.sum(n_open, dtype=jnp.int32)
+        # Compaction by gathers: each slot of the new buffer is told which half it takes (one
+        # scatter of an index; transposing the halves' columns for one scatter cost 4x more).
+        src = jnp.zeros(C, jnp.int32)
+        src = src.at[jnp.where(open_l, before, C)].set(2 * slots, mode="drop")
+        src = src.at[jnp.where(open_r, before + open_l, C)].set(2 * slots + 1, mode="drop")
+        i, r = src >> 1, (src & 1).astype(bool)
+        Xm_i = Xm[:, i]
+        a_ = jnp.where(r, Xm_i, a[:, i])
+        b_ = jnp.where(r, b[:, i], Xm_i)
+        owner_, path_, step_, pos_ = owner[i], path[i], step[i], 2 * pos[i] + r
+        new = (
+            j + 1, a_, b_, owner_, pos_, path_, step_, draw(j + 1, pos_, path_, step_), total,
+            found, frac, state, miss, unres, splits + count,
+        )  # fmt: skip
+        status = jnp.where(
+            (j + 1 >= certify) | (total == 0),
+            _DONE,
+            jnp.where(total < shrink_at, _SHRINK, _GO),
+        )
+        grow = total > C
+        kept = jax.tree_util.tree_map(lambda n, o: jnp.where(grow, o, n), new, carry[:-1])
+        return kept + (jnp.where(grow, _GROW, status),)
+
+    zeros = jnp.zeros(C)
+    init = (
+        j0, a, b, owner, pos, path, step, draw(j0, pos, path, step), count,
+        jnp.zeros(C, bool), zeros, jnp.zeros_like(a), zeros, jnp.zeros(C, bool),
+        jnp.zeros((), count.dtype), jnp.asarray(_GO),
+    )  # fmt: skip
+    return jax.lax.while_loop(lambda c: c[-1] == _GO, one_level, init)
+
+
+def _capacity(n: int) -> int:
+    """The interval buffer for `n` open intervals (the smallest of `CAPACITIES` that holds
+    them, or a power of two above)."""
+    for C in CAPACITIES:
+        if C >= n:
+            return C
+    return 1 << (int(n) - 1).bit_length()
+
+
+def _shrink_at(C: int) -> int:
+    """Open intervals below which a call with buffer `C` hands back for a smaller one."""
+    smaller = [c for c in CAPACITIES if c < C]
+    return min(C // SHRINK, smaller[-1]) if smaller else 0
+
+
+class Refiner:
+    """The exact refinement of one run (its tables, level, tolerance, depths and key):
+    `first_crossing` on the host, `_refine_levels` compiled once per buffer capacity (traced
+    once for all of them, `_compile`, path axis symbolic)."""
+
+    def __init__(self, tables: BridgeTables, level, key, depths, tol, timer=None):
         rows, self.layout = level_tables(tables)
-        self.rows = np.asarray(rows)
+        self.rows_t = np.ascontiguousarray(np.asarray(rows).T)  # (K, J): J is never a capacity
         self.level = np.asarray(level, dtype=np.float64)
         self.key = np.asarray(key, dtype=np.uint32)
-        self.crossing = np.asarray(tables.crossing[:, 0])
-        self.sizes: dict = {}
+        self.depths = np.asarray(depths, dtype=np.int32)
+        self.tol = np.asarray(tol, dtype=np.float64)
         self.timer = timer
+        self.sizes: dict = {}
 
-    def __call__(self, j: int, ends, ids):
-        args = (self.rows, np.asarray(j, dtype=np.int32), self.level, ends, ids, self.key)
-        size = ends.shape[-1]
-        if size not in self.sizes:
+    def _call(self, j, a, b, owner, pos, path, step, count):
+        C = a.shape[-1]
+        args = (
+            self.rows_t, np.asarray(j, np.int32), self.depths, self.level, self.tol, self.key,
+            np.asarray(_shrink_at(C), np.int32), a, b, owner, pos, path, step,
+            np.asarray(count, np.int32),
+        )  # fmt: skip
+        if C not in self.sizes:
             compiled, flat, _ = _compile.executable(
-                _split, *args, self.layout, timer=self.timer, paths=size
+                _refine_levels, *args, self.layout, timer=self.timer, paths=C
             )
-            self.sizes[size] = compiled if flat else functools.partial(_tail, compiled, self.layout)
-        return np.asarray(self.sizes[size](*args))
+            self.sizes[C] = compiled if flat else functools.partial(_tail, compiled, self.layout)
+        return [np.asarray(x) for x in self.sizes[C](*args)]
+
+    def first_crossing(self, Xa, Xb, path, step):
+        """Refine candidate steps and find each one's first crossing of the level.
+
+        Breadth first, one level of the dyadic tree at a time, so that every pass uses one
+        level's coefficients and only the open intervals (compacted) are computed. At each
+        level an interval is split at its exact bridge midpoint; a half that ends at or
+        above the level holds a crossing; a half that ends below is certified crossing-free
+        when its bound is at most the tolerance, and is undecided otherwise. Halves after a
+        path's first half that ends above are dropped: the first crossing comes before
+        their start. Down to the location depth both kinds are split again; past it only
+        the undecided halves before the located one are (down to the certification depth),
+        and a crossing found there replaces the location (it is earlier). The result does
+        not depend on the order of exploration: it is what the depth-first refinement of
+        the module docstring finds with the same draws.
+
+        `Xa`, `Xb` `(d, n)`, `path`, `step` `(n,)`: the candidate steps (host arrays).
+
+        **Returns:** `(found, frac, state, miss, unresolved, splits)` per candidate: whether
+        it crossed inside the step, where (fraction of the step), the state there (linear
+        interpolation inside the finest interval), the summed bounds of the certified
+        intervals before the crossing, whether an interval stayed undecided at the
+        certification depth (certified all the same), and the number of intervals split.
+        """
+        d, n = Xa.shape
+        found = np.zeros(n, dtype=bool)
+        frac = np.ones(n)
+        state = np.array(Xb, dtype=float, copy=True)
+        miss = np.zeros(n)
+        unresolved = np.zeros(n, dtype=bool)
+        path, step = np.asarray(path, np.uint32), np.asarray(step, np.uint32)
+        splits = 0
+        batch = CAPACITIES[-1] // 2
+        for first in range(0, n, batch):
+            who = np.arange(first, min(first + batch, n))  # the candidate of each owner
+            m = who.size
+            buf = [
+                np.asarray(Xa[:, who], float), np.asarray(Xb[:, who], float),
+                np.arange(m, dtype=np.int32), np.zeros(m, dtype=np.int32), path[who], step[who],
+            ]  # fmt: skip
+            j, count, C = 0, m, _capacity(m)
+            while True:
+                out = self._call(j, *(_padded(x, C - count) for x in buf), count)
+                found_, frac_, state_, miss_, unres_, splits_, status = out[9:]
+                k = who.size
+                hit = np.nonzero(found_[:k])[0]
+                found[who[hit]] = True
+                frac[who[hit]] = frac_[hit]
+                state[:, who[hit]] = state_[:, hit]
+                miss[who] += miss_[:k]
+                unresolved[who] |= unres_[:k]
+                splits += int(splits_)
+                status, j, count = int(status), int(out[0]), int(out[8])
+                if status == _DONE:
+                    break
+                buf = [x[..., :count] for x in out[1:7]]
+                # Renumber the owners that still have open intervals (they stay in order).
+                owner = buf[2]
+                starts = np.ones(count, dtype=bool)
+                np.not_equal(owner[1:], owner[:-1], out=starts[1:])
+                who = who[owner[starts]]
+                buf[2] = (np.cumsum(starts) - 1).astype(np.int32)
+                C = _capacity(2 * count if status == _GROW else count)
+        return found, frac, state, miss, unresolved, splits
+
+
+def _padded(x, pad):
+    """`x` with `pad` more columns of zeros (the unused slots of a buffer)."""
+    if pad == 0:
+        return x
+    return np.concatenate([x, np.zeros(x.shape[:-1] + (pad,), x.dtype)], axis=-1)
 
 
 def _tail(compiled, layout, *args):
     return compiled(*args, layout)
-
-
-def first_crossing(splitter, level, depths, tol, Xa, Xb, path, step):
-    """Refine candidate steps and find each one's first crossing of `level`.
-
-    Breadth first, one level of the dyadic tree at a time, so that every pass uses one
-    level's coefficients and only the open intervals (compacted) are computed. At each
-    level an interval is split at its exact bridge midpoint; a half that ends at or above
-    the level holds a crossing; a half that ends below is certified crossing-free when its
-    bound is at most `tol`, and is undecided otherwise. Halves after a path's first half
-    that ends above are dropped: the first crossing comes before their start. Down to the
-    location depth both kinds are split again; past it only the undecided halves before
-    the located one are (down to the certification depth), and a crossing found there
-    replaces the location (it is earlier). The result does not depend on the order of
-    exploration: it is what the depth-first refinement of the module docstring finds with
-    the same draws.
-
-    `splitter` is the run's `Splitter`; `depths` `(locate, certify)`; `Xa`, `Xb` `(d, n)`,
-    `path`, `step` `(n,)` host arrays.
-
-    **Returns:** `(found, frac, state, miss, unresolved, intervals)` per candidate: whether
-    it crossed inside the step, where (fraction of the step), the state there (linear
-    interpolation inside the finest interval), the summed bounds of the certified
-    intervals before the crossing, whether an interval stayed undecided at the
-    certification depth (certified all the same), and the number of intervals split.
-    """
-    d, n = Xa.shape
-    level = float(level)  # a host number: the bookkeeping below is NumPy
-    locate_depth, certify_depth = depths
-    found = np.zeros(n, dtype=bool)
-    frac = np.ones(n)
-    state = np.array(Xb, dtype=float, copy=True)
-    miss = np.zeros(n)
-    unresolved = np.zeros(n, dtype=bool)
-    owner = np.arange(n)
-    a, b = np.asarray(Xa, float), np.asarray(Xb, float)
-    pos = np.zeros(n, dtype=np.int64)
-    splits = 0
-    cvec = splitter.crossing
-    path, step = np.asarray(path, np.uint32), np.asarray(step, np.uint32)
-    for j in range(certify_depth):
-        m = owner.size
-        if m == 0:
-            break
-        splits += m
-        node = ((np.uint64(1) << np.uint64(j)) + pos.astype(np.uint64)).astype(np.uint32)
-        ends = np.concatenate([a, b])
-        ids = np.stack([path[owner], step[owner], node])
-        out = np.concatenate(
-            [
-                splitter(j, _pad(ends[:, k : k + size], pad), _pad(ids[:, k : k + size], pad))
-                for k, size, pad in _pieces(m)
-            ],
-            axis=1,
-        )[:, :m]
-        Xm = out[:d]
-        # Children in time order, child 2i + r the left (r = 0) or right half of interval i;
-        # each path's children are contiguous.
-        c_owner = np.repeat(owner, 2)
-        c_above = (out[d : d + 2] > 0.5).T.ravel()
-        c_p = out[d + 2 : d + 4].T.ravel()
-        # Keep each path's children up to and including its first one that ends above.
-        starts = np.empty(2 * m, dtype=bool)
-        starts[0] = True
-        np.not_equal(c_owner[1:], c_owner[:-1], out=starts[1:])
-        cum = np.cumsum(c_above) - c_above  # above-children strictly before each child
-        group_start = np.maximum.accumulate(np.where(starts, np.arange(2 * m), 0))
-        keep = cum == cum[group_start]
-        below = keep & ~c_above
-        certified = below & (c_p <= tol)
-        miss += np.bincount(c_owner[certified], weights=c_p[certified], minlength=n)
-        undecided = below & ~certified
-        hit = keep & c_above
-        last_level = j + 1 == certify_depth
-        if j + 1 >= locate_depth:
-            # Locate (or, past the location depth, move the location earlier). A half that
-            # starts at the level (the slip onset, v(0) = L, a(0) < 0) holds a return to it
-            # somewhere inside: it is split on to the last level and placed at its middle,
-            # so that the slip time stays positive.
-            ch = np.nonzero(hit)[0]
-            ha, hb = _child_ends(ch, a, b, Xm)
-            ca, cb = cvec @ ha, cvec @ hb
-            onset = ca >= level
-            f = np.clip((level - ca) / np.where(cb > ca, cb - ca, 1.0), 0.0, 1.0)
-            f = np.where(onset, 0.5, f)
-            now = ~onset | last_level
-            ch, f, ha, hb = ch[now], f[now], ha[:, now], hb[:, now]
-            who = c_owner[ch]
-            found[who] = True
-            frac[who] = (2 * pos[ch >> 1] + (ch & 1) + f) / 2.0 ** (j + 1)
-            state[:, who] = ha + f * (hb - ha)
-            open_ = undecided.copy()
-            open_[np.nonzero(hit)[0][~now]] = True
-        else:
-            open_ = undecided | hit
-        if last_level:
-            last = np.bincount(
-                c_owner[undecided], weights=np.minimum(c_p[undecided], 1.0), minlength=n
-            )
-            miss += last
-            unresolved |= last > 0
-        co = np.nonzero(open_)[0]
-        a, b = _child_ends(co, a, b, Xm)
-        owner, pos = c_owner[co], 2 * pos[co >> 1] + (co & 1)
-    return found, frac, state, miss, unresolved, splits
-
-
-def _child_ends(children, a, b, Xm):
-    """End states of children `2i + r` of intervals `(a_i, b_i)` split at `Xm_i`."""
-    parent, right = children >> 1, (children & 1).astype(bool)
-    return (
-        np.where(right, Xm[:, parent], a[:, parent]),
-        np.where(right, b[:, parent], Xm[:, parent]),
-    )
-
-
-_BUCKETS = (256, 1024, 4096, 16384, 65536)  # the padded sizes of a pass (compiled once each)
-
-
-def _pieces(m: int):
-    """`(start, size, pad)` of the calls that cover `m` intervals: whole largest buckets,
-    then the rest padded to the smallest bucket that holds it (few compiled shapes; the
-    padding of a small pass costs little)."""
-    top = _BUCKETS[-1]
-    for start in range(0, m - m % top, top):
-        yield start, top, 0
-    rest = m % top
-    if rest:
-        bucket = next(b for b in _BUCKETS if b >= rest)
-        yield m - rest, rest, bucket - rest
-
-
-def _pad(a, pad):
-    a = np.asarray(a)
-    if pad == 0:
-        return a
-    return np.concatenate([a, np.repeat(a[..., :1], pad, axis=-1)], axis=-1)

@@ -406,7 +406,7 @@ class _Run:
         if detect == "bridge":
             self.stats.update(candidates=0, refined_nodes=0, unresolved=0)
         self.miss = None  # per-path miss bounds of the last `first_passages`
-        self._splitter = None  # the refinement's compiled split, made on first use
+        self._refiner = None  # the exact refinement (compiled), made on first use
 
     def info(self, model, **extra):
         """How the run was made, for the result's `info`."""
@@ -589,14 +589,14 @@ class _Run:
         if n == 0:
             return np.zeros(0, dtype=bool), np.zeros(0), np.zeros((X.shape[0], 0))
         self.stats["candidates"] += n
-        if self._splitter is None:
-            self._splitter = bridge.Splitter(
-                self.solver.bridge, self.model.stick_level, self.keys["tree"], self.timer
-            )
-        found, frac, state, add, unresolved, splits = bridge.first_crossing(
-            self._splitter, self.model.stick_level, self.depths, self.tol,
-            X_prev[:, cand], X[:, cand], p[cand], ks[cand].astype(np.uint32),
-        )  # fmt: skip
+        if self._refiner is None:
+            self._refiner = bridge.Refiner(
+                self.solver.bridge, self.model.stick_level, self.keys["tree"], self.depths,
+                self.tol, self.timer,
+            )  # fmt: skip
+        found, frac, state, add, unresolved, splits = self._refiner.first_crossing(
+            X_prev[:, cand], X[:, cand], p[cand], ks[cand].astype(np.uint32)
+        )
         miss[cand] += add
         self.stats["unresolved"] += int(np.sum(unresolved))
         self.stats["refined_nodes"] += int(splits)
