@@ -76,6 +76,20 @@ def test_a_new_process_neither_traces_nor_compiles(tmp_path):
     assert third["info"]["compiles"] > 0 and third["slip_time"] == first["slip_time"]
 
 
+def test_executables_are_kept_whatever_jax_own_cache_holds(tmp_path):
+    """With the executables gone but JAX's own persistent cache left (where an executable
+    JAX loads cannot be serialised again), a new process compiles and keeps them once more,
+    and the one after it compiles nothing."""
+    import shutil
+
+    _fresh_process(tmp_path, 0.1)
+    shutil.rmtree(tmp_path / "stickslip-executable")
+    again = _fresh_process(tmp_path, 0.1)
+    assert again["info"]["compiles"] > 0
+    third = _fresh_process(tmp_path, 0.1)
+    assert third["info"]["compiles"] == 0 and third["slip_time"] == again["slip_time"]
+
+
 def test_the_in_process_cache_is_bounded_and_can_be_cleared(monkeypatch):
     model = ss.get_model("langevin")(**WHITE)
     monkeypatch.setattr(_compile, "MAX_ENTRIES", 3)

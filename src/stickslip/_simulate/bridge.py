@@ -291,11 +291,14 @@ def _unpack(rows, j, layout):
 
 # Status of a refinement call (`_refine_levels`).
 _GO, _DONE, _SHRINK, _GROW = 0, 1, 2, 3
-# Interval buffers of a refinement call: each is a compilation (about 2 s on 2 cores), so
-# the small ones, where a pass costs little whatever its size, are few.
-CAPACITIES = (256, 4096, 16384, 32768, 65536)
-SHRINK = 4  # a call hands back once its buffer is less than 1 / SHRINK full (and a smaller
-#             one holds the intervals): measured faster than at 1/2 or 1/8
+# Interval buffers of a refinement call. Each is a compilation (about 2 s on 2 cores), so the
+# small ones, where a pass costs little whatever its size, are few; the large ones are
+# close, since a pass costs in proportion to its buffer, not to its open intervals.
+CAPACITIES = (256, 4096, 8192, 16384, 24576, 32768)
+# Candidates refined together: their open intervals grow by up to ~1.2x over the first
+# levels (measured at dt = 1.6 on the public set), so a batch fits the largest buffer.
+BATCH = 26000
+HEADROOM = 1.25  # a buffer is chosen for this many times its open intervals
 
 
 def _refine_levels(
@@ -440,16 +443,17 @@ def _refine_levels(
 def _capacity(n: int) -> int:
     """The interval buffer for `n` open intervals (the smallest of `CAPACITIES` that holds
     them, or a power of two above)."""
+    n = math.ceil(n)
     for C in CAPACITIES:
         if C >= n:
             return C
-    return 1 << (int(n) - 1).bit_length()
+    return 1 << (n - 1).bit_length()
 
 
 def _shrink_at(C: int) -> int:
     """Open intervals below which a call with buffer `C` hands back for a smaller one."""
     smaller = [c for c in CAPACITIES if c < C]
-    return min(C // SHRINK, smaller[-1]) if smaller else 0
+    return int(smaller[-1] / HEADROOM) if smaller else 0
 
 
 class Refiner:
@@ -512,9 +516,8 @@ class Refiner:
         unresolved = np.zeros(n, dtype=bool)
         path, step = np.asarray(path, np.uint32), np.asarray(step, np.uint32)
         splits = 0
-        batch = CAPACITIES[-1] // 2
-        for first in range(0, n, batch):
-            who = np.arange(first, min(first + batch, n))  # the candidate of each owner
+        for first in range(0, n, BATCH):
+            who = np.arange(first, min(first + BATCH, n))  # the candidate of each owner
             m = who.size
             buf = [
                 np.asarray(Xa[:, who], float), np.asarray(Xb[:, who], float),
@@ -542,7 +545,7 @@ class Refiner:
                 np.not_equal(owner[1:], owner[:-1], out=starts[1:])
                 who = who[owner[starts]]
                 buf[2] = (np.cumsum(starts) - 1).astype(np.int32)
-                C = _capacity(2 * count if status == _GROW else count)
+                C = _capacity(2 * count if status == _GROW else HEADROOM * count)
         return found, frac, state, miss, unresolved, splits
 
 

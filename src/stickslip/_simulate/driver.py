@@ -402,6 +402,8 @@ class _Run:
         self.locator = self.solver
         if solver == "exact" and detect != "bridge":
             self.locator = _make_solver(lg, self.cfg, dt, self.nodes)
+        # The stepping loop, its model and solver flattened once for all its calls.
+        self.advance = _compile.Fixed(_advance, self.model, self.solver, self.cfg, timer=self.timer)
         self.stats = {"path_steps": 0, "buffers": 0}
         if detect == "bridge":
             self.stats.update(candidates=0, refined_nodes=0, unresolved=0)
@@ -531,6 +533,7 @@ class _Run:
         offset, miss = np.zeros(size), np.zeros(size)
         horizon = np.asarray(float(self.n_steps))
         tol = np.asarray(self.tol)
+        advance = self.advance
         while True:
             n_slip = int(np.sum(ks == SLIPPING))
             if n_slip == 0:
@@ -538,10 +541,9 @@ class _Run:
             stop_at = _smaller_buffer(size)
             X, X_prev, ks, miss, taken = (
                 np.array(a)
-                for a in self.call(
-                    _advance, model, self.solver, cfg, X, X_prev, ks, miss, p, offset, horizon,
-                    self.dt_arr, keys["step"], keys["bridge"], np.asarray(stop_at), tol,
-                    paths=size,
+                for a in advance(
+                    X, X_prev, ks, miss, p, offset, horizon, self.dt_arr, keys["step"],
+                    keys["bridge"], np.asarray(stop_at), tol, paths=size,
                 )
             )  # fmt: skip
             taken = int(round(float(taken)))
