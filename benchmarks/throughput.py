@@ -15,7 +15,8 @@ the slip-time and slip-distance histograms against the independent reference dat
 (`tests/data/langevin_ou_public.*`). The simulator runs at the largest of a ladder of steps
 that passes; the baseline is NumPy exact stepping that drops finished paths at dt = 0.005
 (the reference's own step). Both are warmed alike (a first run of the same size: the
-simulator compiles in it, NumPy allocates), then timed once; the simulator's first-call
+simulator compiles in it, NumPy allocates), then timed as the median of three runs (the
+first one's ensemble is the one tested); the simulator's first-call
 time (compiling, from the on-disk cache if warm) is reported beside its compiled time.
 """
 
@@ -142,13 +143,20 @@ def _passes(slip_time, slip_distance):
     return min(ps) > 1e-3, ps
 
 
+def _median_run(fn, runs=3):
+    """The first run's result and the median wall time of `runs` runs (seeds differ): on a
+    shared 2-core machine one run's time varies by up to 30 %."""
+    results = [_timed(lambda k=k: fn(k)) for k in range(runs)]
+    return results[0][0], float(np.median([t for _, t in results]))
+
+
 def time_to_pass(ss, model, n, t_max, seed):
     """Wall time to an ensemble of `n` slip cycles that passes the reference tests."""
     print(f"\ntime to {n} cycles that pass the chi-square tests (p > 1e-3, T_sl and d):")
     ours = None
     for dt in PASS_LADDER:
         first, t_first = _timed(lambda dt=dt: ss.simulate(model, n, dt, t_max, seed=seed + 1))
-        ens, t = _timed(lambda dt=dt: ss.simulate(model, n, dt, t_max, seed=seed + 2))
+        ens, t = _median_run(lambda k, dt=dt: ss.simulate(model, n, dt, t_max, seed=seed + 2 + k))
         ok, ps = _passes(ens.slip_time, ens.slip_distance)
         print(
             f"  stickslip dt = {dt:<5}: {t:6.2f} s compiled, first call {t_first:6.2f} s "
@@ -161,7 +169,7 @@ def time_to_pass(ss, model, n, t_max, seed):
             break
     run = _baselines.exact_dropping_cycles
     run(n, BASELINE_DT, t_max, seed, **PUBLIC)  # warm-up run
-    (T, d, _), t_np = _timed(lambda: run(n, BASELINE_DT, t_max, seed + 3, **PUBLIC))
+    (T, d, _), t_np = _median_run(lambda k: run(n, BASELINE_DT, t_max, seed + 7 + k, **PUBLIC))
     ok_np, ps_np = _passes(T, d)
     print(f"  NumPy exact stepping, dt = {BASELINE_DT}, drops finished paths: {t_np:6.2f} s; "
           f"p = {ps_np[0]:.2g}, {ps_np[1]:.2g}{'' if ok_np else '  FAILS'}")  # fmt: skip
