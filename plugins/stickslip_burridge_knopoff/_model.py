@@ -8,9 +8,15 @@ from typing import Any
 import equinox as eqx
 
 from stickslip import ParameterError
-from stickslip._errors import check_choice, check_int, check_nonnegative, check_positive, check_real
-from stickslip._simulate.chain import ChainModel
 from stickslip.friction import FrictionLaw, get_friction_law
+from stickslip.plugin import (
+    ChainModel,
+    check_choice,
+    check_int,
+    check_nonnegative,
+    check_positive,
+    check_real,
+)
 
 _NAME = "burridge-knopoff"
 

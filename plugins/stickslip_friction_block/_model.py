@@ -7,9 +7,8 @@ import dataclasses
 from collections.abc import Mapping
 
 from stickslip import FrictionModel, ParameterError
-from stickslip._errors import check_nonnegative, check_positive, check_real
-from stickslip._jax import jnp
 from stickslip.friction import FRICTION_LAWS, FrictionLaw, get_friction_law
+from stickslip.plugin import check_nonnegative, check_positive, check_real, jnp
 
 _NAME = "friction-block"
 

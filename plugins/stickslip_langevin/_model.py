@@ -5,8 +5,7 @@ from __future__ import annotations
 import equinox as eqx
 
 from stickslip import FrictionModel, LinearGaussian, ParameterError
-from stickslip._errors import check_choice, check_nonnegative, check_positive
-from stickslip._jax import jax, jnp
+from stickslip.plugin import check_choice, check_nonnegative, check_positive, jax, jnp
 
 _NAME = "langevin"
 
@@ -158,7 +157,7 @@ class Langevin(LangevinSlip):
         def as_float(name, value):
             if isinstance(value, (int, float)) and not isinstance(value, bool):
                 return float(value)
-            from stickslip._errors import check_real
+            from stickslip.plugin import check_real
 
             return check_real(_NAME, name, value, allow_none=name == "tau")
 

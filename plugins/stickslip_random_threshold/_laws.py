@@ -8,8 +8,7 @@ import equinox as eqx
 import numpy as np
 
 from stickslip import ParameterError
-from stickslip._errors import check_nonnegative, check_positive, check_real
-from stickslip._jax import jax, jnp
+from stickslip.plugin import check_nonnegative, check_positive, check_real, jax, jnp
 
 _NAME = "random-threshold"
 

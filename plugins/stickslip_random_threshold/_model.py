@@ -6,8 +6,7 @@ import equinox as eqx
 import numpy as np
 from stickslip_langevin import LangevinSlip
 
-from stickslip._errors import check_real
-from stickslip._jax import jax
+from stickslip.plugin import check_real, jax
 
 from ._laws import ThresholdLaw, make_law
 

@@ -28,7 +28,7 @@ _LAZY = {
     "simulate": "._simulate",
     "simulate_cycles": "._simulate",
     "simulate_chain": "._simulate",
-    "ChainModel": "._simulate",
+    "ChainModel": "._model",
     "ChainRun": "._simulate",
     "Ensemble": "._simulate",
     "CycleSeries": "._simulate",

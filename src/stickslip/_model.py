@@ -1,4 +1,6 @@
-"""The abstract hybrid stick/slip model that every friction model plugin implements."""
+"""The model base classes that every friction model plugin implements: `FrictionModel` (one
+block's hybrid stick/slip), with `LinearGaussian` for an exact slip phase, and `ChainModel` (a
+chain of blocks that stick and slip one by one)."""
 
 from __future__ import annotations
 
@@ -178,6 +180,88 @@ class FrictionModel(eqx.Module):
         import dataclasses
 
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+
+
+class ChainModel(FrictionModel):
+    """A chain of blocks with per-block stick and slip, simulated by `simulate_chain`.
+
+    A concrete chain provides `n_blocks`, `k_c`, `k_p`, `v_b`, `D`, `tau` (None: white
+    noise), `friction` (a `stickslip.friction.FrictionLaw`), `boundary` (`"free"` or
+    `"periodic"`), `threshold` (None, or a law with `sample(key)` drawing a factor on the
+    static limit at each stick) and `event_level` (the mean sliding velocity below which the
+    chain counts as quiet, for the crossing statistics; 0 by default).
+    """
+
+    n_blocks: eqx.AbstractVar[int]
+    k_c: eqx.AbstractVar[float]
+    k_p: eqx.AbstractVar[float]
+    v_b: eqx.AbstractVar[float]
+    D: eqx.AbstractVar[float]
+    tau: eqx.AbstractVar[float | None]
+    friction: eqx.AbstractVar[Any]
+    boundary: eqx.AbstractVar[str]
+    threshold: eqx.AbstractVar[Any]
+    event_level: eqx.AbstractVar[float]
+
+    # The single-crossing view (the free chain, every block sliding): the state is
+    # (u_1..u_N, V_1..V_N[, eta_1..eta_N]); the crossing variable is the mean sliding
+    # velocity, negated so that "quiet" is an upcrossing.
+    @property
+    def state_names(self):
+        n = self.n_blocks
+        names = [f"u{i}" for i in range(n)] + [f"V{i}" for i in range(n)]
+        return tuple(names + ([f"eta{i}" for i in range(n)] if self.tau is not None else []))
+
+    @property
+    def noise_dim(self):
+        return self.n_blocks
+
+    def _split(self, y):
+        n = self.n_blocks
+        return y[:n], y[n : 2 * n], (y[2 * n :] if self.tau is not None else None)
+
+    def force(self, u, t=0.0):
+        """Spring force on every block (coupling and loading) at time t."""
+        if self.boundary == "periodic":
+            lap = jnp.roll(u, 1, -1) + jnp.roll(u, -1, -1) - 2.0 * u
+        else:
+            pad = jnp.concatenate([u[..., :1], u, u[..., -1:]], axis=-1)
+            lap = pad[..., 2:] + pad[..., :-2] - 2.0 * u
+        return self.k_c * lap + self.k_p * (self.v_b * t - u)
+
+    def drift(self, y):
+        u, V, eta = self._split(y)
+        a = self.force(u) - self.friction.force(V)
+        if eta is None:
+            return jnp.concatenate([V, a])
+        return jnp.concatenate([V, a + eta, -eta / self.tau])
+
+    def diffusion(self, y):
+        n = self.n_blocks
+        g = jnp.sqrt(2.0 * self.D) * jnp.eye(n)
+        z = jnp.zeros((n, n))
+        if self.tau is None:
+            return jnp.concatenate([z, g])
+        return jnp.concatenate([z, z, g / self.tau])
+
+    @property
+    def stick_level(self):
+        return -self.event_level
+
+    def crossing(self, y):
+        return -jnp.mean(self._split(y)[1])
+
+    def position(self, y):
+        return jnp.mean(self._split(y)[0])
+
+    @property
+    def crossing_is_smooth(self):
+        return self.tau is not None or self.D == 0.0
+
+    def onset_state(self, key):
+        """The relaxed chain: every block at rest where its loading spring is slack (the
+        start of `simulate_chain`; an event starts when the first block releases)."""
+        return jnp.zeros(len(self.state_names))
 
 
 def _to_arrays(model: FrictionModel) -> FrictionModel:

@@ -1,6 +1,6 @@
 """The event-driven stick/slip simulator."""
 
-from .chain import ChainModel as ChainModel
+from .._model import ChainModel as ChainModel
 from .chain import ChainRun as ChainRun
 from .chain import simulate_chain as simulate_chain
 from .cycles import CycleSeries as CycleSeries

@@ -15,8 +15,9 @@ from .. import _rng
 from .._errors import ParameterError, check_int
 from .._jax import jnp
 from .._model import FrictionModel
-from .driver import _Run, _validate, solve
+from .driver import _Run, _validate
 from .hybrid import INACTIVE, SLIPPING
+from .loop import solve
 
 _CYCLE_BITS = 20  # a slot's counter is path * 2**20 + cycle
 _MAX_RECORD_FLOATS = 2**25  # memory bound of one recording solve (about 256 MB)

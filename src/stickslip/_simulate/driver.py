@@ -16,11 +16,12 @@ from .. import _compile, _rng
 from .._errors import ParameterError, check_choice, check_int, check_positive
 from .._jax import jax, jnp
 from .._model import FrictionModel, LinearGaussian, _to_arrays
-from .._solver import EulerMaruyama, ExactGaussian, PathwiseBrownian, SlipTerm
+from .._solver import EulerMaruyama, ExactGaussian
 from .._solver.base import over_paths
 from . import bridge, localise
 from .ensemble import Ensemble
-from .hybrid import INACTIVE, SLIPPING, StickSlipHybrid
+from .hybrid import INACTIVE, SLIPPING
+from .loop import HORIZON, solve
 
 MIN_BUFFER = 128  # smallest buffer; below it a step costs the same whatever the size
 # Buffer sizes: powers of two from FINE_BUFFER up, where a step's cost follows the size; below
@@ -36,9 +37,6 @@ DEFAULT_CHUNK = 2**20  # about 100 bytes of state per path: 100 MB
 _NODE_SCALE = 0.0125
 _MAX_NODES = 256
 _LOOP_NODES = 2  # the stepping loop's solver: it never interpolates (see `_Run`)
-# The far end of every solve (in steps); events end the solves long before. A power of two:
-# diffrax's step times t0 + (t1 - t0) * j / n are then exact integers.
-_HORIZON = float(2**30)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -99,38 +97,6 @@ def _onset_rate(model, X):
     return over_paths(model.crossing_rate)(X)
 
 
-def solve(
-    model, solver, cfg, y0, path, dt, keys, offset, *, t1, saveat, event=None, max_steps=None,
-    wrapper=StickSlipHybrid, **fields,
-):  # fmt: skip
-    """One diffrax solve of the ensemble state `y0` with the crossing solver `wrapper`
-    around the slip solver (the stick/slip hybrid by default), from global step `offset`.
-    The solve's own time starts at 0 and ends at the static `t1` (or at the event): with
-    static end points diffrax checks them at trace time instead of inserting a host
-    callback, and code with host callbacks cannot be kept in the persistent cache."""
-    step_key, bridge_key = keys
-    control = PathwiseBrownian(step_key, path, dt, solver.noise_dim(model), offset=offset)
-    hybrid = wrapper(
-        inner=solver, dt=dt, bridge_key=bridge_key, path=path, offset=offset, detect=cfg.detect,
-        **fields,
-    )  # fmt: skip
-    return diffrax.diffeqsolve(
-        SlipTerm(model, control),
-        hybrid,
-        t0=0.0,
-        t1=t1,
-        dt0=1.0,
-        y0=y0,
-        args=model,
-        saveat=saveat,
-        stepsize_controller=diffrax.ConstantStepSize(),
-        event=event,
-        max_steps=max_steps,
-        throw=False,
-        adjoint=diffrax.ForwardMode(),
-    )
-
-
 @eqx.filter_jit
 def _advance(
     model, solver, cfg, X, X_prev, k_stick, miss, path, offset, horizon, dt, step_key,
@@ -145,7 +111,7 @@ def _advance(
 
     sol = solve(
         model, solver, cfg, (X, (X_prev, k_stick, miss)), path, dt, (step_key, bridge_key),
-        offset, t1=_HORIZON, saveat=diffrax.SaveAt(t1=True), event=diffrax.Event(stop),
+        offset, t1=HORIZON, saveat=diffrax.SaveAt(t1=True), event=diffrax.Event(stop),
         horizon=horizon, tol=tol,
     )  # fmt: skip
     X, (X_prev, k_stick, miss) = sol.ys
@@ -215,7 +181,7 @@ def _validate(owner, model, n_paths, dt, t_max, seed, solver, monitor, chunk_siz
     """Check the arguments of `owner` (`simulate` or `simulate_cycles`); one-line errors."""
     if not isinstance(model, FrictionModel):
         raise TypeError(f"{owner}: model must be a stickslip.FrictionModel instance, got {model!r}")
-    from .chain import ChainModel
+    from .._model import ChainModel
 
     if isinstance(model, ChainModel):
         raise ParameterError(

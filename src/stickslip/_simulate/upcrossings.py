@@ -14,6 +14,7 @@ from .._jax import jax, jnp
 from .._solver import AbstractSlipSolver
 from .._solver.base import over_paths
 from .hybrid import AbstractCrossingSolver
+from .loop import HORIZON, solve
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -99,8 +100,6 @@ class UpcrossingRecorder(AbstractCrossingSolver):
 def record(model, solver, cfg, X, path, dt, step_key, bridge_key, n_steps, max_crossings):
     """Run the free process from the onset states X for `n_steps` (a runtime value: one
     compiled solve serves every t_max), logging upcrossings."""
-    from .driver import _HORIZON, solve
-
     n = X.shape[1]
     empty = jnp.full((max_crossings, n), jnp.nan)
 
@@ -109,7 +108,7 @@ def record(model, solver, cfg, X, path, dt, step_key, bridge_key, n_steps, max_c
 
     sol = solve(
         model, solver, cfg, (X, (jnp.zeros(n), empty, empty)), path, dt, (step_key, bridge_key),
-        0.0, t1=_HORIZON, saveat=diffrax.SaveAt(t1=True), event=diffrax.Event(done),
+        0.0, t1=HORIZON, saveat=diffrax.SaveAt(t1=True), event=diffrax.Event(done),
         wrapper=UpcrossingRecorder,
     )  # fmt: skip
     _, (count, times, positions) = sol.ys

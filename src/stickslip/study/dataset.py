@@ -24,7 +24,7 @@ import json
 import numpy as np
 import xarray as xr
 
-from .run import (
+from .measure import (
     EVENTS,
     THEORY_DENSITIES,
     cell_average,

@@ -10,37 +10,15 @@ empirical estimate; successive cycles only for time series and phase portraits).
 
 from __future__ import annotations
 
-import dataclasses
-import math
 import os
 import pathlib
 import time
-import warnings
-from typing import Any
 
 import numpy as np
 
 from .load import StudyError, load_study
+from .measure import EVENTS, Point, estimator_source
 from .schema import DENSITIES, Study
-
-THEORY_DENSITIES = ("slip_time", "period", "slip_distance")  # stick_time: simulation only
-EVENTS = ("event_size", "event_duration", "event_interval")
-
-
-@dataclasses.dataclass
-class _Point:
-    """Everything computed for one point of a study."""
-
-    study: Study
-    values: dict[str, Any]
-    ensemble: Any = None
-    cycles: Any = None
-    chain: Any = None
-    exact: Any = None
-    empirical: Any = None
-    choices: dict = dataclasses.field(default_factory=dict)
-    timings: dict[str, float] = dataclasses.field(default_factory=dict)
-    warnings: list[str] = dataclasses.field(default_factory=list)
 
 
 class _Progress:
@@ -88,7 +66,7 @@ def run_study(
     if progress is None:
         progress = sys.stderr.isatty()
     say = _Progress(progress)
-    points = [_Point(s, values) for values, s in study.points()]
+    points = [Point(s, values) for values, s in study.points()]
     if study.method == "auto":
         _choose(points[0], say)
         study = points[0].study
@@ -110,7 +88,7 @@ def run_study(
     return ds
 
 
-def _choose(point: _Point, say):
+def _choose(point: Point, say):
     """method: auto: choose per requested density, then run one simulation (the most
     demanding Monte Carlo choice) and/or the chosen level-crossing approximations."""
     from ..selection import SelectionError, select_method
@@ -183,8 +161,8 @@ def _check_out(out: pathlib.Path, force: bool) -> pathlib.Path:
 
 
 # -- simulation and estimators -----------------------------------------------------------
-def _compute(point: _Point, progress: bool, say):
-    from .._simulate.chain import ChainModel
+def _compute(point: Point, progress: bool, say):
+    from .._model import ChainModel
 
     s = point.study
     model = s.model.instance
@@ -195,7 +173,7 @@ def _compute(point: _Point, progress: bool, say):
 
     outs = s.resolved_outputs()
     sim = s.simulation
-    sources = [_source(s, a) for a in s.analytic]
+    sources = [estimator_source(s, a) for a in s.analytic]
     lg = model.linear_gaussian() is not None
     if sim is not None and any(q in outs for q in (*DENSITIES, "n1", "n2")):
         record = sim.upcrossings if ("n1" in outs or "n2" in outs or "empirical" in sources) else 0
@@ -242,13 +220,7 @@ def _compute(point: _Point, progress: bool, say):
         )
 
 
-def _source(study: Study, analytic) -> str:
-    if analytic.source != "auto":
-        return analytic.source
-    return "exact" if study.model.instance.linear_gaussian() is not None else "empirical"
-
-
-def _compute_chain(point: _Point, say):
+def _compute_chain(point: Point, say):
     import stickslip as ss
 
     sim = point.study.simulation
@@ -265,7 +237,7 @@ def _compute_chain(point: _Point, say):
 
 
 # -- grids ---------------------------------------------------------------------------------
-def _grids(study: Study, points: list[_Point]) -> dict[str, np.ndarray]:
+def _grids(study: Study, points: list[Point]) -> dict[str, np.ndarray]:
     """Bin edges of every density output, shared by all points: given ends, else from the
     pooled simulated values (0.5% and 99.5% quantiles; times start at 0), else from theory."""
     outs = study.resolved_outputs()
@@ -367,100 +339,3 @@ def _event_edges(r, q, points):
     if not hi > lo:
         hi = lo * 10
     return np.geomspace(lo, hi, r.bins + 1)
-
-
-# -- evaluations used by the dataset ---------------------------------------------------------
-def theory_density(point: _Point, analytic, q: str, edges: np.ndarray):
-    """One approximation of one density on cell centres; `(values, seconds, warnings)`."""
-    est = point.exact if _source(point.study, analytic) == "exact" else point.empirical
-    centres = 0.5 * (edges[1:] + edges[:-1])
-    t0 = time.perf_counter()
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        args = (analytic.method, analytic.order, analytic.normalized)
-        if q == "slip_time":
-            values = cell_average(lambda t: est.first_passage(t, *args), edges, est.dt / 4)
-        elif q == "period":
-            values = est.period_density(centres, *args)
-        else:
-            values = est.slip_distance_density(centres, *args)
-    seconds = time.perf_counter() - t0
-    notes = [f"{analytic.key} {q}: {w.message}" for w in caught]
-    return np.asarray(values, float), seconds, notes
-
-
-def cell_average(f, edges, spacing: float):
-    """Average of a density over each cell (midpoint rule, points at most `spacing` apart),
-    to compare with a histogram where the density is steep (it rises from 0 to its peak
-    within a few hundredths of a time unit after slip onset)."""
-    k = int(min(1000, max(4, math.ceil(float(np.max(np.diff(edges))) / spacing))))
-    u = (np.arange(k) + 0.5) / k
-    x = edges[:-1, None] + np.diff(edges)[:, None] * u[None, :]
-    return np.asarray(f(x.ravel()), float).reshape(x.shape).mean(axis=1)
-
-
-def cell_average_2d(f, edges, k: int = 2):
-    """Cell averages of f(t1, t2) on a square grid (k x k midpoint rule per cell)."""
-    u = (np.arange(k) + 0.5) / k
-    x = (edges[:-1, None] + np.diff(edges)[:, None] * u[None, :]).ravel()
-    n = edges.size - 1
-    values = np.asarray(f(x, x), float).reshape(n, k, n, k)
-    return values.mean(axis=(1, 3))
-
-
-def mc_density(point: _Point, q: str, edges: np.ndarray):
-    """Histogram of the simulated slips of non-zero length, normalised by all paths (so it
-    compares with the theory's continuous part), and its standard errors."""
-    ens = point.ensemble
-    x = np.asarray(getattr(ens, q))
-    keep = ens.stuck & ~ens.immediate & np.isfinite(x)
-    counts, _ = np.histogram(x[keep], bins=edges)
-    n = ens.n_paths
-    p = counts / n
-    width = np.diff(edges)
-    return p / width, np.sqrt(p * (1 - p) / n) / width
-
-
-def mc_n1(point: _Point, edges: np.ndarray):
-    """Upcrossing density from the recorded upcrossings (`nan` beyond `t_complete`)."""
-    up = point.ensemble.upcrossings
-    t = up.times[~up.immediate]
-    counts, _ = np.histogram(t[np.isfinite(t)], bins=edges)
-    n = up.n_paths
-    width = np.diff(edges)
-    value, se = counts / (n * width), np.sqrt(counts) / (n * width)
-    beyond = edges[1:] > up.t_complete
-    value[beyond] = np.nan
-    se[beyond] = np.nan
-    return value, se
-
-
-def mc_n2(point: _Point, edges: np.ndarray):
-    """Joint density of two upcrossings at t1 != t2 (ordered pairs of recorded upcrossings)."""
-    up = point.ensemble.upcrossings
-    t = up.times[~up.immediate]
-    k = t.shape[1]
-    i, j = np.meshgrid(np.arange(k), np.arange(k), indexing="ij")
-    off = i != j
-    a, b = t[:, i[off]].ravel(), t[:, j[off]].ravel()
-    ok = np.isfinite(a) & np.isfinite(b)
-    counts, _, _ = np.histogram2d(a[ok], b[ok], bins=[edges, edges])
-    width = np.diff(edges)
-    value = counts / (up.n_paths * width[:, None] * width[None, :])
-    beyond = edges[1:] > up.t_complete
-    value[beyond, :] = np.nan
-    value[:, beyond] = np.nan
-    return value
-
-
-def l1(theory, mc, edges) -> float:
-    """L1 distance on the cells where both are defined."""
-    ok = np.isfinite(theory) & np.isfinite(mc)
-    return float(np.sum(np.abs(theory - mc)[ok] * np.diff(edges)[ok]))
-
-
-def l1_floor(se, edges) -> float:
-    """Expected L1 of the histogram's own sampling noise, sum sqrt(2/pi) se dx: an L1 below
-    it cannot be told from zero."""
-    ok = np.isfinite(se)
-    return float(math.sqrt(2 / math.pi) * np.sum(se[ok] * np.diff(edges)[ok]))

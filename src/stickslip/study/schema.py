@@ -315,7 +315,7 @@ class Study(Base):
     # -- cross-field checks ------------------------------------------------------------
     @model_validator(mode="after")
     def _consistent(self):
-        from .._simulate.chain import ChainModel
+        from .._model import ChainModel
 
         model = self.model.instance
         chain = isinstance(model, ChainModel)
@@ -405,7 +405,7 @@ class Study(Base):
             return tuple(self.outputs)
         if self.method == "auto":
             return AUTO_OUTPUTS
-        from .._simulate.chain import ChainModel
+        from .._model import ChainModel
 
         if isinstance(self.model.instance, ChainModel):
             return ("event_size", "event_duration", "time_series")
