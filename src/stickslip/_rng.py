@@ -26,6 +26,7 @@ LOCATE = 3  # draws of the crossing-time sampler
 ONSET = 4  # PRNG keys handed to model.onset_state
 SERIES = 5  # multi-cycle runs
 TREE = 6  # bridge samples of the exact stick detection (keyed by step and tree node)
+THRESHOLD = 7  # a chain block's strength, drawn when it sticks
 
 _SQRT2 = np.float32(np.sqrt(2.0))
 

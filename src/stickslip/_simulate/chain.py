@@ -1,29 +1,44 @@
 """Chains of blocks that stick and slip one by one (Burridge-Knopoff): per-block events in
-one `diffrax.diffeqsolve` over the whole ensemble.
+a diffrax solve over the whole ensemble, run in segments whose events are streamed out.
 
 Every block obeys, with unit mass, absolute position `u_i` and the driver at `v_b t`,
-$$\\dot V_i = f_i - F(V_i) + \\eta_i, \\qquad
+$$\\dot V_i = f_i - c_i F(V_i) + \\eta_i, \\qquad
 f_i = k_c (u_{i+1} - 2 u_i + u_{i-1}) + k_p (v_b t - u_i),$$
 while it slips (`V_i > 0`); a stuck block has `V_i = 0` and holds any force up to its
-static limit. The step (fixed `dt`, as the simulator's other solvers):
+static limit $c_i F_s$. $c_i = 1$, or with a random threshold the block's contact strength,
+drawn afresh each time the block sticks: it scales the whole law (static limit and kinetic
+curve alike), so the drop at onset stays the fraction $1 - F(0^+)/F_s$ of the limit and a
+released block always moves (docs/models.md). The step (fixed `dt`):
 
-1. release: a stuck block whose force exceeds its static limit starts to slip (its OU
-   friction noise restarts at 0, as `langevin`'s `eta0="zero"`; with a random threshold its
-   static limit was drawn when it stuck);
-2. slipping blocks advance by Euler-Maruyama in V (the OU noise exactly), the position by
-   the trapezoid rule;
-3. stick: a block whose V falls to 0 inside the step sticks at the linearly interpolated
-   time, having moved the area under its velocity up to then; V = 0.
+1. slipping blocks advance by Euler-Maruyama in V (the OU noise exactly), the position by
+   the trapezoid rule; a block whose V falls to 0 inside the step sticks at the linearly
+   interpolated time (the step's own interpolant), having moved the area under its
+   velocity up to then, and draws its next strength;
+2. release: a stuck block whose force at the end of the step exceeds its static limit
+   released inside the step, where its force (linear in the step) reached the limit; it
+   then slips for the rest of the step from V = 0 with the acceleration $f_i - c_i F(0^+)$
+   (positive: $F(0^+) \\le F_s$ for every law) and its OU noise restarts at 0 (as
+   `langevin`'s `eta0="zero"`).
+
+White friction noise (`tau = None` with `D > 0`) is refused: a released block would re-stick
+at once with a probability that tends to 1/2 as dt shrinks (the single block's degeneracy).
 
 An event is a contiguous slipping episode of the chain: from the first release with every
 block stuck to the moment every block is stuck again. Its size is the number of distinct
-blocks that slipped, its slip the sum of their displacements.
+blocks that slipped, its slip the sum of their displacements (Carlson and Langer's moment).
+
+The run is a sequence of segments of `SEGMENT` steps, each one solve of fixed size: the
+events, quiet times, releases and time series of a segment are handed to the host and
+appended, so memory does not grow with `t_max` beyond the events themselves, and a new
+`t_max` compiles nothing.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+import sys
+import warnings
 from typing import Any
 
 import diffrax
@@ -41,12 +56,15 @@ class ChainRun:
     """A simulated chain: events and time series, per path.
 
     - `start`, `duration`, `size`, `slip`: lists (one array per path) of the events;
-      `n_events`: events per path (more than recorded if the buffer of `max_events` filled);
+      `n_events`: events per path (more than kept when `max_events` is given);
     - `t`: recording times; `mean_velocity`, `slipping`, `mean_force` `(n_paths, len(t))`:
       the chain's mean sliding velocity, the fraction of blocks slipping and the mean
       loading force at those times; `velocity` `(n_paths, len(t), N)` if recorded;
     - `quiet_times`: per path, the times the mean sliding velocity fell to `event_level`
-      (the crossing variable's upcrossings; the ends of events when the level is 0).
+      (the crossing variable's upcrossings; the ends of events when the level is 0);
+    - `releases` (with `record_releases`): per path, an array `(n, 3)` of every block
+      release: its time, the block's index and the static limit it overcame (drawn when the
+      block last stuck).
     """
 
     start: list
@@ -60,6 +78,7 @@ class ChainRun:
     mean_force: np.ndarray
     velocity: np.ndarray | None
     quiet_times: list
+    releases: list | None
     n_blocks: int
     t_max: float
     dt: float
@@ -99,15 +118,24 @@ class ChainRun:
         )  # fmt: skip
 
 
+SEGMENT = 4096  # steps per solve; events per path per segment are at most SEGMENT / 2
+RELEASES = 4 * SEGMENT  # block releases kept per path per segment (`record_releases`)
+
+
 class _ChainStep(diffrax.AbstractSolver):
-    """One step of every block of every path (see the module docstring)."""
+    """One step of every block of every path (see the module docstring). The solve's time
+    counts steps: step k covers [k dt, (k + 1) dt]; the time series is recorded at the end
+    of every `stride`-th step, into the slots of this segment from record `rec_lo` on."""
 
     model: Any
-    key: Any
+    noise_key: Any
+    strength_key: Any
+    dt: Any
+    rec_lo: Any
+    stride: Any
     n_paths: int = eqx.field(static=True)
-    max_events: int = eqx.field(static=True)  # per path, for events and quiet times alike
-    stride: int = eqx.field(static=True)
     record_blocks: bool = eqx.field(static=True)
+    record_releases: bool = eqx.field(static=True)
 
     term_structure = diffrax.AbstractTerm
     interpolation_cls = diffrax.LocalLinearInterpolation
@@ -124,86 +152,121 @@ class _ChainStep(diffrax.AbstractSolver):
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
         m = self.model
         P, N = self.n_paths, m.n_blocks
-        dt = t1 - t0
+        h = self.dt
+        k = jnp.round(t0)  # global step index
+        time0, time1 = k * h, (k + 1.0) * h
         y = dict(y0)
         # diffrax keeps the state floating-point: flags are 0/1, counters whole floats
-        u, V, eta, limit = y["u"], y["V"], y["eta"], y["limit"]
-        stuck, step = y["stuck"] > 0.5, y["step"]
-        f = m.force(u, t0)
-        release = stuck & (f > limit)
-        stuck = stuck & ~release
+        u, V, eta, strength = y["u"], y["V"], y["eta"], y["strength"]
+        stuck = y["stuck"] > 0.5
         slipping = ~stuck
+        counter = k.astype(jnp.uint32)
         ids = (jnp.arange(P)[:, None] * N + jnp.arange(N)[None, :]).ravel()
-        counter = step.astype(jnp.uint32)
-        xi = _rng.normals(self.key, ids, counter, 1)[0].reshape(P, N)
-        eta = jnp.where(release, 0.0, eta)
-        accel = f - m.friction.force(jnp.maximum(V, 0.0))
-        if m.tau is None:
-            V1 = V + accel * dt + jnp.sqrt(2.0 * m.D * dt) * xi
+        xi = _rng.normals(self.noise_key, ids, counter, 1)[0].reshape(P, N)
+        limit = strength * m.friction.static_limit
+        f0 = m.force(u, time0)
+        # 1. slipping blocks: Heun's method in (u, V) with the OU noise exact at both ends
+        #    of the step (its integral by the trapezoid rule), stick inside the step
+        if m.tau is None:  # noise-free (white noise with D > 0 is refused)
             eta1 = eta
         else:
-            a = jnp.exp(-dt / m.tau)
-            V1 = V + (accel + eta) * dt
+            a = jnp.exp(-h / m.tau)
             eta1 = eta * a + jnp.sqrt(m.D / m.tau * (1.0 - a * a)) * xi
+        kinetic = lambda W: strength * m.friction.force(jnp.maximum(W, 0.0))
+        accel0 = f0 - kinetic(V) + eta
+        Vp = V + accel0 * h
+        up = jnp.where(slipping, u + V * h, u)
+        accel1 = m.force(up, time1) - kinetic(Vp) + eta1
+        V1 = V + 0.5 * (accel0 + accel1) * h
         sticks = slipping & (V1 <= 0.0)
         theta = jnp.where(sticks, V / jnp.where(sticks, V - V1, 1.0), 1.0)
-        u1 = jnp.where(slipping, u + jnp.where(sticks, 0.5 * theta * V, 0.5 * (V + V1)) * dt, u)
+        u1 = jnp.where(slipping, u + jnp.where(sticks, 0.5 * theta * V, 0.5 * (V + Vp)) * h, u)
         V1 = jnp.where(slipping & ~sticks, V1, 0.0)
-        stuck1 = stuck | sticks
+        # 2. release inside the step, where the (linear) force reached the limit
+        f1 = m.force(u1, time1)
+        release = stuck & (f1 > limit)
+        rho = jnp.where(release, (limit - f0) / jnp.where(release, f1 - f0, 1.0), 0.0)
+        rho = jnp.clip(rho, 0.0, 1.0)  # a force already above the limit releases at once
+        rest = (1.0 - rho) * h
+        onset = f1 - strength * m.friction.force(jnp.zeros_like(V))
+        V_rel = onset * rest
+        u1 = jnp.where(release, u + 0.5 * V_rel * rest, u1)
+        V1 = jnp.where(release, V_rel, V1)
+        eta1 = jnp.where(release, 0.0, eta1)
+        stuck1 = (stuck & ~release) | sticks
+        # the next strength of the blocks that stuck (drawn only in steps where one did)
         if m.threshold is not None:
-            keys = _rng.path_keys(self.key, ids, counter)
-            factor = jax.vmap(m.threshold.sample)(keys).reshape(P, N)
-            limit = jnp.where(sticks, m.friction.static_limit * factor, limit)
+
+            def draw(strength):
+                keys = _rng.path_keys(self.strength_key, ids, counter)
+                new = jax.vmap(m.threshold.sample)(keys).reshape(P, N)
+                return jnp.where(sticks, new, strength)
+
+            strength1 = jax.lax.cond(sticks.any(), draw, lambda s: s, strength)
+        else:
+            strength1 = strength
         # events
         active = y["active"] > 0.5
         begins = ~active & release.any(axis=1)
-        ep_start = jnp.where(begins, t0, y["ep_start"])
+        t_rel = time0 + h * jnp.min(jnp.where(release, rho, 1.0), axis=1)
+        ep_start = jnp.where(begins, t_rel, y["ep_start"])
         ep_u0 = jnp.where(begins, u.sum(axis=1), y["ep_u0"])
         ep_mask = jnp.where(begins[:, None], release, (y["ep_mask"] > 0.5) | release)
         active = active | begins
         ends = active & stuck1.all(axis=1)
-        t_end = t0 + dt * jnp.max(jnp.where(sticks, theta, 0.0), axis=1)
+        t_end = time0 + h * jnp.max(jnp.where(sticks, theta, 0.0), axis=1)
         record = jnp.stack(
-            [ep_start, t_end - ep_start, ep_mask.sum(axis=1).astype(float),
+            [ep_start, t_end - ep_start, ep_mask.sum(axis=1).astype(u.dtype),
              u1.sum(axis=1) - ep_u0],
             axis=1,
         )  # fmt: skip
-        events, n_events = y["events"], y["n_events"]
-        slot = jnp.minimum(n_events, self.max_events - 1).astype(jnp.int32)
-        write = ends & (n_events < self.max_events)
         rows = jnp.arange(P)
-        events = events.at[rows, slot].set(jnp.where(write[:, None], record, events[rows, slot]))
+        events, n_events = y["events"], y["n_events"]
+        slot = jnp.where(ends, n_events, events.shape[1]).astype(jnp.int32)
+        events = events.at[rows, slot].set(record, mode="drop")
         n_events = n_events + ends
         active = active & ~ends
         # the crossing variable: mean sliding velocity falling to the event level
         level = m.event_level
-        Vm0, Vm1 = V.mean(axis=1), V1.mean(axis=1)
         if level == 0.0:
             quiet, t_quiet = ends, t_end
         else:
+            Vm0, Vm1 = V.mean(axis=1), V1.mean(axis=1)
             quiet = (Vm0 > level) & (Vm1 <= level)
-            t_quiet = t0 + dt * (Vm0 - level) / jnp.where(quiet, Vm0 - Vm1, 1.0)
+            t_quiet = time0 + h * (Vm0 - level) / jnp.where(quiet, Vm0 - Vm1, 1.0)
         qbuf, n_quiet = y["quiet"], y["n_quiet"]
-        qslot = jnp.minimum(n_quiet, self.max_events - 1).astype(jnp.int32)
-        qwrite = quiet & (n_quiet < self.max_events)
-        qbuf = qbuf.at[rows, qslot].set(jnp.where(qwrite, t_quiet, qbuf[rows, qslot]))
+        qslot = jnp.where(quiet, n_quiet, qbuf.shape[1]).astype(jnp.int32)
+        qbuf = qbuf.at[rows, qslot].set(t_quiet, mode="drop")
         n_quiet = n_quiet + quiet
-        # time series, every `stride` steps
-        k = ((counter + 1) // self.stride).astype(jnp.int32)
-        due = (counter + 1) % self.stride == 0
-        series = y["series"]
-        values = _series(m, t1, u1, V1, stuck1, self.record_blocks)
-        series = {
-            name: series[name].at[:, k].set(jnp.where(due, values[name], series[name][:, k]))
-            for name in series
-        }
-        flag = lambda a: a.astype(u.dtype)
         y1 = dict(
-            u=u1, V=V1, eta=eta1, stuck=flag(stuck1), limit=limit, step=step + 1,
-            active=flag(active), ep_start=ep_start, ep_u0=ep_u0, ep_mask=flag(ep_mask),
-            events=events, n_events=n_events,
-            quiet=qbuf, n_quiet=n_quiet, series=series,
+            u=u1, V=V1, eta=eta1, stuck=stuck1.astype(u.dtype), strength=strength1,
+            active=active.astype(u.dtype), ep_start=ep_start, ep_u0=ep_u0,
+            ep_mask=ep_mask.astype(u.dtype), events=events, n_events=n_events,
+            quiet=qbuf, n_quiet=n_quiet,
         )  # fmt: skip
+        if self.record_releases:
+            # each release: its time, block and the static limit it overcame (the strength
+            # drawn at the block's previous stick)
+            rel, n_rel = y["releases"], y["n_releases"]
+            order = jnp.cumsum(release, axis=1) - 1 + n_rel[:, None]
+            cap = rel.shape[1]
+            where = jnp.where(release, order, cap).astype(jnp.int32)
+            entry = jnp.stack(
+                [time0 + h * rho, jnp.broadcast_to(jnp.arange(N, dtype=u.dtype), (P, N)), limit],
+                axis=-1,
+            )
+            y1["releases"] = rel.at[rows[:, None], where].set(entry, mode="drop")
+            y1["n_releases"] = n_rel + release.sum(axis=1)
+        # time series, at the end of every `stride`-th step
+        due = jnp.mod(k + 1.0, self.stride) == 0.0
+        j = (jnp.round((k + 1.0) / self.stride) - self.rec_lo).astype(jnp.int32)
+        series = y["series"]
+        values = _series(m, time1, u1, V1, stuck1, self.record_blocks)
+        size = next(iter(series.values())).shape[1]
+        j = jnp.where(due & (j >= 0), j, size)
+        y1["series"] = {
+            name: series[name].at[:, j].set(values[name], mode="drop") for name in series
+        }
         return y1, None, dict(y0=y0, y1=y1), None, diffrax.RESULTS.successful
 
 
@@ -227,17 +290,26 @@ def simulate_chain(
     record_dt: float | None = None,
     record_blocks: bool = False,
     max_events: int | None = None,
+    record_releases: bool = False,
+    progress: bool | None = None,
 ) -> ChainRun:
     """Simulate `n_paths` independent chains for `t_max` time units.
 
-    - `dt`: the time step; events are resolved to a fraction of it (sticks are located
-      inside the step; releases happen at step boundaries);
+    - `dt`: the time step; releases and sticks are located inside it (see the module
+      docs); results converge as dt shrinks (tested);
     - `record_dt`: spacing of the time series (default: 1000 points over the run);
       `record_blocks` also keeps every block's velocity;
-    - `max_events`: event buffer per path (default from `t_max`); `n_events` counts them all;
+    - `max_events`: keep at most this many events per path (default: all; `n_events` counts
+      them all). Events are streamed out segment by segment, not held in a buffer sized
+      by `t_max`;
+    - `record_releases`: also keep every block release (`ChainRun.releases`);
+    - `progress`: a progress bar over the segments (default: on a terminal, for runs of
+      over 10^9 block-steps).
 
     Every chain starts relaxed: each block stuck at rest with its loading spring slack
-    (and its static limit drawn, with a random threshold); the driver then loads them.
+    (and its strength drawn, with a random threshold); the driver then loads them. Results
+    are a function of `(seed, path)`: a path's numbers do not depend on how many run
+    together.
     """
     owner = "simulate_chain"
     if not isinstance(model, ChainModel):
@@ -245,84 +317,184 @@ def simulate_chain(
     t_max = check_positive(owner, "t_max", t_max)
     dt = check_positive(owner, "dt", dt)
     n_paths = check_int(owner, "n_paths", n_paths, minimum=1)
+    if model.tau is None and model.D > 0:
+        raise ParameterError(
+            owner, "tau", "is None (white friction noise) with D > 0: a released block would "
+            "re-stick at once with a probability that tends to 1/2 as dt shrinks, so results "
+            "would depend on dt; give the noise a correlation time (tau > 0, OU noise)",
+        )  # fmt: skip
+    _check_step(model, dt)
     n_steps = int(math.ceil(t_max / dt - 1e-9))
+    if n_steps >= 2**31:
+        raise ParameterError(owner, "t_max", "/ dt must be below 2**31 steps", t_max)
     t_max = n_steps * dt
     record_dt = t_max / 1000 if record_dt is None else check_positive(owner, "record_dt", record_dt)
-    N = model.n_blocks
-    if max_events is None:
-        max_events = int(min(max(1000, 4 * n_steps // 10), 2_000_000))
-    max_events = check_int(owner, "max_events", max_events, minimum=1)
+    if max_events is not None:
+        max_events = check_int(owner, "max_events", max_events, minimum=1)
+    N, P = model.n_blocks, n_paths
     root = _rng.seed_key(seed)
-    key = _rng.stream_key(root, _rng.STEP)
-    P = n_paths
-    limit = jnp.full((P, N), float(model.friction.static_limit))
+    keys = {s: _rng.stream_key(root, s) for s in (_rng.STEP, _rng.ONSET, _rng.THRESHOLD)}
+    strength = np.ones((P, N))
     if model.threshold is not None:
-        ids = (jnp.arange(P)[:, None] * N + jnp.arange(N)[None, :]).ravel()
-        keys = _rng.path_keys(_rng.stream_key(root, _rng.ONSET), ids, 0)
-        limit = limit * jax.vmap(model.threshold.sample)(keys).reshape(P, N)
-    y0 = dict(
-        u=jnp.zeros((P, N)), V=jnp.zeros((P, N)), eta=jnp.zeros((P, N)),
-        stuck=jnp.ones((P, N)), limit=limit, step=jnp.zeros(()),
-        active=jnp.zeros(P), ep_start=jnp.zeros(P), ep_u0=jnp.zeros(P),
-        ep_mask=jnp.zeros((P, N)), events=jnp.full((P, max_events, 4), jnp.nan),
-        n_events=jnp.zeros(P), quiet=jnp.full((P, max_events), jnp.nan),
-        n_quiet=jnp.zeros(P),
-    )  # fmt: skip
+        ids = np.arange(P)[:, None] * N + np.arange(N)[None, :]
+        draw = _draw_strengths(model, keys[_rng.ONSET], ids.ravel())
+        strength = np.asarray(draw).reshape(P, N)
     stride = max(1, int(round(record_dt / dt)))
     n_rec = n_steps // stride + 1
-    ts = np.arange(n_rec) * stride * dt
-    z = jnp.zeros((P, N))
-    first = _series(model, 0.0, z, z, y0["stuck"] > 0.5, record_blocks)
-    y0["series"] = {
-        name: jnp.zeros((P, n_rec) + v.shape[1:]).at[:, 0].set(v) for name, v in first.items()
-    }
-    solver = _ChainStep(_to_arrays(model), key, P, max_events, stride, record_blocks)
-    sol = _solve(solver, solver.model, y0, jnp.asarray(dt), jnp.asarray(t_max), n_steps)
-    final = jax.tree.map(lambda a: np.asarray(a)[-1], sol.ys)
-    series = final["series"]
-    n_events = final["n_events"].astype(np.int64)
-    ev = final["events"]
-    keep = [min(int(n), max_events) for n in n_events]
-    n_quiet = final["n_quiet"].astype(np.int64)
-    quiet = [final["quiet"][p, : min(int(n_quiet[p]), max_events)] for p in range(P)]
+    zero = np.zeros((P, N))
+    state = dict(
+        u=zero, V=zero, eta=zero, stuck=np.ones((P, N)), strength=strength,
+        active=np.zeros(P), ep_start=np.zeros(P), ep_u0=np.zeros(P), ep_mask=zero,
+    )  # fmt: skip
+    first_values = _series_host(model, zero, zero, record_blocks)
+    series = {name: [v[:, None]] for name, v in first_values.items()}
+    events, quiet, releases = [[] for _ in range(P)], [[] for _ in range(P)], [[] for _ in range(P)]
+    counts = np.zeros(P, dtype=np.int64)
+    n_quiet, n_rel = np.zeros(P, dtype=np.int64), np.zeros(P, dtype=np.int64)
+    dropped = 0  # releases beyond a segment's buffer
+    rec_cap = -(-SEGMENT // stride) + 1
+    solver_args = dict(
+        model=_to_arrays(model), noise_key=keys[_rng.STEP], strength_key=keys[_rng.THRESHOLD],
+        dt=np.asarray(dt), stride=np.asarray(float(stride)), n_paths=P,
+        record_blocks=record_blocks, record_releases=record_releases,
+    )  # fmt: skip
+    bar = None
+    if progress is None:
+        progress = sys.stderr.isatty() and n_steps * N * P > 10**9
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=n_steps, desc="simulate_chain", unit="step", leave=False)
+    try:
+        for first in range(0, n_steps, SEGMENT):
+            steps = min(SEGMENT, n_steps - first)
+            # the series samples of this segment: the steps that end at a multiple of stride
+            lo, hi = -(-(first + 1) // stride), (first + steps) // stride
+            y0 = dict(state)
+            y0.update(
+                events=np.full((P, SEGMENT // 2 + 1, 4), np.nan), n_events=np.zeros(P),
+                quiet=np.full((P, SEGMENT), np.nan), n_quiet=np.zeros(P),
+                series={
+                    name: np.zeros((P, rec_cap) + v.shape[1:]) for name, v in first_values.items()
+                },
+            )  # fmt: skip
+            if record_releases:
+                y0.update(releases=np.full((P, RELEASES, 3), np.nan), n_releases=np.zeros(P))
+            out = _segment(
+                _ChainStep(rec_lo=np.asarray(float(lo)), **solver_args), y0,
+                np.asarray(float(first)), np.asarray(float(first + steps)),
+            )  # fmt: skip
+            out = jax.tree.map(np.asarray, out)
+            state = {name: out[name] for name in state}
+            ne, nq = out["n_events"].astype(np.int64), out["n_quiet"].astype(np.int64)
+            for p in range(P):
+                keep = ne[p] if max_events is None else max(0, min(ne[p], max_events - counts[p]))
+                events[p].append(out["events"][p, :keep])
+                quiet[p].append(out["quiet"][p, : nq[p]])
+            counts += ne
+            n_quiet += nq
+            if record_releases:
+                nr = out["n_releases"].astype(np.int64)
+                for p in range(P):
+                    releases[p].append(out["releases"][p, : min(nr[p], RELEASES)])
+                n_rel += nr
+                dropped += int(np.sum(np.maximum(nr - RELEASES, 0)))
+            for name in series:
+                series[name].append(out["series"][name][:, : hi - lo + 1])
+            if bar is not None:
+                bar.update(steps)
+    finally:
+        if bar is not None:
+            bar.close()
+    ev = [np.concatenate(e) if e else np.zeros((0, 4)) for e in events]
+    series = {name: np.concatenate(v, axis=1)[:, :n_rec] for name, v in series.items()}
     return ChainRun(
-        start=[ev[p, : keep[p], 0] for p in range(P)],
-        duration=[ev[p, : keep[p], 1] for p in range(P)],
-        size=[ev[p, : keep[p], 2].astype(int) for p in range(P)],
-        slip=[ev[p, : keep[p], 3] for p in range(P)],
-        n_events=np.asarray(n_events),
-        t=ts,
+        start=[e[:, 0] for e in ev],
+        duration=[e[:, 1] for e in ev],
+        size=[e[:, 2].astype(int) for e in ev],
+        slip=[e[:, 3] for e in ev],
+        n_events=counts,
+        t=np.arange(n_rec) * stride * dt,
         mean_velocity=series["mean_velocity"],
         slipping=series["slipping"],
         mean_force=series["mean_force"],
         velocity=series.get("velocity"),
-        quiet_times=quiet,
+        quiet_times=[np.concatenate(q) for q in quiet],
+        releases=[np.concatenate(r) for r in releases] if record_releases else None,
         n_blocks=N,
         t_max=float(t_max),
         dt=float(dt),
         info=dict(
             n_steps=n_steps,
-            max_events=max_events,
             seed=seed,
-            overflow=bool((n_events > max_events).any() or (n_quiet > max_events).any()),
+            segments=-(-n_steps // SEGMENT),
+            **({"n_releases": n_rel, "releases_dropped": dropped} if record_releases else {}),
         ),  # fmt: skip
     )
 
 
+# The step resolves the chain's fastest rate when dt times it is at most this (Heun's method:
+# a relative error of about (dt rate)^2 / 12 per step of an oscillation).
+RATE_SCALE = 0.25
+
+
+def fastest_rate(model) -> float:
+    """The chain's fastest rate: its highest normal mode, sqrt(k_p + 4 k_c); the OU noise's
+    1 / tau; the friction law's growth rate at slip onset, -dF/dV at V = 0+ (velocity
+    weakening makes a sliding block unstable at that rate)."""
+    law = model.friction
+    eps = 1e-7 * max(1.0, float(model.v_b))
+    slope = (float(law.force(eps)) - float(law.force(0.0))) / eps
+    rates = [math.sqrt(float(model.k_p) + 4.0 * float(model.k_c)), max(0.0, -slope)]
+    if model.tau is not None:
+        rates.append(1.0 / float(model.tau))
+    return max(rates)
+
+
+def _check_step(model, dt):
+    rate = fastest_rate(model)
+    if dt * rate > RATE_SCALE:
+        warnings.warn(
+            f"simulate_chain: dt = {dt:g} is {dt * rate:.2g} times the chain's fastest time "
+            f"scale (1/{rate:.3g}): events may depend on dt; take dt <= {RATE_SCALE / rate:.3g}",
+            stacklevel=3,
+        )
+
+
+def _series_host(model, u, V, record_blocks):
+    out = dict(
+        mean_velocity=V.mean(axis=1),
+        slipping=np.zeros(V.shape[0]),
+        mean_force=(model.k_p * (0.0 - u)).mean(axis=1),
+    )
+    if record_blocks:
+        out["velocity"] = V
+    return out
+
+
 @eqx.filter_jit
-def _solve(solver, model, y0, dt, t_max, n_steps):
-    saveat = diffrax.SaveAt(t1=True)
-    return diffrax.diffeqsolve(
+def _draw_strengths(model, key, ids):
+    keys = _rng.path_keys(key, ids, 0)
+    return jax.vmap(model.threshold.sample)(keys)
+
+
+@eqx.filter_jit
+def _segment(solver, y0, t0, t1):
+    """Steps `t0` .. `t1` - 1 of every chain (at most `SEGMENT`; the solve's time counts
+    steps, so its end points are runtime values and one compiled solve serves every
+    segment)."""
+    sol = diffrax.diffeqsolve(
         diffrax.ODETerm(lambda t, y, args: y),
         solver,
-        t0=0.0,
-        t1=t_max,
-        dt0=dt,
+        t0=t0,
+        t1=t1,
+        dt0=1.0,
         y0=y0,
-        args=model,
-        saveat=saveat,
+        args=solver.model,
+        saveat=diffrax.SaveAt(t1=True),
         stepsize_controller=diffrax.ConstantStepSize(),
-        max_steps=n_steps + 1,
+        max_steps=SEGMENT + 1,
         throw=False,
         adjoint=diffrax.ForwardMode(),
     )
+    return jax.tree.map(lambda a: a[-1], sol.ys)
