@@ -37,6 +37,19 @@ def test_public_reference_example(tmp_path):
     assert "mean slip time" in (out / "summary.md").read_text()
 
 
+def test_carlson_langer_example(tmp_path):
+    """Reduced: 100 blocks for 3000 time units; the run has localized and delocalized
+    events and the small-event fit is made."""
+    run = subprocess.run(
+        [sys.executable, str(ROOT / "examples" / "carlson_langer.py"), "--out", str(tmp_path),
+         "--n-blocks", "100", "--t-max", "3000"],
+        capture_output=True, text=True,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    assert (tmp_path / "carlson_langer.png").stat().st_size > 0
+    assert "small-event slope" in run.stdout
+
+
 def test_white_noise_example():
     run = subprocess.run(
         [sys.executable, str(ROOT / "examples" / "white_noise_degeneracy.py"), "--n-paths", "300"],
