@@ -22,6 +22,9 @@ class ApproximationWarning(UserWarning):
     escape rate, a truncation that never normalises): values are returned unclipped."""
 
 
+MASS_TOL = 1e-2  # a density's mass off by more than this from what it must carry warns
+
+
 class CrossingEstimator:
     r"""Level-crossing (Rice-Stratonovich) statistics of a stick-slip model.
 
@@ -236,7 +239,10 @@ class CrossingEstimator:
 
     # -- series on the grid ----------------------------------------------------------------------
     def _series(self, t_end, method, order, normalized):
-        """The first-passage density on t_k = k dt up to t_end, and diagnostics."""
+        """The first-passage density on t_k = k dt up to t_end, and diagnostics; `info["mass"]`
+        is its integral from 0 to each grid time, exact for first order (the integral of n1
+        is error-controlled, `GaussianSource._cell_integrals`), and the second order's own
+        integrals by the trapezoid rule on the grid."""
         key = ("series", method, order, normalized, t_end)
         if key in self._cache:
             return self._cache[key]
@@ -244,37 +250,54 @@ class CrossingEstimator:
         entry = src.grid(t_end, h)
         n = int(round(t_end / h)) + 1
         second = src.second_order(entry, n) if order == 2 else None
-        n1, K, w = self._mixed(entry["n1"][:, :n], second)
+        n1, K, w, I1 = self._mixed(entry["n1"][:, :n], second, entry["I1"][:, :n])
         if K is None:
             K = np.zeros_like(n1)
-        F = np.zeros(n)
-        info = {"escape_rate_min": math.inf, "t_n": None, "S": [], "I1": []}
+        F, mass = np.zeros(n), np.zeros(n)
+        info = {"escape_rate_min": math.inf, "t_n": None, "unresolved": entry["unresolved"]}
         for c in range(n1.shape[0]):
             if method == "truncation":
                 Fc = series.truncation(n1[c], K[c], order)
+                massc = I1[c] - (series.cumulative(K[c], h) if order == 2 else 0.0)
             else:
-                Fc, rate = series.decoupling(n1[c], K[c], order, h)
+                Fc, rate = series.decoupling(n1[c], K[c], order, h, I1=I1[c])
+                S = I1[c]
+                if order == 2:
+                    S = I1[c] - series.cumulative(K[c] - n1[c] * I1[c], h)
+                massc = -np.expm1(-S)  # F = Sdot exp(-S) integrates to 1 - exp(-S)
                 if n > 1:
                     info["escape_rate_min"] = min(info["escape_rate_min"], float(rate[1:].min()))
             F += w[c] * Fc
+            mass += w[c] * massc
         if normalized:
             total = src.w.sum()
-            F, k = series.normalise_truncation(F / max(total, 1e-300), h)
+            F, k = series.normalise_truncation(
+                F / max(total, 1e-300), h, integral=mass / max(total, 1e-300)
+            )
             F *= total
             info["t_n"] = None if k is None else k * h
+            if k is not None:
+                mass = np.minimum(mass, mass[k])
+        info["mass"] = mass
+        # How well the grid resolves n1: its trapezoid integral against the error-controlled
+        # one (what second-order integrals on the grid can be trusted to).
+        exact_I1 = float(w @ I1[:, -1])
+        trap_I1 = float(w @ series.cumulative(n1, h)[:, -1])
+        info["grid_gap"] = abs(trap_I1 - exact_I1) / max(abs(exact_I1), 1e-300)
         out = (np.arange(n) * h, F, info)
         self._cache[key] = out
         return out
 
-    def _mixed(self, n1, K):
-        """n1 and K per component with their weights, or (mixing='process') those of the
-        mixture process: averaged over the slipping onsets, with their total weight."""
+    def _mixed(self, n1, K, I1=None):
+        """n1, K and the integral I1 of n1 per component with their weights, or
+        (mixing='process') those of the mixture process: averaged over the slipping onsets,
+        with their total weight."""
         w = self._source.w
         if self.mixing == "components" or n1.shape[0] == 1:
-            return n1, K, w
+            return n1, K, w, I1
         total = w.sum()
         avg = lambda a: None if a is None else (w @ a / total)[None]
-        return avg(n1), avg(K), np.array([total])
+        return avg(n1), avg(K), np.array([total]), avg(I1)
 
     def first_passage(
         self, t, method: str = "decoupling", order: int = 1, normalized: bool = False
@@ -297,7 +320,27 @@ class CrossingEstimator:
         t_end = self._grid_end(float(t.max()))
         grid, F, info = self._series(t_end, method, order, normalized)
         self._report(grid, F, info, method, order, normalized)
+        if order == 1 and isinstance(self._source, GaussianSource):
+            out = self._first_order_at(t.ravel(), t_end, method).reshape(t.shape)
+            if normalized and info["t_n"] is not None:
+                out = np.where(t <= info["t_n"], out, 0.0)
+            return out
         return np.interp(t, grid, F)
+
+    def _first_order_at(self, t, t_end, method):
+        """First-order densities at the times `t` themselves (no grid interpolation): n1(t),
+        and for decoupling n1(t) exp(-int_0^t n1), the integral error-controlled (an onset
+        transient shorter than dt is resolved where it is asked for)."""
+        src = self._source
+        entry = src.grid(t_end, self.dt)
+        n1c = np.atleast_2d(src._n1_at(t))  # (K, m)
+        if method == "truncation":
+            return src.w @ n1c
+        I1c = src.I1_at(t, entry)
+        if self.mixing == "process" and src.n_components > 1:
+            total = src.w.sum()
+            return (src.w @ n1c) * np.exp(-(src.w @ I1c) / total)
+        return src.w @ (n1c * np.exp(-I1c))
 
     slip_time_density = first_passage
 
@@ -330,8 +373,25 @@ class CrossingEstimator:
                 ApproximationWarning,
                 stacklevel=3,
             )
+        total = float(self._source.w.sum())
+        if method == "truncation" and not normalized and info["mass"][-1] > total + MASS_TOL:
+            warnings.warn(
+                f"{name}: integrates to {float(info['mass'][-1]):.4g} by t = {grid[-1]:.4g}, "
+                f"more than the {total:.4g} of slipping paths: a truncation counts later "
+                "upcrossings too",
+                ApproximationWarning,
+                stacklevel=3,
+            )
+        if order == 2 and info.get("grid_gap", 0.0) > MASS_TOL:
+            warnings.warn(
+                f"{name}: dt = {self.dt:g} does not resolve n1's onset transient (the trapezoid "
+                f"rule misses its integral by {info['grid_gap']:.2g} relative); the second-order "
+                "integrals on this grid are as coarse: take a shorter dt",
+                ApproximationWarning,
+                stacklevel=3,
+            )
         if normalized and info["t_n"] is None:
-            mass = float(series.cumulative(F, grid[1] - grid[0])[-1]) if F.size > 1 else 0.0
+            mass = float(info["mass"][-1])
             warnings.warn(
                 f"normalised truncation (order {order}): the density integrates to only "
                 f"{mass:.4g} by t = {grid[-1]:.4g}, so it is not cut",
@@ -345,7 +405,7 @@ class CrossingEstimator:
         self._check(method, order, normalized)
         grid, F, info = self._series(self._grid_end(t_max), method, order, normalized)
         return dict(
-            mass=float(series.cumulative(F, self.dt)[-1]),
+            mass=float(info["mass"][-1]),
             min_density=float(F.min()),
             escape_rate_min=info["escape_rate_min"],
             t_n=info["t_n"],
@@ -361,8 +421,8 @@ class CrossingEstimator:
             return min(self._source.t_max, self._source.t_complete)
         t_end = 8.0
         while t_end < 1000.0:
-            grid, F, _ = self._series(self._grid_end(t_end), "decoupling", 1, False)
-            if series.cumulative(F, self.dt)[-1] > (1 - 1e-4) * self._source.w.sum():
+            _, _, info = self._series(self._grid_end(t_end), "decoupling", 1, False)
+            if info["mass"][-1] > (1 - 1e-4) * self._source.w.sum():
                 return t_end
             t_end *= 2
         return t_end
@@ -397,35 +457,72 @@ class CrossingEstimator:
         grid = np.arange(n) * h
         n1 = entry["n1"][:, :n]
         K = src.second_order(entry, n) if order == 2 else np.zeros_like(n1)
+        I1 = entry["I1"][:, :n]
+        cells = np.diff(I1, axis=1)  # error-controlled integrals of n1 over the grid cells
         if self.mixing == "process" and n1.shape[0] > 1:
             # every component sees the mixture process's exponent (and truncation cut)
-            mix_n1, mix_K, _ = self._mixed(n1, K)
+            mix_n1, mix_K, _, mix_I1 = self._mixed(n1, K, I1)
             n1 = np.repeat(mix_n1, src.n_components, axis=0)
             K = np.repeat(mix_K, src.n_components, axis=0)
+            I1 = np.repeat(mix_I1, src.n_components, axis=0)
         mass = np.zeros_like(n1w)
         if isinstance(src, GaussianSource):  # the boxes sit at the grid times themselves
             at_times = lambda Tc, f: f[:n]
         else:
             at_times = lambda Tc, f: np.interp(Tc, grid, f)
 
+        def window(per_cell):
+            """Per grid time, the mass of its window [t_k - h/2, t_k + h/2] from the masses
+            of the cells on either side (half of each; the grid's end has one). Time 0 has
+            no boxes (n1 = 0 there): its half of the first cell goes to the next time."""
+            out = np.zeros(per_cell.shape[:-1] + (per_cell.shape[-1] + 1,))
+            out[..., :-1] += 0.5 * per_cell
+            out[..., 1:] += 0.5 * per_cell
+            out[..., 1] += out[..., 0]
+            out[..., 0] = 0.0
+            return out
+
+        def rescaled(boxes, target):
+            """The boxes of each grid time, spread over positions as they are, carrying
+            `target` in all (a first-order mass known exactly; the boxes' own time weights
+            are the trapezoid rule's, which misses an onset transient shorter than dt)."""
+            total = boxes.sum(axis=0)
+            return boxes * np.where(total > 0, target / np.where(total > 0, total, 1.0), 0.0)
+
+        exact_boxes = isinstance(src, GaussianSource) and order == 1
         for c in range(src.n_components):
             Tc = T[c]
             if method == "truncation":
-                mass[c] = n1w[c] if order == 1 else n1w[c] - K2w[c]
+                if exact_boxes:
+                    mass[c] = rescaled(n1w[c], window(cells[c])[:n])
+                else:
+                    mass[c] = n1w[c] if order == 1 else n1w[c] - K2w[c]
                 if normalized:
                     marg = series.truncation(n1[c], K[c], order)
-                    _, k = series.normalise_truncation(marg, h)
+                    cum = I1[c] - (series.cumulative(K[c], h) if order == 2 else 0.0)
+                    _, k = series.normalise_truncation(marg, h, integral=cum)
                     if k is not None:
                         mass[c] = np.where(Tc <= grid[k] + 0.5 * h, mass[c], 0.0)
-            else:
-                I1 = series.cumulative(n1[c], h)
-                if order == 1:
-                    mass[c] = n1w[c] * np.exp(-at_times(Tc, I1))
+            elif order == 1:
+                if exact_boxes:
+                    # F = n1 exp(-I1): a cell's mass is exp(-I1(t_k)) - exp(-I1(t_k+1)) when
+                    # the component's own n1 is the exponent's; else n1's cell integral
+                    # times exp(-I1) at the grid time
+                    if self.mixing == "process" and src.n_components > 1:
+                        target = window(cells[c])[:n] * np.exp(-I1[c])
+                    else:
+                        target = window(-np.diff(np.exp(-I1[c])))[:n]
+                    mass[c] = rescaled(n1w[c], target)
                 else:
-                    G_ = K[c] - n1[c] * I1
-                    S = I1 - series.cumulative(G_, h)
-                    rate = n1w[c] - (K2w[c] - n1w[c] * at_times(Tc, I1))
-                    mass[c] = rate * np.exp(-at_times(Tc, S))
+                    mass[c] = n1w[c] * np.exp(-at_times(Tc, I1[c]))
+            else:
+                G_ = K[c] - n1[c] * I1[c]
+                S = I1[c] - series.cumulative(G_, h)
+                n1b = n1w[c]
+                if isinstance(src, GaussianSource):  # n1's own boxes, as at first order
+                    n1b = rescaled(n1w[c], window(np.diff(entry["I1"][c, :n]))[:n])
+                rate = n1b - (K2w[c] - n1b * at_times(Tc, I1[c]))
+                mass[c] = rate * np.exp(-at_times(Tc, S))
             mass[c] *= src.w[c]
         return T, X, W, mass, X0
 
@@ -477,14 +574,50 @@ class CrossingEstimator:
             else:  # the next threshold is independent of this cycle
                 cells += self._random_threshold_periods(edges, T_, X_, W_, mass, nodes, weights)
         out = cells / np.diff(edges)
+        name = f"{method} order {order}"
         if (out < 0).any():
             warnings.warn(
-                f"{method} order {order}: {kind} density negative in places "
+                f"{name}: {kind} density negative in places "
                 f"(min {out.min():.4g}); returned unclipped",
                 ApproximationWarning,
                 stacklevel=3,
             )
+        self._check_mass(name, kind, edges, cells, all_mass, t_stop, method, order, normalized)
         return out.reshape(points.shape)
+
+    def _check_mass(self, name, kind, edges, cells, all_mass, t_stop, method, order, normalized):
+        """Warn, with the numbers, where a position-resolved density does not carry what it
+        must (by more than `MASS_TOL`): what the cells hold against what the boxes carry
+        (the grid misses part of the support), and against the slip-time series' own mass
+        (the time grid does not resolve the second-order integrals), and a truncation that
+        carries more than the slipping paths (it counts later upcrossings)."""
+        carried, held = float(all_mass.sum()), float(cells.sum())
+        if carried - held > MASS_TOL:
+            warnings.warn(
+                f"{name}: the {kind} cells [{edges[0]:.4g}, {edges[-1]:.4g}] hold {held:.4g} "
+                f"of the {carried:.4g} it carries: widen them",
+                ApproximationWarning,
+                stacklevel=4,
+            )
+        if t_stop is None and isinstance(self._source, GaussianSource):
+            expected = float(self._series(self._grid_end(self._horizon()), method, order,
+                                          normalized)[2]["mass"][-1])  # fmt: skip
+            if abs(carried - expected) > MASS_TOL:
+                warnings.warn(
+                    f"{name}: the {kind} density carries {carried:.4g}, the slip-time density "
+                    f"{expected:.4g}: dt = {self.dt:g} does not resolve its second-order "
+                    "integrals (a shorter dt does)",
+                    ApproximationWarning,
+                    stacklevel=4,
+                )
+        total = float(self._source.w.sum())
+        if method == "truncation" and carried > total + MASS_TOL:
+            warnings.warn(
+                f"{name}: the {kind} density carries {carried:.4g}, more than the "
+                f"{total:.4g} of slipping paths: a truncation counts later upcrossings too",
+                ApproximationWarning,
+                stacklevel=4,
+            )
 
     def _half(self):
         """Half the time cell a grid time stands for (exact sources; simulated upcrossings

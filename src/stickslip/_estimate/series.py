@@ -38,11 +38,12 @@ def truncation(n1, K, order):
     return n1 - K
 
 
-def decoupling(n1, K, order, h, n1_marginal=None):
+def decoupling(n1, K, order, h, n1_marginal=None, I1=None):
     """Decoupling approximation; `n1_marginal` is n1(t) when `n1`/`K` are resolved by
-    position (the exponent S(t) is always the marginal one). Returns (F, escape_rate)."""
+    position (the exponent S(t) is always the marginal one); `I1` its integral from 0 (the
+    trapezoid rule on the grid when not given). Returns (F, escape_rate)."""
     marg = n1 if n1_marginal is None else n1_marginal
-    I1 = cumulative(marg, h)
+    I1 = cumulative(marg, h) if I1 is None else I1
     if order == 1:
         return n1 * np.exp(-I1), n1
     if n1_marginal is None:
@@ -53,20 +54,21 @@ def decoupling(n1, K, order, h, n1_marginal=None):
     raise ValueError("use decoupling_joint for position-resolved second order")
 
 
-def decoupling_joint(n1x, Kx, n1, K, h):
+def decoupling_joint(n1x, Kx, n1, K, h, I1=None):
     """Second-order decoupling resolved by position: F(x, t) = Sdot(x, t) exp(-S(t)) with
     Sdot(x, t) = n1(x, t) - [Kx(x, t) - n1(x, t) int_0^t n1] and S(t) the marginal one."""
-    I1 = cumulative(n1, h)
+    I1 = cumulative(n1, h) if I1 is None else I1
     G = K - n1 * I1
     S = I1 - cumulative(G, h)
     rate_x = n1x - (Kx - n1x * I1)
     return rate_x * np.exp(-S), rate_x
 
 
-def normalise_truncation(F, h):
-    """Cut the density where its integral first reaches 1. Returns (F_hat, t_n index or
-    None when the integral never reaches 1 on the grid)."""
-    I = cumulative(F, h)
+def normalise_truncation(F, h, integral=None):
+    """Cut the density where its integral (`integral`, or the trapezoid rule on the grid)
+    first reaches 1. Returns (F_hat, t_n index or None when the integral never reaches 1
+    on the grid)."""
+    I = cumulative(F, h) if integral is None else integral
     over = np.nonzero(I >= 1.0)[0]
     if over.size == 0:
         return F.copy(), None
