@@ -17,7 +17,8 @@ reference histogram on a common grid (cell averages of the analytic densities). 
 wall time of the run once compiled; compile time is reported apart. Writes
 `accuracy_cost.csv` (one row per method, set and output, with the Pareto front marked, the
 reference's noise floor and the noise constant A: an N-path histogram's L1 noise is about
-A / sqrt(N)) and
+A / sqrt(N), and the time of `stickslip.selection.calibration_seconds`'s fixed workload on
+this machine, by which `method: auto` scales the costs to the machine it runs on) and
 `accuracy_cost.png` (log-log, error against run time, Pareto front drawn). `--package` also
 copies the table to the package (`stickslip/_data/accuracy_cost.csv`), where `method: auto`
 reads it. `--quick` (fewer configurations, a smaller reference) runs in a few minutes.
@@ -86,7 +87,7 @@ REF_SEED = 20261121
 FIELDS = [
     "set", "output", "method", "family", "solver", "dt", "n_paths", "l1", "l1_sd", "repeats",
     "ref_floor", "noise_constant", "run_seconds", "compile_seconds", "path_steps", "pareto",
-    "note", "params",
+    "note", "params", "calibration_seconds",
 ]  # fmt: skip
 
 
@@ -141,8 +142,6 @@ def run_analytic(model, key, q, edges):
     The run time is that of a fresh estimator (no cached grids) once the kernels are
     compiled; the compile time is the extra of the first call."""
     import stickslip as ss
-    from stickslip.study.measure import cell_average
-
     args = ANALYTIC[key]
     centres = 0.5 * (edges[1:] + edges[:-1])
 
@@ -150,7 +149,7 @@ def run_analytic(model, key, q, edges):
         est = ss.CrossingEstimator(model)
         start = time.perf_counter()
         if q == "slip_time":
-            values = cell_average(lambda t: est.first_passage(t, *args), edges, est.dt / 4)
+            values = est.first_passage_cells(edges, *args)
         else:
             values = est.period_density(centres, *args)
         return np.asarray(values, float), time.perf_counter() - start
@@ -393,13 +392,16 @@ def chart(rows, path):
 
 def read_csv(path):
     """Rows of a table written by `write_csv`, with numbers as numbers."""
-    floats = ("l1", "l1_sd", "ref_floor", "noise_constant", "run_seconds", "compile_seconds")
+    floats = (
+        "l1", "l1_sd", "ref_floor", "noise_constant", "run_seconds", "compile_seconds",
+        "calibration_seconds",
+    )  # fmt: skip
     ints = ("n_paths", "repeats", "path_steps")
     rows = []
     with open(path, newline="") as fh:
         for r in csv.DictReader(fh):
             for k in floats:
-                r[k] = float(r[k]) if r[k] != "" else ""
+                r[k] = float(r[k]) if r.get(k, "") != "" else ""
             for k in ints:
                 r[k] = int(float(r[k])) if r[k] != "" else ""
             r["dt"] = float(r["dt"]) if r["dt"] != "" else ""
@@ -460,6 +462,10 @@ def main(argv=None):
     )
     args = parser.parse_args(argv)
     import stickslip as ss  # noqa: F401  (imported before timing anything)
+    from stickslip.selection import calibration_seconds
+
+    # This machine's speed, for `method: auto` to scale the costs to the machine it runs on.
+    calibration = [calibration_seconds.__wrapped__()]
 
     start = time.perf_counter()
     cfg = QUICK if args.quick else FULL
@@ -475,6 +481,10 @@ def main(argv=None):
     for name in args.sets:
         rows += measure(name, SETS[name], cfg, lambda text: print(text, flush=True))[0]
     pareto(rows)
+    calibration.append(calibration_seconds.__wrapped__())
+    print(f"calibration workload: {min(calibration) * 1e3:.2f} ms (best of start and end)")
+    for r in rows:
+        r["calibration_seconds"] = min(calibration)
     write_csv(rows, args.out / "accuracy_cost.csv")
     chart(rows, args.out / "accuracy_cost.png")
     summary(rows, print)

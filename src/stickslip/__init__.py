@@ -51,6 +51,7 @@ _LAZY = {
     "first_passage_density": ".selection",
     "MethodChoice": ".selection",
     "SelectionError": ".selection",
+    "SelectionWarning": ".selection",
     "clear_caches": "._compile",
     "cache_info": "._compile",
 }

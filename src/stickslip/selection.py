@@ -2,29 +2,46 @@ r"""Model no more than a scene needs: choose the cheapest method that meets a to
 
 `select_method(model, tolerance)` picks, among the level-crossing approximations and Monte
 Carlo runs (exact stepping or Euler-Maruyama, at some step and number of paths), the one
-with the smallest run time whose error meets `tolerance`, and says which and why.
+with the smallest run time whose error is known to meet `tolerance`, and says which and why
+-- or that it cannot promise the tolerance, and what error it can state instead.
 
 **The error** is the L1 distance of the density (of slip times or of periods) to the exact
 one, on 150 cells (100 for periods) spanning its 99.9% range: the measure of
 `benchmarks/accuracy_cost.py`, whose measured table ships with the package
-(`stickslip/_data/accuracy_cost.csv`) and decides the choice:
+(`stickslip/_data/accuracy_cost.csv`). A candidate's error is an *upper bound* that holds
+with a stated confidence (`Z` standard deviations, one-sided: 97.7%), never a mean:
 
-- parameters of a measured set: the measured errors and run times of that set's rows (Monte
-  Carlo rows are means over repeated seeds); Monte Carlo with more paths than measured is
-  extrapolated as below when no measured row meets the tolerance;
-- other parameters: a level-crossing approximation is a candidate only within 25% of a
-  measured set (in every parameter), with that set's measured error. Monte Carlo is always
-  a candidate, its error predicted as $\sqrt{A^2/N + B^2}$: the sampling noise $A/\sqrt N$ is
-  scaled from the measured fit by the density's own noise constant (from a small pilot run),
-  and the bias floor $B$ of each (solver, step) is the measured one, the step scaled with the
-  model's fastest time scale. The run time is the measured cost per path-step times the
-  pilot's steps per path.
+- **On a measured set** (the model's parameters are one of the table's sets): a
+  level-crossing approximation's measured L1 plus the reference's own noise floor (the
+  triangle inequality: the reference is a histogram); a Monte Carlo row's mean L1 over the
+  repeated seeds plus `Z` times the larger of its measured spread and the spread of an
+  N-path histogram's L1 (`SPREAD / sqrt(N)`); more paths than measured by the fitted
+  $\sqrt{A^2/N + B^2}$ with the same margin.
+- **Off the measured sets** nothing measured elsewhere is borrowed, so no choice carries an
+  error across the critical speed or a change of regime. A small pilot run of the model
+  itself (exact stepping where the slip is linear-Gaussian) gives the density's noise
+  constant $A$ (an N-path histogram's L1 noise is $A/\sqrt N$), the time per path, and the
+  fraction of slips still running at `t_max`. Exact stepping is exact in law at any step
+  (its miss bound, from the pilot, is the only bias besides the slips cut at `t_max`), so
+  its error bound is $(A + Z\,\mathrm{SPREAD})/\sqrt N + B$ and N follows from the
+  tolerance. A level-crossing approximation is a candidate only when it would be cheaper
+  than that run and costs more than checking it: its L1 to the pilot's histogram plus the
+  pilot's own noise bound (triangle inequality again) must meet the tolerance.
+- **Models with no linear-Gaussian slip** have no exact stepping and no level-crossing
+  approximation: Monte Carlo with Euler-Maruyama, whose step bias is not measured for the
+  model. The choice then says it cannot promise the tolerance (`promised=False`) and states
+  the sampling error it does promise; `first_passage_density` warns and runs it.
 
-**The stability rules** (`stickslip.stability`) then veto: a level-crossing approximation
-whose density or escape rate goes negative, or (off the measured sets, where no measured L1
-counts it) whose mass is off or whose truncation does not normalise, is not chosen; with
-white noise entering the crossing variable no method converges (the slip time is
-degenerate, see the theory page) and the selection refuses.
+**Costs** are the table's measured seconds (level-crossing approximations: per call;
+Monte Carlo: per path-step, times the predicted path-steps) scaled to the running machine
+by a short calibration (`calibration_seconds()`, a fixed NumPy workload timed here and on
+the machine that measured the table). The selection's own wall time is counted
+(`MethodChoice.selection_seconds`): a table lookup on a measured set; the pilot (about
+0.1 s once compiled) off them.
+
+**The stability rules** (`stickslip.stability`) refuse white noise entering the crossing
+variable (no method converges: the slip time is degenerate, see the theory page), and a
+level-crossing density that goes negative is never chosen.
 """
 
 from __future__ import annotations
@@ -47,27 +64,47 @@ from .stability import ANALYTIC_METHODS as ANALYTIC
 from .stability import stability_report
 
 OUTPUTS = ("slip_time", "period")
-# A level-crossing approximation's measured error is trusted for parameters within this
-# factor of a measured set (every parameter); beyond it, its error is unknown.
-NEAR = math.log(1.25)
-# Monte Carlo path counts tried when extrapolating (1-2-5 ladder).
-LADDER = [int(m * 10**k) for k in range(3, 8) for m in (1, 2, 5)]
-# Predicted (not measured) errors must meet the tolerance with this margin.
-MARGIN = 0.9
+BINS = {"slip_time": 150, "period": 100}  # cells of the L1 measure (as the benchmark's)
+# One-sided confidence of every error bound: Z standard deviations (97.7 %).
+Z = 2.0
+# Standard deviation of |N(0, s^2)| over s: with sum p (1 - p) <= 1 over the cells, an
+# N-path histogram's L1 has a standard deviation of at most SPREAD / sqrt(N).
+SPREAD = math.sqrt(1.0 - 2.0 / math.pi)
 PILOT_PATHS = 4000
+# Pilot step, in units of the slow time scale 1/min|eig(A)| (exact stepping is exact in law
+# at any step; this one keeps the pilot near its cheapest, tests/test_exact_detection.py).
+PILOT_STEP = 0.2
+# A level-crossing approximation is checked off the measured sets only when the Monte Carlo
+# choice takes longer than this (seconds, here): the check itself (compiling the kernels on
+# a first call) costs about that much.
+CHECK_WORTH = 1.0
+# Euler-Maruyama step for a model without a linear-Gaussian slip (no exact stepping): the
+# table's smallest, in units of the model's fastest time scale where it has one.
+EULER_STEP = 0.002
+# The exact solver's measured miss bound is a quadrature, not a strict bound: at most 3.1x
+# the exact count was seen (docs/simulator.md); it is counted 4x, and a moved path moves
+# its mass twice in L1.
+MISS_FACTOR = 8.0
+# A density whose most negative value is below this fraction of its largest is not a density.
+NEGATIVE = 1e-3
 
 
 class SelectionError(StickSlipError):
     """No method meets the tolerance (or none may be used for this model)."""
 
 
+class SelectionWarning(UserWarning):
+    """The method run cannot promise the tolerance (see `MethodChoice.promised`)."""
+
+
 @dataclasses.dataclass(frozen=True)
 class Candidate:
-    """One method with its (measured or predicted) error and run time.
+    """One method with its error bound and run time on this machine.
 
     `settings` are the arguments that run it: `method`, `order`, `normalized` for a
-    level-crossing approximation; `solver`, `dt`, `n_paths` for Monte Carlo. `basis` says
-    where the numbers come from; `rejected` why it may not be used (None if it may)."""
+    level-crossing approximation; `solver`, `dt`, `n_paths` for Monte Carlo. `error` is an
+    upper bound on the L1 error (`basis` says how it is known); `seconds` the predicted run
+    time here; `rejected` why it may not be used (None if it may)."""
 
     key: str
     kind: str  # "analytic" | "simulation"
@@ -88,14 +125,23 @@ class Candidate:
 
 @dataclasses.dataclass(frozen=True)
 class MethodChoice:
-    """The method chosen for a tolerance, the candidates weighed, and why."""
+    """The method chosen for a tolerance, the candidates weighed, and why.
+
+    `promised`: whether `chosen.error` bounds the whole error (False: only the sampling
+    error is bounded, see the module docs). `reference_set`: the measured set whose rows
+    decided (None off the measured sets). `selection_seconds`: the selection's own wall
+    time. `speed`: this machine's calibration time over the table's (costs are scaled by
+    it)."""
 
     tolerance: float
     output: str
     chosen: Candidate
     candidates: tuple[Candidate, ...]
     reference_set: str | None
-    distance: float
+    promised: bool = True
+    selection_seconds: float = 0.0
+    speed: float = 1.0
+    pilot: dict | None = None
 
     @property
     def kind(self) -> str:
@@ -108,29 +154,42 @@ class MethodChoice:
     @property
     def reason(self) -> str:
         c = self.chosen
-        where = (
-            f"measured set '{self.reference_set}'"
-            if self.distance == 0
-            else (
-                f"nearest measured set '{self.reference_set}' "
-                f"(parameters within a factor {math.exp(self.distance):.3g})"
-                if self.reference_set
-                else "no measured set"
+        q = self.output.replace("_", " ")
+        if self.reference_set:
+            where = f"measured set '{self.reference_set}'"
+        else:
+            p = self.pilot or {}
+            where = "no measured set: a pilot of " + (
+                f"{p['n_paths']} paths (noise constant {p['noise_constant']:.3g}, "
+                f"{p['seconds']:.2g} s)"
+                if p
+                else "the model"
             )
-        )
-        lines = [
-            f"{c.label}: L1 error {c.error:.3g} <= {self.tolerance:g} ({c.basis}), "
-            f"run time {_seconds(c.seconds)}; the cheapest of the methods that meet the "
-            f"tolerance for the {self.output.replace('_', ' ')} density ({where})."
-        ]
+        if self.promised:
+            head = (
+                f"{c.label}: L1 error <= {c.error:.3g} <= {self.tolerance:g} ({c.basis}), "
+                f"run time {_seconds(c.seconds)}; the cheapest of the methods that meet the "
+                f"tolerance for the {q} density ({where})."
+            )
+        else:
+            head = (
+                f"{c.label}: cannot promise L1 <= {self.tolerance:g} for the {q} density: "
+                f"{c.basis}; its sampling error is <= {c.error:.3g} "
+                f"({Z:g} standard deviations), run time {_seconds(c.seconds)} ({where})."
+            )
+        lines = [head]
         cheaper = [o for o in self.candidates if o.seconds < c.seconds and o.key != c.key]
         seen = set()
         for o in sorted(cheaper, key=lambda o: o.seconds):
-            why = o.rejected or f"L1 {o.error:.3g} > {self.tolerance:g}"
+            why = o.rejected or f"L1 bound {o.error:.3g} > {self.tolerance:g}"
             if (o.key, why) in seen or o.kind == "simulation" and not o.rejected:
                 continue
             seen.add((o.key, why))
             lines.append(f"  cheaper, not chosen: {o.label} ({_seconds(o.seconds)}): {why}")
+        lines.append(
+            f"  selection: {_seconds(self.selection_seconds)}; costs scaled to this machine "
+            f"by a calibration ({self.speed:.2g}x the table's machine)"
+        )
         return "\n".join(lines)
 
     def __str__(self) -> str:
@@ -149,7 +208,7 @@ class DensityResult:
     seconds: float
 
 
-# -- the measured table ----------------------------------------------------------------------
+# -- the measured table and this machine ----------------------------------------------------
 def _table_path():
     return resources.files("stickslip") / "_data" / "accuracy_cost.csv"
 
@@ -161,7 +220,10 @@ def load_table(path: str | None = None) -> tuple[dict, ...]:
     source = pathlib.Path(path) if path is not None else _table_path()
     with source.open(newline="") as fh:
         rows = list(csv.DictReader(fh))
-    num = ("l1", "l1_sd", "ref_floor", "noise_constant", "run_seconds", "compile_seconds")
+    num = (
+        "l1", "l1_sd", "ref_floor", "noise_constant", "run_seconds", "compile_seconds",
+        "calibration_seconds",
+    )  # fmt: skip
     out = []
     for r in rows:
         r = dict(r)
@@ -171,37 +233,40 @@ def load_table(path: str | None = None) -> tuple[dict, ...]:
         r["n_paths"] = int(r["n_paths"]) if r["n_paths"] else None
         r["path_steps"] = float(r["path_steps"]) if r.get("path_steps") else None
         r["params"] = json.loads(r["params"])
+        r["note"] = r.get("note") or ""
         out.append(r)
     return tuple(out)
 
 
-def _distance(params: dict, measured: dict) -> float:
-    """Largest |log ratio| over the parameters (inf if the names or the kind differ)."""
-    if set(params) != set(measured):
-        return math.inf
-    d = 0.0
-    for k, v in params.items():
-        w = measured[k]
-        if isinstance(v, str) or isinstance(w, str) or v is None or w is None:
-            if v != w:
-                return math.inf
-            continue
-        v, w = float(v), float(w)
-        if v == w:
-            continue
-        if v <= 0 or w <= 0:
-            return math.inf
-        d = max(d, abs(math.log(v / w)))
-    return d
+def _workload(x: np.ndarray) -> float:
+    y = np.exp(-0.5 * x * x) * np.cos(x)
+    s = np.sort(y)
+    c = np.cumsum(s)
+    m = x[:65536].reshape(256, 256)
+    return float(c[-1] + np.sum(m @ m.T))
 
 
-def _as_model_params(model, measured: dict) -> dict:
-    """A measured set's parameters as `model`'s class would hold them (defaults filled in);
-    empty if that class cannot take them."""
-    try:
-        return _numeric_params(type(model)(**measured))
-    except Exception:
-        return {}
+@functools.lru_cache(maxsize=1)
+def calibration_seconds() -> float:
+    """Wall time of a fixed NumPy workload on this machine (best of 7, about 0.1 s in all):
+    the table stores the one of the machine that measured it, and costs are scaled by the
+    ratio."""
+    x = np.random.default_rng(0).standard_normal(400_000)
+    _workload(x)
+    best = math.inf
+    for _ in range(7):
+        start = time.perf_counter()
+        _workload(x)
+        best = min(best, time.perf_counter() - start)
+    return best
+
+
+def _speed(rows) -> float:
+    """This machine's calibration time over the table's (1 where the table has none)."""
+    table = [r["calibration_seconds"] for r in rows if math.isfinite(r["calibration_seconds"])]
+    if not table:
+        return 1.0
+    return calibration_seconds() / float(np.median(table))
 
 
 def _numeric_params(model) -> dict:
@@ -210,12 +275,62 @@ def _numeric_params(model) -> dict:
     }
 
 
-def _time_scale(model) -> float | None:
-    """The fastest time scale of a linear-Gaussian slip, 1 / max |eig(A)|."""
+def _same_params(model, measured: dict) -> bool:
+    """Whether `model` has exactly the parameters of a measured set (defaults filled in)."""
+    try:
+        other = _numeric_params(type(model)(**measured))
+    except Exception:
+        return False
+    mine = _numeric_params(model)
+    if set(mine) != set(other):
+        return False
+    for k, v in mine.items():
+        w = other[k]
+        if isinstance(v, float) and isinstance(w, float):
+            if not math.isclose(v, w, rel_tol=1e-12, abs_tol=0.0):
+                return False
+        elif v != w:
+            return False
+    return True
+
+
+def _rates(model) -> np.ndarray | None:
     lg = model.linear_gaussian()
     if lg is None:
         return None
-    return 1.0 / float(np.max(np.abs(np.linalg.eigvals(np.asarray(lg.A)))))
+    return np.abs(np.linalg.eigvals(np.asarray(lg.A, float)))
+
+
+def _slow_scale(model) -> float | None:
+    """The slow time scale of a linear-Gaussian slip, 1 / min |eig(A)|."""
+    rates = _rates(model)
+    if rates is None or not np.any(rates > 0):
+        return None
+    return 1.0 / float(np.min(rates[rates > 0]))
+
+
+def _fast_scale(model) -> float | None:
+    """The fastest time scale of a linear-Gaussian slip, 1 / max |eig(A)|."""
+    rates = _rates(model)
+    if rates is None or not np.any(rates > 0):
+        return None
+    return 1.0 / float(np.max(rates))
+
+
+def _paths_for(tolerance: float, A: float, B: float) -> int | None:
+    """Fewest paths (2 significant digits, rounded up) with (A + Z SPREAD)/sqrt(N) + B <=
+    tolerance; None if the bias alone reaches it."""
+    room = tolerance - B
+    if room <= 0:
+        return None
+    n = ((A + Z * SPREAD) / room) ** 2
+    n = max(n, 100.0)
+    scale = 10 ** max(0, math.floor(math.log10(n)) - 1)
+    return int(math.ceil(n / scale) * scale)
+
+
+def _mc_bound(A: float, B: float, n: int) -> float:
+    return (A + Z * SPREAD) / math.sqrt(n) + B
 
 
 # -- selection -------------------------------------------------------------------------------
@@ -229,92 +344,77 @@ def select_method(
     seed: int = 0,
 ) -> MethodChoice:
     """Choose the cheapest method whose L1 error on the `output` density (`"slip_time"` or
-    `"period"`) meets `tolerance` (see the module docs for how errors and costs are known).
+    `"period"`) is known to meet `tolerance` (see the module docs for how errors and costs
+    are known).
 
     `table`: a measured table to use instead of the packaged one. `t_max`, `seed`: of the
     small pilot run made for parameters that were not measured.
 
-    **Returns:** a `MethodChoice`; `str(choice)` says what was chosen and why.
+    **Returns:** a `MethodChoice`; `str(choice)` says what was chosen and why, and
+    `choice.promised` whether its error bound covers the whole error.
 
     **Raises:** `SelectionError` if no method meets the tolerance or none may be used."""
+    start = time.perf_counter()
     owner = "select_method"
     if not isinstance(model, FrictionModel):
         raise ParameterError(owner, "model", f"must be a FrictionModel instance, got {model!r}")
     tolerance = check_positive(owner, "tolerance", tolerance)
     if output not in OUTPUTS:
         raise ParameterError(owner, "output", f"must be one of {', '.join(OUTPUTS)}", output)
+    t_max = check_positive(owner, "t_max", t_max)
     _check_white_noise(model)
     rows = [r for r in load_table(table) if r["output"] == output]
-    params = _numeric_params(model)
+    speed = _speed(load_table(table))
     sets = {r["set"]: r["params"] for r in rows}
-    dist = {name: _distance(params, _as_model_params(model, p)) for name, p in sets.items()}
-    nearest = min(dist, key=dist.get) if dist else None
-    d = dist[nearest] if nearest is not None else math.inf
-    if d < 1e-12:
-        d = 0.0
-    mine = [r for r in rows if r["set"] == nearest] if math.isfinite(d) else []
-    candidates = []
-    has_lg = model.linear_gaussian() is not None
-    for r in mine:
-        if r["family"] != "analytic":
-            continue
-        key = r["method"]
-        m, o, n = ANALYTIC[key]
-        basis = "measured" if d == 0 else f"measured on '{nearest}'"
-        rejected = None
-        if not has_lg:
-            rejected = "needs a linear-Gaussian model"
-        elif d > NEAR:
-            rejected = f"no measured error within {math.exp(NEAR):g}x of these parameters"
-        candidates.append(
-            Candidate(
-                key,
-                "analytic",
-                dict(method=m, order=o, normalized=n),
-                r["l1"],
-                r["run_seconds"],
-                basis,
-                rejected,
-            )
-        )
-    if d == 0:
-        for r in mine:
-            if r["family"] == "mc":
-                candidates.append(_mc_row(r, "measured"))
-    extrapolate = d != 0 or not any(
-        c.kind == "simulation" and c.error <= tolerance for c in candidates
-    )
-    if extrapolate:
-        candidates += _mc_predicted(model, mine, rows, tolerance, d, t_max, seed, output)
+    measured = next((name for name, p in sets.items() if _same_params(model, p)), None)
+    pilot = None
+    if measured is not None:
+        candidates = _measured([r for r in rows if r["set"] == measured], tolerance, speed)
+    else:
+        pilot = _pilot(model, output, t_max, seed)
+        candidates = _unmeasured(model, rows, tolerance, speed, pilot, output)
     candidates.sort(key=lambda c: c.seconds)
-    chosen = None
-    vetted = []
-    for c in candidates:
-        if c.rejected is None and c.error <= tolerance and chosen is None:
-            veto = _veto(model, c, d)
-            if veto:
-                c = dataclasses.replace(c, rejected=veto)
-            else:
-                chosen = c
-        vetted.append(c)
+    meeting = [c for c in candidates if c.rejected is None and c.error <= tolerance]
+    chosen = meeting[0] if meeting else None
+    promised = True
     if chosen is None:
-        usable = [c for c in vetted if c.rejected is None]
+        unpromised = [c for c in candidates if c.rejected == _UNPROMISED]
+        if unpromised:
+            chosen, promised = unpromised[0], False
+    if chosen is None:
+        usable = [c for c in candidates if c.rejected is None]
         best = min(usable, key=lambda c: c.error, default=None)
-        text = f"; the smallest error available is {best.error:.3g} ({best.label})" if best else ""
+        text = (
+            f"; the smallest error bound available is {best.error:.3g} ({best.label})"
+            if best
+            else ""
+        )
         raise SelectionError(
             f"select_method: no method meets L1 <= {tolerance:g} for the "
             f"{output.replace('_', ' ')} density{text}"
         )
-    return MethodChoice(tolerance, output, chosen, tuple(vetted), nearest, d)
+    if not promised:
+        chosen = dataclasses.replace(chosen, rejected=None, basis=_UNPROMISED_WHY)
+    public_pilot = None
+    if pilot is not None:
+        public_pilot = {
+            k: pilot[k] for k in ("n_paths", "noise_constant", "seconds", "unfinished", "mean_time")
+        }
+    return MethodChoice(
+        tolerance, output, chosen, tuple(candidates), measured, promised,
+        time.perf_counter() - start, speed, public_pilot,
+    )  # fmt: skip
+
+
+_UNPROMISED = "unpromised"
+_UNPROMISED_WHY = (
+    "the model has no linear-Gaussian slip, so no exact stepping, and the step bias of "
+    "Euler-Maruyama is not measured for it"
+)
 
 
 def _seconds(s: float) -> str:
     return f"{s * 1e3:.3g} ms" if s < 1 else f"{s:.3g} s"
-
-
-def _mc_row(r, basis) -> Candidate:
-    settings = dict(solver=r["solver"], dt=r["dt"], n_paths=r["n_paths"])
-    return Candidate(f"mc_{r['solver']}", "simulation", settings, r["l1"], r["run_seconds"], basis)
 
 
 def _check_white_noise(model):
@@ -336,17 +436,62 @@ def _check_white_noise(model):
         )
 
 
-def _veto(model, c: Candidate, distance: float) -> str | None:
-    """The stability rules for one candidate (level-crossing approximations only). On a
-    measured set the measured L1 already counts a lost or excess mass: only a density or
-    escape rate that goes negative (not a density at all) vetoes there."""
-    if c.kind != "analytic":
-        return None
-    report = stability_report(model, methods=(c.key,))
-    failures = report.failures.get(c.key, ())
-    if distance == 0:
-        failures = [f for f in failures if "negative" in f]
-    return "stability: " + ", ".join(failures) if failures else None
+# -- a measured set --------------------------------------------------------------------------
+def _measured(mine, tolerance, speed) -> list[Candidate]:
+    out = []
+    for r in mine:
+        if r["family"] != "analytic":
+            continue
+        key = r["method"]
+        m, o, n = ANALYTIC[key]
+        floor = r["ref_floor"] if math.isfinite(r["ref_floor"]) else 0.0
+        rejected = None
+        if "negative" in r["note"]:
+            rejected = "stability: " + r["note"].split(";")[-1].strip()
+        out.append(
+            Candidate(
+                key, "analytic", dict(method=m, order=o, normalized=n),
+                r["l1"] + floor, r["run_seconds"] * speed,
+                f"measured L1 {r['l1']:.3g} + the reference's noise {floor:.2g}", rejected,
+            )
+        )  # fmt: skip
+    groups: dict = {}
+    for r in mine:
+        if r["family"] == "mc":
+            n = r["n_paths"]
+            sd = max(r["l1_sd"] if math.isfinite(r["l1_sd"]) else 0.0, SPREAD / math.sqrt(n))
+            settings = dict(solver=r["solver"], dt=r["dt"], n_paths=n)
+            out.append(
+                Candidate(
+                    f"mc_{r['solver']}", "simulation", settings, r["l1"] + Z * sd,
+                    r["run_seconds"] * speed,
+                    f"measured: mean L1 {r['l1']:.3g} over {_repeats(r)} + {Z:g} sd {sd:.2g}",
+                )
+            )  # fmt: skip
+            groups.setdefault((r["solver"], r["dt"]), []).append(r)
+    # More paths than measured: the fit of L1(N) with the same margin.
+    for (solver, dt), group in groups.items():
+        A, B = _fit(group)
+        n = _paths_for(tolerance, A, B)
+        largest = max(r["n_paths"] for r in group)
+        if n is None or n <= largest:
+            continue
+        per_step = float(np.median([r["run_seconds"] / r["path_steps"] for r in group]))
+        steps = float(np.median([r["path_steps"] / r["n_paths"] for r in group]))
+        out.append(
+            Candidate(
+                f"mc_{solver}", "simulation", dict(solver=solver, dt=dt, n_paths=n),
+                _mc_bound(A, B, n), per_step * steps * n * speed,
+                f"predicted from the measured rows: noise {A:.3g}/sqrt(N), bias {B:.2g}, "
+                f"+ {Z:g} sd",
+            )
+        )  # fmt: skip
+    return out
+
+
+def _repeats(r) -> str:
+    k = r.get("repeats")
+    return f"{k} seeds" if k not in (None, "", "1") else "one seed"
 
 
 def _fit(group) -> tuple[float, float]:
@@ -361,94 +506,166 @@ def _fit(group) -> tuple[float, float]:
     return math.sqrt(a2), math.sqrt(b2)
 
 
-def _mc_predicted(model, mine, rows, tolerance, d, t_max, seed, output):
-    """Monte Carlo candidates with predicted error and run time (see the module docs)."""
-    source = mine or [r for r in rows if r["set"] == "public"]
-    if not source:
-        return []
-    groups = {}
-    for r in source:
-        if r["family"] == "mc":
-            groups.setdefault((r["solver"], r["dt"]), []).append(r)
-    has_lg = model.linear_gaussian() is not None
-    set_params = source[0]["params"]
-    scale, pilot = 1.0, None
-    if d != 0:
-        ts_model = _time_scale(model)
-        try:
-            ts_set = _time_scale(type(model)(**set_params))
-        except Exception:
-            ts_set = None
-        if ts_model and ts_set:
-            scale = ts_model / ts_set
-        pilot = _pilot(model, output, t_max, seed)
+# -- off the measured sets -------------------------------------------------------------------
+def _pilot(model, output, t_max, seed) -> dict:
+    """A small Monte Carlo run of the model itself: the histogram's noise constant
+    (sqrt(2/pi) sum over the cells of sqrt(P (1 - P)): an N-path histogram's L1 noise is
+    about that over sqrt(N)), its cells and masses, the mean simulated time per path, the
+    fraction of slips still running at `t_max`, and the exact solver's miss bound."""
+    from ._simulate import simulate
+
+    slow = _slow_scale(model)
+    if slow is not None:
+        solver, dt = "exact", PILOT_STEP * slow
+    else:
+        solver, dt = "euler", EULER_STEP
+    start = time.perf_counter()
+    ens = simulate(model, PILOT_PATHS, dt, t_max, seed=seed + 7919, solver=solver, progress=False)
+    seconds = time.perf_counter() - start
+    x = np.asarray(getattr(ens, output), float)
+    finite = x[np.isfinite(x)]
+    top = float(np.quantile(finite, 0.999)) if finite.size else t_max
+    edges = np.linspace(0.0, max(top, 1e-12), BINS[output] + 1)
+    counts, _ = np.histogram(finite, bins=edges)
+    p = counts / PILOT_PATHS
+    slip = np.asarray(ens.slip_time, float)
+    return dict(
+        n_paths=PILOT_PATHS,
+        solver=solver,
+        dt=dt,
+        noise_constant=math.sqrt(2 / math.pi) * float(np.sum(np.sqrt(p * (1 - p)))),
+        mean_time=float(np.mean(np.where(np.isfinite(slip), slip, t_max))),
+        unfinished=float(np.mean(~np.isfinite(slip))),
+        miss=float(ens.stats.get("miss_bound", 0.0)),
+        edges=edges,
+        mass=p,
+        seconds=seconds,
+    )
+
+
+@functools.lru_cache(maxsize=64)
+def _set_scale(name: str, params: str) -> float | None:
+    """The slow time scale of a measured set (the benchmark measures the `langevin` model)."""
+    from ._registry import get_model
+
+    try:
+        return _slow_scale(get_model(name)(**json.loads(params)))
+    except Exception:
+        return None
+
+
+def _unmeasured(model, rows, tolerance, speed, pilot, output) -> list[Candidate]:
+    A = pilot["noise_constant"]
+    cut = pilot["unfinished"]
     out = []
-    for (solver, dt), group in groups.items():
-        if solver == "exact" and not has_lg:
-            continue
-        A, B = _fit(group)
-        if pilot is not None:
-            A *= pilot["noise_constant"] / group[0]["noise_constant"]
-        dt_new = dt * scale
-        per_step = float(np.median([r["run_seconds"] / r["path_steps"] for r in group]))
-        if pilot is None:
-            steps = float(np.median([r["path_steps"] / r["n_paths"] for r in group]))
-        else:
-            steps = pilot["mean_time"] / dt_new
-        basis = (
-            f"predicted: sampling noise {A:.3g}/sqrt(N), bias floor {B:.3g} "
-            f"(fit to '{source[0]['set']}')"
-        )
-        settings = dict(solver=solver, dt=float(f"{dt_new:.3g}"))
-        if B >= MARGIN * tolerance:
-            out.append(
-                Candidate(
-                    f"mc_{solver}",
-                    "simulation",
-                    dict(settings, n_paths=LADDER[-1]),
-                    B,
-                    per_step * steps * LADDER[-1],
-                    basis,
-                    f"bias floor {B:.3g} of this step is above the tolerance",
-                )
+    slow = _slow_scale(model)
+    if slow is not None:
+        # Exact stepping: the table's steps in units of each set's slow time scale; the
+        # measured cost per path-step at that step (median over the sets).
+        per_step: dict = {}
+        for r in rows:
+            if r["family"] != "mc" or r["solver"] != "exact" or not r["path_steps"]:
+                continue
+            s = _set_scale(r.get("model") or "langevin", json.dumps(r["params"], sort_keys=True))
+            if not s:
+                continue
+            u = float(f"{r['dt'] / s:.3g}")
+            per_step.setdefault(u, []).append(r["run_seconds"] / r["path_steps"])
+        B = cut + MISS_FACTOR * pilot["miss"]
+        for u, costs in sorted(per_step.items()):
+            dt = float(f"{u * slow:.3g}")
+            cost = float(np.median(costs)) * speed * pilot["mean_time"] / dt
+            n = _paths_for(tolerance, A, B)
+            basis = (
+                f"exact in law: sampling noise {A:.3g}/sqrt(N) from the pilot + {Z:g} sd, "
+                f"miss bound {MISS_FACTOR * pilot['miss']:.2g}"
+                + (f", slips cut at t_max {cut:.2g}" if cut else "")
             )
-            continue
-        for n in LADDER:
-            err = math.sqrt(A * A / n + B * B)
-            if err <= MARGIN * tolerance:
+            if n is None:
                 out.append(
                     Candidate(
-                        f"mc_{solver}",
-                        "simulation",
-                        dict(settings, n_paths=n),
-                        err,
-                        per_step * steps * n,
-                        basis,
+                        "mc_exact", "simulation", dict(solver="exact", dt=dt, n_paths=PILOT_PATHS),
+                        B, cost * PILOT_PATHS, basis,
+                        f"{cut:.2g} of the slips are longer than t_max: raise t_max",
                     )
+                )  # fmt: skip
+                continue
+            out.append(
+                Candidate(
+                    "mc_exact", "simulation", dict(solver="exact", dt=dt, n_paths=n),
+                    _mc_bound(A, B, n), cost * n, basis,
                 )
-                break
+            )  # fmt: skip
+        out += _checked_analytic(model, rows, tolerance, speed, pilot, output, out)
+        return out
+    # No linear-Gaussian slip: Euler-Maruyama at the table's smallest step (in units of the
+    # model's fastest time scale where it has one); only the sampling error is bounded.
+    fast = _fast_scale(model)
+    dt = EULER_STEP * (fast if fast else 1.0)
+    euler = [r for r in rows if r["family"] == "mc" and r["solver"] == "euler" and r["path_steps"]]
+    per = float(np.median([r["run_seconds"] / r["path_steps"] for r in euler])) if euler else 1e-7
+    n = _paths_for(tolerance, A, cut)
+    if n is None:
+        return []
+    out.append(
+        Candidate(
+            "mc_euler", "simulation", dict(solver="euler", dt=dt, n_paths=n),
+            _mc_bound(A, cut, n), per * speed * pilot["mean_time"] / dt * n,
+            "sampling error only", _UNPROMISED,
+        )
+    )  # fmt: skip
     return out
 
 
-def _pilot(model, output, t_max, seed) -> dict:
-    """A small Monte Carlo run: the noise constant of the density (sqrt(2/pi) sum over
-    the 150 (100) cells of sqrt(P (1 - P)), the L1 noise of an N-path histogram times
-    sqrt(N)) and the mean simulated time per path."""
-    from ._simulate import simulate
-
-    dt = 0.02 * (_time_scale(model) or 1.0)
-    ens = simulate(model, PILOT_PATHS, dt, t_max, seed=seed + 7919, progress=False)
-    x = np.asarray(getattr(ens, output))
-    x = x[np.isfinite(x)]
-    bins = 150 if output == "slip_time" else 100
-    top = float(np.quantile(x, 0.999)) if x.size else 1.0
-    counts, _ = np.histogram(x, bins=np.linspace(0.0, top, bins + 1))
-    p = counts / PILOT_PATHS
-    t = np.where(np.isfinite(ens.slip_time), ens.slip_time, t_max)
-    return dict(
-        noise_constant=math.sqrt(2 / math.pi) * float(np.sum(np.sqrt(p * (1 - p)))),
-        mean_time=float(np.mean(t)),
+def _checked_analytic(model, rows, tolerance, speed, pilot, output, mc) -> list[Candidate]:
+    """Level-crossing approximations off the measured sets, each checked against the pilot
+    where that can pay (see the module docs)."""
+    best = min(
+        (c.seconds for c in mc if c.rejected is None and c.error <= tolerance), default=math.inf
     )
+    noise = _mc_bound(pilot["noise_constant"], 0.0, pilot["n_paths"])
+    if noise >= tolerance:
+        return []  # the pilot cannot tell an error below the tolerance from its own noise
+    costs: dict = {}
+    for r in rows:
+        if r["family"] == "analytic":
+            costs.setdefault(r["method"], []).append(r["run_seconds"] * speed)
+    out = []
+    for key, seconds in sorted(costs.items(), key=lambda kv: float(np.median(kv[1]))):
+        cost = float(np.median(seconds))
+        m, o, n = ANALYTIC[key]
+        settings = dict(method=m, order=o, normalized=n)
+        if cost >= best or best <= CHECK_WORTH:
+            continue  # Monte Carlo is cheaper than the approximation, or than checking it
+        start = time.perf_counter()
+        values = _analytic_cells(model, settings, output, pilot["edges"])
+        cost = time.perf_counter() - start
+        width = np.diff(pilot["edges"])
+        l1 = float(np.sum(np.abs(values * width - pilot["mass"])))
+        bound = l1 + noise + pilot["unfinished"]
+        rejected = None
+        if np.min(values) < -NEGATIVE * np.max(np.abs(values)):
+            rejected = "stability: density negative"
+        out.append(
+            Candidate(
+                key, "analytic", settings, bound, cost,
+                f"checked: L1 {l1:.3g} to the pilot + its noise {noise:.2g}", rejected,
+            )
+        )  # fmt: skip
+        best = min(best, cost) if rejected is None and bound <= tolerance else best
+    return out
+
+
+def _analytic_cells(model, settings, output, edges) -> np.ndarray:
+    """One approximation as cell averages (as the accuracy-cost benchmark computes them)."""
+    from ._estimate import ApproximationWarning, CrossingEstimator
+    est = CrossingEstimator(model, progress=False)
+    args = (settings["method"], settings["order"], settings["normalized"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ApproximationWarning)
+        if output == "slip_time":
+            return est.first_passage_cells(edges, *args)
+        return np.asarray(est.period_density(0.5 * (edges[1:] + edges[:-1]), *args), float)
 
 
 # -- computing a density by the chosen method ------------------------------------------------
@@ -481,6 +698,8 @@ def first_passage_density(
     t_max = max(100.0, 1.5 * float(t[-1])) if t_max is None else t_max
     t_max = check_positive(owner, "t_max", t_max)
     choice = select_method(model, tolerance, output, table=table, t_max=t_max, seed=seed)
+    if not choice.promised:
+        warnings.warn(choice.reason.splitlines()[0], SelectionWarning, stacklevel=2)
     start = time.perf_counter()
     s = choice.settings
     se = None

@@ -31,6 +31,13 @@ def moments_at(cr, m0s, P0s, t):
 
 
 @eqx.filter_jit
+def step_moments(cr, ms, Ps, s):
+    """Moments (K, n, ...) carried on by the lag `s` (one propagator for all)."""
+    Phi, _, c, Sig = propagators(cr.A, cr.b, cr.B, s)
+    return jax.vmap(jax.vmap(lambda m, P: G.moments(m, P, Phi, c, Sig)))(ms, Ps)
+
+
+@eqx.filter_jit
 def n1_from(cr, ms, Ps):
     """n1 for moments of shape (K, n, ...): (K, n)."""
     return jax.vmap(jax.vmap(lambda m, P: G.n1(cr, m, P)))(ms, Ps)

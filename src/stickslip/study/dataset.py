@@ -24,10 +24,10 @@ import json
 import numpy as np
 import xarray as xr
 
+from .._estimate.estimator import cell_average
 from .measure import (
     EVENTS,
     THEORY_DENSITIES,
-    cell_average,
     cell_average_2d,
     l1,
     l1_floor,
@@ -92,7 +92,9 @@ def assemble(study: Study, points, edges, progress: bool = False) -> xr.Dataset:
                 q: dict(
                     settings=c.settings,
                     error=c.chosen.error,
+                    promised=c.promised,
                     seconds=c.chosen.seconds,
+                    selection_seconds=c.selection_seconds,
                     reason=c.reason,
                 )
                 for q, c in choices.items()

@@ -108,6 +108,8 @@ def _choose(point: Point, say):
         except SelectionError as err:
             raise StudyError(None, "tolerance", str(err).removeprefix("select_method: ")) from None
         say(f"method: auto ({q}): {choices[q].reason.splitlines()[0]}")
+        if not choices[q].promised:
+            point.warnings.append(f"method: auto ({q}): {choices[q].reason.splitlines()[0]}")
     mc = [c for c in choices.values() if c.kind == "simulation"]
     analytic = []
     for c in choices.values():
