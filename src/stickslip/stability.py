@@ -26,7 +26,7 @@ import numpy as np
 from scipy import linalg, optimize
 
 from ._errors import ParameterError, check_int, check_positive
-from ._model import FrictionModel
+from ._model import FrictionModel, _to_arrays
 
 # -- thresholds ------------------------------------------------------------------------------
 # A density below -NEGATIVE_TOL x its peak is a sign change of the approximation: rounding
@@ -44,13 +44,18 @@ MASS_TOL = 0.05
 MULTIPERIODIC_P_MISS = 0.05
 # z-value of the Monte Carlo sampling error added to MASS_TOL (the convention of the tests).
 Z_SAMPLING = 4.0
-# Time step of the estimator behind a report. The second order costs (t_max / dt) lag
-# quadratures; dt = 0.02 halves it against the default 0.01 and moves the masses by < 2e-3
-# (decoupling) and < 2 % of their size (truncations) on the public reference set.
+# Time step of the estimator behind a report: DIAGNOSTICS_DT, or a fifth of the model's
+# fastest time scale 1/max|eig(A)| where that is shorter (the onset transient of n1 lasts
+# about the noise's correlation time; the second-order integrals are on this grid, the
+# first-order masses are error-controlled whatever the grid). The second order costs
+# (t_max / dt)^2; dt = 0.02 halves it against the default 0.01 and moves the masses by
+# < 2e-3 (decoupling) and < 2 % of their size (truncations) on the public reference set.
 DIAGNOSTICS_DT = 0.02
-# Step of the Monte Carlo behind a report (exact stepping: dt sets only how often the stick
-# is looked for, located inside the step by cubic interpolation).
-MONTE_CARLO_DT = 0.01
+DIAGNOSTICS_PER_SCALE = 5.0
+# Step of the Monte Carlo behind a report, in units of the slow time scale 1/min|eig(A)|:
+# exact stepping is exact in law at any step (docs/simulator.md); 0.1 keeps the stick
+# times' grid fine for the window test at no cost in accuracy.
+MONTE_CARLO_STEP = 0.1
 # Where no envelope bound applies, the noise-free path is followed until its slowest mode has
 # decayed by e^-60 (a return after that would need a level within 1e-26 of the
 # equilibrium), on at most this many grid points.
@@ -87,6 +92,13 @@ NO_DENSITY = "no density without noise (the slip is deterministic)"
 
 
 # -- the noise-free slip ---------------------------------------------------------------------
+def _rates(model) -> np.ndarray:
+    """|eig(A)| of the slip's full linear-Gaussian drift (noise included), those > 0."""
+    A = np.asarray(_to_arrays(model).linear_gaussian().A, float)
+    rates = np.abs(np.linalg.eigvals(A))
+    return rates[rates > 0] if np.any(rates > 0) else np.ones(1)
+
+
 class _MeanPath:
     r"""The mean path $\dot\mu = A\mu + b$, $\mu(0) = m_0$, of a linear-Gaussian slip, and
     its crossing variable $y(t) = c^\top\mu(t) - L$ relative to the stick level $L$."""
@@ -388,9 +400,10 @@ def stability_report(
 ) -> StabilityReport:
     r"""Where each method fails at one parameter point of a linear-Gaussian model.
 
-    Runs `CrossingEstimator(model, dt=0.02).diagnostics()` on $[0, t_{max}]$ for each
-    analytic method in `methods` (dt = 0.02, not the default 0.01, keeps the second order
-    near a second; `DIAGNOSTICS_DT`) and records the reasons each fails:
+    Runs `CrossingEstimator(model, dt=dt).diagnostics()` on $[0, t_{max}]$ for each
+    analytic method in `methods` (dt = 0.02, `DIAGNOSTICS_DT`, which keeps the second order
+    near a second, or a fifth of the model's fastest time scale where that is shorter) and
+    records the reasons each fails:
 
     - `"negative density"`: the density dips below -1e-3 of its peak (`NEGATIVE_TOL`);
     - `"not normalised"` (methods not normalised by construction): its mass on
@@ -453,6 +466,7 @@ def stability_report(
             t_max = 3.0 / slowest if slowest > 0 else 3 * path.horizon
     t_max = check_positive(owner, "t_max", t_max)
     t_det = path.first_return()
+    rates = _rates(model)
     v_c = critical_speed(model) if "v_b" in model.params() else math.nan
     white = not model.crossing_is_smooth and path.noise > 0
     noiseless = _noise_free(model)
@@ -472,8 +486,9 @@ def stability_report(
         from ._simulate import simulate
 
         miss_at = t_det + math.pi / omega_d if (math.isfinite(t_det) and omega_d > 0) else None
-        horizon = max(t_max, miss_at or 0.0) + MONTE_CARLO_DT
-        ens = simulate(model, n_paths, MONTE_CARLO_DT, horizon, seed, solver="exact")
+        dt_mc = MONTE_CARLO_STEP / rates.min()
+        horizon = max(t_max, miss_at or 0.0) + dt_mc
+        ens = simulate(model, n_paths, dt_mc, horizon, seed, solver="exact")
         T = np.where(ens.stuck, ens.slip_time, np.inf)
         q = float(np.mean((T > 0) & (T <= t_max) & ~ens.immediate))
         window, window_se = q, math.sqrt(q * (1 - q) / n_paths)
@@ -486,7 +501,8 @@ def stability_report(
 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ApproximationWarning)
-            est = CrossingEstimator(model, dt=DIAGNOSTICS_DT)
+            dt = min(DIAGNOSTICS_DT, 1.0 / (DIAGNOSTICS_PER_SCALE * rates.max()))
+            est = CrossingEstimator(model, dt=dt)
             p0 = est.immediate_probability
             if white:
                 window = 1.0 - p0
