@@ -35,7 +35,13 @@ model = ss.get_model("langevin")(**params)
 out = []
 for tol in tols:
     for rep in ("first", "again"):
-        c = ss.select_method(model, tol)
+        start = time.perf_counter()
+        try:
+            c = ss.select_method(model, tol)
+        except ss.SelectionError as err:
+            out.append(dict(tol=tol, rep=rep, selection=time.perf_counter() - start,
+                            run=float("nan"), label="refused: " + str(err).split(": ", 1)[1]))
+            continue
         out.append(dict(tol=tol, rep=rep, selection=c.selection_seconds, run=c.chosen.seconds,
                         label=c.chosen.label, promised=c.promised))
 print(json.dumps(dict(imported=imported, rows=out)))

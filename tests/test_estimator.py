@@ -293,7 +293,7 @@ def test_normalisation(exact):
 
 @pytest.mark.parametrize("tau", [0.01, 0.003])
 def test_first_order_mass_follows_a_short_correlation_time(Langevin, tau):
-    """The onset transient is as short as tau: on the default grid (dt = 0.01) the
+    """The onset transient is as short as tau: on a grid of dt = 0.01 the
     trapezoid rule gave int_0^0.5 n1 = 1.22 for 1.82 at tau = 0.01 and the mass of F_g^(1)
     on [0.5, 10] 0.291 for 0.160. Now within 2e-3 of adaptive quadrature."""
     est = ss.CrossingEstimator(Langevin(**(PUBLIC | {"tau": tau})))
@@ -308,8 +308,9 @@ def test_first_order_mass_follows_a_short_correlation_time(Langevin, tau):
 
 def test_densities_that_cannot_be_right_say_so(Langevin):
     """A truncation carries more than the slipping paths; a grid that misses part of the
-    support; a second order whose grid does not resolve the onset (tau = 0.01)."""
-    est = ss.CrossingEstimator(Langevin(**(PUBLIC | {"tau": 0.01})))
+    support; a second order whose grid does not resolve the onset (tau = 0.01 on a grid of
+    0.01, coarser than the default there, 0.002)."""
+    est = ss.CrossingEstimator(Langevin(**(PUBLIC | {"tau": 0.01})), dt=0.01)
     d = np.arange(-3.0, 9.0, 0.05) + 0.025
     with pytest.warns(ss.ApproximationWarning, match=r"carries 9.\d+, more than the 1 "):
         est.slip_distance_density(d, "truncation", 1)

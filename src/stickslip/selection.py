@@ -384,6 +384,7 @@ def select_method(
     if chosen is None:
         usable = [c for c in candidates if c.rejected is None]
         best = min(usable, key=lambda c: c.error, default=None)
+        why = sorted({c.rejected for c in candidates if c.rejected and c.rejected != _UNPROMISED})
         text = (
             f"; the smallest error bound available is {best.error:.3g} ({best.label})"
             if best
@@ -391,7 +392,7 @@ def select_method(
         )
         raise SelectionError(
             f"select_method: no method meets L1 <= {tolerance:g} for the "
-            f"{output.replace('_', ' ')} density{text}"
+            f"{output.replace('_', ' ')} density{text}" + (f" ({'; '.join(why)})" if why else "")
         )
     if not promised:
         chosen = dataclasses.replace(chosen, rejected=None, basis=_UNPROMISED_WHY)
@@ -531,6 +532,7 @@ def _pilot(model, output, t_max, seed) -> dict:
     slip = np.asarray(ens.slip_time, float)
     return dict(
         n_paths=PILOT_PATHS,
+        t_max=t_max,
         solver=solver,
         dt=dt,
         noise_constant=math.sqrt(2 / math.pi) * float(np.sum(np.sqrt(p * (1 - p)))),
@@ -586,7 +588,8 @@ def _unmeasured(model, rows, tolerance, speed, pilot, output) -> list[Candidate]
                     Candidate(
                         "mc_exact", "simulation", dict(solver="exact", dt=dt, n_paths=PILOT_PATHS),
                         B, cost * PILOT_PATHS, basis,
-                        f"{cut:.2g} of the slips are longer than t_max: raise t_max",
+                        f"{cut:.2g} of the slips are longer than t_max = {pilot['t_max']:g}: "
+                        "raise t_max",
                     )
                 )  # fmt: skip
                 continue
@@ -659,6 +662,7 @@ def _checked_analytic(model, rows, tolerance, speed, pilot, output, mc) -> list[
 def _analytic_cells(model, settings, output, edges) -> np.ndarray:
     """One approximation as cell averages (as the accuracy-cost benchmark computes them)."""
     from ._estimate import ApproximationWarning, CrossingEstimator
+
     est = CrossingEstimator(model, progress=False)
     args = (settings["method"], settings["order"], settings["normalized"])
     with warnings.catch_warnings():

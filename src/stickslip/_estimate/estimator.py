@@ -22,6 +22,9 @@ class ApproximationWarning(UserWarning):
     escape rate, a truncation that never normalises): values are returned unclipped."""
 
 
+# Default grid step: DEFAULT_DT, or a fifth of the model's fastest time scale if shorter.
+DEFAULT_DT = 0.01
+DT_PER_SCALE = 5.0
 MASS_TOL = 1e-2  # a density's mass off by more than this from what it must carry warns
 
 
@@ -71,8 +74,9 @@ class CrossingEstimator:
       given).
     - `ensemble`: simulated upcrossings for the empirical estimator.
     - `closure_variance`: $\sigma_a^2$ of the white-noise closure.
-    - `dt`: step of the time grid on which the series are summed (default 0.01; 0.05 for the
-      empirical estimator, whose histograms need counts).
+    - `dt`: step of the time grid on which the series are summed (default 0.01, or a fifth
+      of the model's fastest time scale $1/\max|\mathrm{eig}(A)|$ where that is shorter;
+      0.05 for the empirical estimator, whose histograms need counts).
     - `horizon`: end of the time grid for the position-resolved densities (slip distance,
       period); default: where the first-order survival $e^{-\int n_1}$ falls below 1e-4.
     - `quadrature_nodes`: Gauss-Legendre nodes over a random onset.
@@ -147,8 +151,16 @@ class CrossingEstimator:
             self._source = EmpiricalSource(up)
             self.t_complete = self._source.t_complete
         else:
-            self.dt = check_positive(owner, "dt", 0.01 if dt is None else dt)
+            dt = check_positive(owner, "dt", dt, allow_none=True)
             self._source = self._gaussian(model, closure_variance, quadrature_nodes, x_points)
+            if dt is None:
+                # The grid follows the model: at most a fifth of its fastest time scale (the
+                # onset transient of n1 lasts about the noise's correlation time).
+                rate = float(np.max(np.abs(np.linalg.eigvals(np.asarray(self._source.cr.A)))))
+                # DEFAULT_DT / k, so that the grid still holds every multiple of DEFAULT_DT.
+                k = math.ceil(DEFAULT_DT * DT_PER_SCALE * rate - 1e-9) if rate > 0 else 1
+                dt = DEFAULT_DT / max(k, 1)
+            self.dt = dt
             self._source.progress = progress
             self.t_complete = math.inf
         self.immediate_probability = self._source.immediate_probability
