@@ -686,9 +686,9 @@ def first_passage_density(
     """The slip-time (first-passage) or period density at `t` by the cheapest method that
     meets `tolerance` (L1, see `select_method`).
 
-    `t` must be increasing and evenly spaced: a Monte Carlo result is a histogram on the
-    cells centred on `t`, a level-crossing one is the density at `t` (the period density is
-    the cell average, as `CrossingEstimator.period_density` gives it). `seed`: of the
+    `t` must be increasing and evenly spaced: the result is the density's average over the
+    cells centred on `t` (a histogram for a Monte Carlo choice, the exact cell averages of a
+    level-crossing one), as the promised L1 error measures it. `seed`: of the
     Monte Carlo run if one is chosen; `t_max`: its longest slip (default: 100 or 1.5 t[-1]).
 
     **Returns:** a `DensityResult` whose `choice` says which method was used and why."""
@@ -707,6 +707,8 @@ def first_passage_density(
     start = time.perf_counter()
     s = choice.settings
     se = None
+    h = step.mean()
+    edges = np.concatenate([t - h / 2, [t[-1] + h / 2]])
     if choice.kind == "analytic":
         from ._estimate import ApproximationWarning, CrossingEstimator
 
@@ -715,7 +717,12 @@ def first_passage_density(
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ApproximationWarning)
             if output == "slip_time":
-                density = est.first_passage(t, *args)
+                # Cell averages, as the histogram of a Monte Carlo choice (no mass below 0).
+                inside = np.maximum(edges, 0.0)
+                density = np.zeros(t.size)
+                ok = inside[1:] > inside[:-1]
+                cells = np.concatenate([inside[:-1][ok], inside[1:][ok][-1:]])
+                density[ok] = est.first_passage_cells(cells, *args) * np.diff(cells) / h
             else:
                 density = est.period_density(t, *args)
     else:
@@ -724,8 +731,6 @@ def first_passage_density(
         ens = simulate(
             model, s["n_paths"], s["dt"], t_max, seed=seed, solver=s["solver"], progress=False
         )
-        h = step.mean()
-        edges = np.concatenate([t - h / 2, [t[-1] + h / 2]])
         x = np.asarray(getattr(ens, output))
         counts, _ = np.histogram(x[np.isfinite(x)], bins=edges)
         p = counts / s["n_paths"]
