@@ -142,6 +142,7 @@ def run_analytic(model, key, q, edges):
     The run time is that of a fresh estimator (no cached grids) once the kernels are
     compiled; the compile time is the extra of the first call."""
     import stickslip as ss
+
     args = ANALYTIC[key]
     centres = 0.5 * (edges[1:] + edges[:-1])
 
