@@ -274,3 +274,17 @@ def _to_arrays(model: FrictionModel) -> FrictionModel:
         return x
 
     return jax.tree_util.tree_map(conv, model)
+
+
+def time_scales(model: FrictionModel) -> tuple[float, float] | None:
+    """`(fastest, slowest)` time scales of a linear-Gaussian slip, 1/max and 1/min of
+    |eig(A)| over the nonzero rates (noise included); None without a linear-Gaussian slip.
+    The grids of the estimator, the stability report and the method selection follow them."""
+    lg = model.linear_gaussian()
+    if lg is None:
+        return None
+    rates = np.abs(np.linalg.eigvals(np.asarray(lg.A, float)))
+    rates = rates[rates > 0]
+    if rates.size == 0:
+        return 1.0, 1.0
+    return 1.0 / float(rates.max()), 1.0 / float(rates.min())

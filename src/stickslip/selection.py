@@ -59,7 +59,7 @@ from importlib import resources
 import numpy as np
 
 from ._errors import ParameterError, StickSlipError, check_positive
-from ._model import FrictionModel
+from ._model import FrictionModel, time_scales
 from .stability import ANALYTIC_METHODS as ANALYTIC
 from .stability import stability_report
 
@@ -294,27 +294,14 @@ def _same_params(model, measured: dict) -> bool:
     return True
 
 
-def _rates(model) -> np.ndarray | None:
-    lg = model.linear_gaussian()
-    if lg is None:
-        return None
-    return np.abs(np.linalg.eigvals(np.asarray(lg.A, float)))
-
-
 def _slow_scale(model) -> float | None:
-    """The slow time scale of a linear-Gaussian slip, 1 / min |eig(A)|."""
-    rates = _rates(model)
-    if rates is None or not np.any(rates > 0):
-        return None
-    return 1.0 / float(np.min(rates[rates > 0]))
+    scales = time_scales(model)
+    return None if scales is None else scales[1]
 
 
 def _fast_scale(model) -> float | None:
-    """The fastest time scale of a linear-Gaussian slip, 1 / max |eig(A)|."""
-    rates = _rates(model)
-    if rates is None or not np.any(rates > 0):
-        return None
-    return 1.0 / float(np.max(rates))
+    scales = time_scales(model)
+    return None if scales is None else scales[0]
 
 
 def _paths_for(tolerance: float, A: float, B: float) -> int | None:

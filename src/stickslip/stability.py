@@ -26,7 +26,7 @@ import numpy as np
 from scipy import linalg, optimize
 
 from ._errors import ParameterError, check_int, check_positive
-from ._model import FrictionModel, _to_arrays
+from ._model import FrictionModel, time_scales
 
 # -- thresholds ------------------------------------------------------------------------------
 # A density below -NEGATIVE_TOL x its peak is a sign change of the approximation: rounding
@@ -92,13 +92,6 @@ NO_DENSITY = "no density without noise (the slip is deterministic)"
 
 
 # -- the noise-free slip ---------------------------------------------------------------------
-def _rates(model) -> np.ndarray:
-    """|eig(A)| of the slip's full linear-Gaussian drift (noise included), those > 0."""
-    A = np.asarray(_to_arrays(model).linear_gaussian().A, float)
-    rates = np.abs(np.linalg.eigvals(A))
-    return rates[rates > 0] if np.any(rates > 0) else np.ones(1)
-
-
 class _MeanPath:
     r"""The mean path $\dot\mu = A\mu + b$, $\mu(0) = m_0$, of a linear-Gaussian slip, and
     its crossing variable $y(t) = c^\top\mu(t) - L$ relative to the stick level $L$."""
@@ -466,7 +459,7 @@ def stability_report(
             t_max = 3.0 / slowest if slowest > 0 else 3 * path.horizon
     t_max = check_positive(owner, "t_max", t_max)
     t_det = path.first_return()
-    rates = _rates(model)
+    fast, slow = time_scales(model)
     v_c = critical_speed(model) if "v_b" in model.params() else math.nan
     white = not model.crossing_is_smooth and path.noise > 0
     noiseless = _noise_free(model)
@@ -486,7 +479,7 @@ def stability_report(
         from ._simulate import simulate
 
         miss_at = t_det + math.pi / omega_d if (math.isfinite(t_det) and omega_d > 0) else None
-        dt_mc = MONTE_CARLO_STEP / rates.min()
+        dt_mc = MONTE_CARLO_STEP * slow
         horizon = max(t_max, miss_at or 0.0) + dt_mc
         ens = simulate(model, n_paths, dt_mc, horizon, seed, solver="exact")
         T = np.where(ens.stuck, ens.slip_time, np.inf)
@@ -501,7 +494,7 @@ def stability_report(
 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ApproximationWarning)
-            dt = min(DIAGNOSTICS_DT, 1.0 / (DIAGNOSTICS_PER_SCALE * rates.max()))
+            dt = min(DIAGNOSTICS_DT, fast / DIAGNOSTICS_PER_SCALE)
             est = CrossingEstimator(model, dt=dt)
             p0 = est.immediate_probability
             if white:

@@ -9,7 +9,7 @@ import numpy as np
 
 from .._errors import ParameterError, check_choice, check_int, check_positive
 from .._jax import jnp
-from .._model import FrictionModel, _to_arrays
+from .._model import FrictionModel, _to_arrays, time_scales
 from . import gaussian as G
 from . import series
 from .sources import EmpiricalSource, GaussianSource
@@ -156,10 +156,9 @@ class CrossingEstimator:
             if dt is None:
                 # The grid follows the model: at most a fifth of its fastest time scale (the
                 # onset transient of n1 lasts about the noise's correlation time).
-                rate = float(np.max(np.abs(np.linalg.eigvals(np.asarray(self._source.cr.A)))))
                 # DEFAULT_DT / k, so that the grid still holds every multiple of DEFAULT_DT.
-                k = math.ceil(DEFAULT_DT * DT_PER_SCALE * rate - 1e-9) if rate > 0 else 1
-                dt = DEFAULT_DT / max(k, 1)
+                fast = time_scales(model)[0]
+                dt = DEFAULT_DT / max(1, math.ceil(DEFAULT_DT * DT_PER_SCALE / fast - 1e-9))
             self.dt = dt
             self._source.progress = progress
             self.t_complete = math.inf

@@ -231,8 +231,9 @@ class GaussianSource:
     def _cell_integrals(self, n1, h, ms, Ps):
         """The integral of n1 over every grid cell [t_k, t_k + h], per component, to a
         controlled error: Simpson's rule with the cell's midpoint (the grid's moments `ms`,
-        `Ps` carried on exactly by h/2), and where it differs from the trapezoid by more than
-        `CELL_RTOL` (relative) or `CELL_ATOL`, adaptive Simpson (`integrate_n1`). The onset
+        `Ps` carried on exactly by h/2), and where its error (estimated by Richardson over
+        pairs of cells) exceeds `CELL_RTOL` (relative) or `CELL_ATOL`, adaptive Simpson
+        (`integrate_n1`). The onset
         transient is as short as the noise's correlation time, which a grid step fixed in
         advance may not resolve (tau = 0.01: the trapezoid gave int_0^0.5 n1 = 1.22 for
         1.82). Returns the integrals (K, n - 1) and the number of sub-intervals still
