@@ -78,8 +78,8 @@ PILOT_STEP = 0.2
 # choice takes longer than this (seconds, here): the check itself (compiling the kernels on
 # a first call) costs about that much.
 CHECK_WORTH = 1.0
-# Euler-Maruyama step for a model without a linear-Gaussian slip (no exact stepping): the
-# table's smallest, in units of the model's fastest time scale where it has one.
+# Euler-Maruyama step for a model without a linear-Gaussian slip (no exact stepping, and no
+# time scale to measure it in): the table's smallest.
 EULER_STEP = 0.002
 # The exact solver's measured miss bound is a quadrature, not a strict bound: at most 3.1x
 # the exact count was seen (docs/simulator.md); it is counted 4x, and a moved path moves
@@ -294,16 +294,6 @@ def _same_params(model, measured: dict) -> bool:
     return True
 
 
-def _slow_scale(model) -> float | None:
-    scales = time_scales(model)
-    return None if scales is None else scales[1]
-
-
-def _fast_scale(model) -> float | None:
-    scales = time_scales(model)
-    return None if scales is None else scales[0]
-
-
 def _paths_for(tolerance: float, A: float, B: float) -> int | None:
     """Fewest paths (2 significant digits, rounded up) with (A + Z SPREAD)/sqrt(N) + B <=
     tolerance; None if the bias alone reaches it."""
@@ -502,9 +492,9 @@ def _pilot(model, output, t_max, seed) -> dict:
     fraction of slips still running at `t_max`, and the exact solver's miss bound."""
     from ._simulate import simulate
 
-    slow = _slow_scale(model)
-    if slow is not None:
-        solver, dt = "exact", PILOT_STEP * slow
+    scales = time_scales(model)
+    if scales is not None:
+        solver, dt = "exact", PILOT_STEP * scales[1]
     else:
         solver, dt = "euler", EULER_STEP
     start = time.perf_counter()
@@ -538,7 +528,7 @@ def _set_scale(name: str, params: str) -> float | None:
     from ._registry import get_model
 
     try:
-        return _slow_scale(get_model(name)(**json.loads(params)))
+        return time_scales(get_model(name)(**json.loads(params)))[1]
     except Exception:
         return None
 
@@ -547,8 +537,9 @@ def _unmeasured(model, rows, tolerance, speed, pilot, output) -> list[Candidate]
     A = pilot["noise_constant"]
     cut = pilot["unfinished"]
     out = []
-    slow = _slow_scale(model)
-    if slow is not None:
+    scales = time_scales(model)
+    if scales is not None:
+        slow = scales[1]
         # Exact stepping: the table's steps in units of each set's slow time scale; the
         # measured cost per path-step at that step (median over the sets).
         per_step: dict = {}
@@ -590,8 +581,7 @@ def _unmeasured(model, rows, tolerance, speed, pilot, output) -> list[Candidate]
         return out
     # No linear-Gaussian slip: Euler-Maruyama at the table's smallest step (in units of the
     # model's fastest time scale where it has one); only the sampling error is bounded.
-    fast = _fast_scale(model)
-    dt = EULER_STEP * (fast if fast else 1.0)
+    dt = EULER_STEP  # no linear-Gaussian slip: no time scale to scale it by
     euler = [r for r in rows if r["family"] == "mc" and r["solver"] == "euler" and r["path_steps"]]
     per = float(np.median([r["run_seconds"] / r["path_steps"] for r in euler])) if euler else 1e-7
     n = _paths_for(tolerance, A, cut)
