@@ -133,6 +133,7 @@ class _ChainStep(diffrax.AbstractSolver):
     dt: Any
     rec_lo: Any
     stride: Any
+    path0: Any  # the first path's index (a block of a distributed run starts past 0)
     n_paths: int = eqx.field(static=True)
     record_blocks: bool = eqx.field(static=True)
     record_releases: bool = eqx.field(static=True)
@@ -161,7 +162,8 @@ class _ChainStep(diffrax.AbstractSolver):
         stuck = y["stuck"] > 0.5
         slipping = ~stuck
         counter = k.astype(jnp.uint32)
-        ids = (jnp.arange(P)[:, None] * N + jnp.arange(N)[None, :]).ravel()
+        paths = self.path0 + jnp.arange(P, dtype=jnp.uint32)
+        ids = (paths[:, None] * N + jnp.arange(N, dtype=jnp.uint32)[None, :]).ravel()
         xi = _rng.normals(self.noise_key, ids, counter, 1)[0].reshape(P, N)
         limit = strength * m.friction.static_limit
         f0 = m.force(u, time0)
@@ -292,6 +294,7 @@ def simulate_chain(
     max_events: int | None = None,
     record_releases: bool = False,
     progress: bool | None = None,
+    client=None,
 ) -> ChainRun:
     """Simulate `n_paths` independent chains for `t_max` time units.
 
@@ -304,7 +307,9 @@ def simulate_chain(
       by `t_max`;
     - `record_releases`: also keep every block release (`ChainRun.releases`);
     - `progress`: a progress bar over the segments (default: on a terminal, for runs of
-      over 10^9 block-steps).
+      over 10^9 block-steps; with a `client`, over the chains done across the cluster);
+    - `client`: run the chains as tasks on a Dask cluster (as in `simulate`; identical
+      numbers).
 
     Every chain starts relaxed: each block stuck at rest with its loading spring slack
     (and its strength drawn, with a random threshold); the driver then loads them. Results
@@ -331,12 +336,39 @@ def simulate_chain(
     record_dt = t_max / 1000 if record_dt is None else check_positive(owner, "record_dt", record_dt)
     if max_events is not None:
         max_events = check_int(owner, "max_events", max_events, minimum=1)
-    N, P = model.n_blocks, n_paths
+    opts = dict(
+        n_steps=n_steps, record_dt=record_dt, record_blocks=record_blocks,
+        max_events=max_events, record_releases=record_releases,
+    )  # fmt: skip
+    if client is None:
+        if progress is None:
+            progress = sys.stderr.isatty() and n_steps * model.n_blocks * n_paths > 10**9
+        return _chain_block(model, dt, seed, opts, 0, n_paths, progress=progress)
+    from .. import _distributed
+
+    with _distributed.connected(owner, client) as client:
+        # chains are long: one task per path, or per equal block of paths past 4 per thread
+        count = min(n_paths, _distributed.threads(client) * _distributed.BLOCKS_PER_THREAD)
+        size = -(-n_paths // count)
+        blocks = [(a, min(a + size, n_paths)) for a in range(0, n_paths, size)]
+        parts = _distributed.run_blocks(
+            client, _chain_block, blocks, model, dt, seed, opts, progress=progress, label="chain"
+        )
+    return _join_chains(parts)
+
+
+def _chain_block(model, dt, seed, opts, start, stop, progress=False) -> ChainRun:
+    """`simulate_chain` for the paths `start` .. `stop` - 1 (a task of a distributed run)."""
+    n_steps, record_dt = opts["n_steps"], opts["record_dt"]
+    record_blocks, record_releases = opts["record_blocks"], opts["record_releases"]
+    max_events = opts["max_events"]
+    t_max = n_steps * dt
+    N, P = model.n_blocks, stop - start
     root = _rng.seed_key(seed)
     keys = {s: _rng.stream_key(root, s) for s in (_rng.STEP, _rng.ONSET, _rng.THRESHOLD)}
     strength = np.ones((P, N))
     if model.threshold is not None:
-        ids = np.arange(P)[:, None] * N + np.arange(N)[None, :]
+        ids = np.arange(start, stop)[:, None] * N + np.arange(N)[None, :]
         draw = _draw_strengths(model, keys[_rng.ONSET], ids.ravel())
         strength = np.asarray(draw).reshape(P, N)
     stride = max(1, int(round(record_dt / dt)))
@@ -355,12 +387,10 @@ def simulate_chain(
     rec_cap = -(-SEGMENT // stride) + 1
     solver_args = dict(
         model=_to_arrays(model), noise_key=keys[_rng.STEP], strength_key=keys[_rng.THRESHOLD],
-        dt=np.asarray(dt), stride=np.asarray(float(stride)), n_paths=P,
+        dt=np.asarray(dt), stride=np.asarray(float(stride)), path0=np.uint32(start), n_paths=P,
         record_blocks=record_blocks, record_releases=record_releases,
     )  # fmt: skip
     bar = None
-    if progress is None:
-        progress = sys.stderr.isatty() and n_steps * N * P > 10**9
     if progress:
         from tqdm.auto import tqdm
 
@@ -436,6 +466,26 @@ def simulate_chain(
 # The step resolves the chain's fastest rate when dt times it is at most this (Heun's method:
 # a relative error of about (dt rate)^2 / 12 per step of an oscillation).
 RATE_SCALE = 0.25
+
+
+def _join_chains(parts: list[ChainRun]) -> ChainRun:
+    """One `ChainRun` from the runs of consecutive blocks of paths."""
+    if len(parts) == 1:
+        return parts[0]
+    first = parts[0]
+    lists = ("start", "duration", "size", "slip", "quiet_times")
+    arrays = ("n_events", "mean_velocity", "slipping", "mean_force")
+    joined = {k: sum((getattr(p, k) for p in parts), []) for k in lists}
+    joined.update({k: np.concatenate([getattr(p, k) for p in parts]) for k in arrays})
+    joined["velocity"] = (
+        None if first.velocity is None else np.concatenate([p.velocity for p in parts])
+    )
+    joined["releases"] = None if first.releases is None else sum((p.releases for p in parts), [])
+    info = dict(first.info, tasks=len(parts))
+    if "n_releases" in info:
+        info["n_releases"] = np.concatenate([p.info["n_releases"] for p in parts])
+        info["releases_dropped"] = sum(p.info["releases_dropped"] for p in parts)
+    return dataclasses.replace(first, **joined, info=info)
 
 
 def fastest_rate(model) -> float:

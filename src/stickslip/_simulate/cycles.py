@@ -97,6 +97,7 @@ def simulate_cycles(
     monitor: str = "continuous",
     record: bool = True,
     max_cycles: int = 100_000,
+    client=None,
 ) -> CycleSeries:
     """Run a few paths through successive slip-stick cycles until time `t_max`.
 
@@ -104,6 +105,8 @@ def simulate_cycles(
     step) for plots of the motion and phase portraits; `max_cycles` bounds the cycles of a
     path (a model whose cycles have zero length, such as white friction noise under
     continuous monitoring, would otherwise never reach `t_max`: a warning says so).
+    `client`: run each path as a task on a Dask cluster (as in `simulate`; identical
+    numbers).
 
     **Returns:** a `CycleSeries`.
     """
@@ -120,9 +123,47 @@ def simulate_cycles(
             "simulate_cycles", "max_cycles", f"must be < {2**_CYCLE_BITS}", max_cycles
         )
     wall0 = time.perf_counter()
-    root = _rng.stream_key(_rng.seed_key(seed), _rng.SERIES)
-    run = _Run("simulate_cycles", model, solver, monitor, dt, t_max, root)
+    opts = dict(solver=solver, monitor=monitor, record=record, max_cycles=max_cycles)
+    if client is None:
+        parts = [_cycles_block(model, dt, t_max, seed, opts, 0, n_paths)]
+    else:
+        from .. import _distributed
 
+        with _distributed.connected("simulate_cycles", client) as client:
+            blocks = [(p, p + 1) for p in range(n_paths)]  # a few long paths: one task each
+            parts = _distributed.run_blocks(
+                client, _cycles_block, blocks, model, dt, t_max, seed, opts, label="path"
+            )
+    table = {
+        k: np.concatenate([p["cycles"][k] for p in parts], axis=-1) for k in parts[0]["cycles"]
+    }
+    traces = sum((p["traces"] for p in parts), ()) if record else None
+    late = [p["late"] for p in parts if p["late"] is not None]
+    if late:
+        count = sum(n for n, _ in late)
+        mean = sum(n * m for n, m in late) / count
+        warnings.warn(
+            f"simulate_cycles: {count} path(s) did not reach t_max = {t_max} in "
+            f"{max_cycles} cycles (mean period {mean:.3g}); "
+            "zero-length cycles, as with white friction noise, never advance time",
+            stacklevel=2,
+        )
+    info = dict(parts[0]["info"], n_paths=n_paths)
+    stats = {}
+    for p in parts:
+        for k, v in p["stats"].items():
+            stats[k] = stats.get(k, 0) + v
+    stats["wall_seconds"] = time.perf_counter() - wall0
+    return CycleSeries(table, traces, tuple(model.state_names), info, stats)
+
+
+def _cycles_block(model, dt, t_max, seed, opts, start, stop) -> dict:
+    """`simulate_cycles` for the paths `start` .. `stop` - 1 (a task of a distributed run)."""
+    root = _rng.stream_key(_rng.seed_key(seed), _rng.SERIES)
+    run = _Run("simulate_cycles", model, opts["solver"], opts["monitor"], dt, t_max, root)
+    max_cycles = opts["max_cycles"]
+    path_ids = np.arange(start, stop)
+    n_paths = path_ids.size
     rows: list[dict[str, np.ndarray]] = []
     elapsed = np.zeros(n_paths)
     active = np.ones(n_paths, dtype=bool)
@@ -131,7 +172,7 @@ def simulate_cycles(
         count = min(batch, max_cycles - first)
         ids = np.nonzero(active)[0]
         slots = (
-            ((ids[:, None].astype(np.uint64) << _CYCLE_BITS) + first + np.arange(count))
+            ((path_ids[ids, None].astype(np.uint64) << _CYCLE_BITS) + first + np.arange(count))
             .ravel()
             .astype(np.uint32)
         )
@@ -139,33 +180,29 @@ def simulate_cycles(
         next_onset = run.onsets(slots + np.uint32(1))
         out = run.cycle_outputs(X0, stick_state, t_stick, next_onset)
         out.update(
-            path=np.repeat(ids, count),
+            path=np.repeat(path_ids[ids], count),
             cycle=np.tile(np.arange(first, first + count), ids.size),
             onset=X0,
             stick=stick_state,
         )
         period = np.where(out["stuck"], out["period"], np.inf).reshape(ids.size, count)
-        start = elapsed[ids, None] + np.concatenate(
+        begin = elapsed[ids, None] + np.concatenate(
             [np.zeros((ids.size, 1)), np.cumsum(period, axis=1)[:, :-1]], axis=1
         )
-        out["release_time"] = start.ravel()
+        out["release_time"] = begin.ravel()
         keep = out["release_time"] < t_max
         rows.append({k: v[..., keep] for k, v in out.items()})
-        elapsed[ids] = start[:, -1] + period[:, -1]
+        elapsed[ids] = begin[:, -1] + period[:, -1]
         active[ids] = elapsed[ids] < t_max
         first += count
         batch *= 2
+    late = None
     if active.any():
-        warnings.warn(
-            f"simulate_cycles: {int(active.sum())} path(s) did not reach t_max = {t_max} in "
-            f"{max_cycles} cycles (mean period {np.mean(elapsed[active]) / max_cycles:.3g}); "
-            "zero-length cycles, as with white friction noise, never advance time",
-            stacklevel=2,
-        )
+        late = (int(active.sum()), float(np.mean(elapsed[active]) / max_cycles))
     table = {k: np.concatenate([r[k] for r in rows], axis=-1) for k in rows[0]}
     order = np.lexsort((table["cycle"], table["path"]))
     table = {k: v[..., order] for k, v in table.items()}
-    traces = _traces(run, table, n_paths) if record else None
+    traces = _traces(run, table, path_ids) if opts["record"] else ()
     cycles = {
         k: table[k]
         for k in (
@@ -174,15 +211,11 @@ def simulate_cycles(
         )
     }  # fmt: skip
     info = run.info(model, seed=seed, n_paths=n_paths)
-    stats = dict(
-        run.stats,
-        wall_seconds=time.perf_counter() - wall0,
-        compile_seconds=run.timer.compile_seconds,
-    )
-    return CycleSeries(cycles, traces, tuple(model.state_names), info, stats)
+    stats = dict(run.stats, compile_seconds=run.timer.compile_seconds)
+    return dict(cycles=cycles, traces=traces, late=late, info=info, stats=stats)
 
 
-def _traces(run, table, n_paths):
+def _traces(run, table, path_ids):
     """Re-run every kept slip with the same noise, saving each step, and join the cycles."""
     dt = run.dt
     slots = ((table["path"].astype(np.uint64) << _CYCLE_BITS) + table["cycle"]).astype(np.uint32)
@@ -213,7 +246,7 @@ def _traces(run, table, n_paths):
             k = min(k, n_rec)
             samples.append(np.concatenate([X0[:, col : col + 1], ys[:k, :, col].T], axis=1))
     traces = []
-    for p in range(n_paths):
+    for p in path_ids:
         rows = np.nonzero(table["path"] == p)[0]
         ts, xs, flags = [], [], []
         for row in rows:

@@ -218,6 +218,7 @@ def simulate(
     progress: bool | None = None,
     record_upcrossings: int = 0,
     crossing_tol: float = DEFAULT_CROSSING_TOL,
+    client=None,
 ) -> Ensemble:
     r"""Simulate one slip-stick cycle for each of `n_paths` paths.
 
@@ -257,6 +258,10 @@ def simulate(
       a crossing inside it is at most this is certified crossing-free. The summed bounds of
       the certified steps, a bound on the chance that a path's stick was missed, are
       reported as `Ensemble.stats["miss_bound"]` (mean over paths).
+    - `client`: run blocks of paths as tasks on a Dask cluster: a `dask.distributed.Client`,
+      a scheduler address, or `"local"` (a local cluster, one worker process per core). The
+      numbers are identical to a local run with the same seed (docs/distributed.md); the
+      blocks hold about four per worker thread, at most `chunk_size` paths each.
 
     **Returns:** an `Ensemble`.
     """
@@ -268,45 +273,91 @@ def simulate(
     if crossing_tol >= 1.0:
         raise ParameterError("simulate", "crossing_tol", "must be < 1", crossing_tol)
     wall0 = time.perf_counter()
-    bar = None
     if progress is None:
         progress = n_paths >= 20000 and sys.stderr.isatty()
-    if progress:
-        from tqdm.auto import tqdm
+    opts = dict(
+        solver=solver, monitor=monitor, chunk_size=chunk_size, crossing_tol=crossing_tol,
+        record_upcrossings=record_upcrossings,
+    )  # fmt: skip
+    if client is None:
+        bar = None
+        if progress:
+            from tqdm.auto import tqdm
 
-        bar = tqdm(total=n_paths, desc="simulate", unit="path", leave=False)
-    try:
-        run = _Run(
-            "simulate", model, solver, monitor, dt, t_max, _rng.seed_key(seed), bar, crossing_tol
-        )
-        paths = np.arange(n_paths, dtype=np.uint32)
-        X0, stick_state, t_stick, located = run.first_passages(paths, chunk_size)
-    finally:
-        if bar is not None:
-            bar.close()
+            bar = tqdm(total=n_paths, desc="simulate", unit="path", leave=False)
+        try:
+            parts = [_simulate_block(model, dt, t_max, seed, opts, 0, n_paths, bar=bar)]
+        finally:
+            if bar is not None:
+                bar.close()
+    else:
+        from .. import _distributed
+
+        with _distributed.connected("simulate", client) as client:
+            blocks = _distributed.blocks(n_paths, client, chunk_size)
+            parts = _distributed.run_blocks(
+                client, _simulate_block, blocks, model, dt, t_max, seed, opts, progress=progress
+            )
+    return _join_blocks(parts, model, wall0, tasks=len(parts) if client is not None else 0)
+
+
+def _simulate_block(model, dt, t_max, seed, opts, start, stop, bar=None) -> dict:
+    """`simulate` for the paths `start` .. `stop` - 1 (a task of a distributed run)."""
+    run = _Run(
+        "simulate", model, opts["solver"], opts["monitor"], dt, t_max, _rng.seed_key(seed), bar,
+        opts["crossing_tol"],
+    )  # fmt: skip
+    paths = np.arange(start, stop, dtype=np.uint32)
+    X0, stick_state, t_stick, located = run.first_passages(paths, opts["chunk_size"])
     next_onset = run.onsets(paths, counter=1)
     out = run.cycle_outputs(X0, stick_state, t_stick, next_onset)
     upcrossings = None
-    if record_upcrossings:
-        upcrossings = run.upcrossings(paths, X0, out["immediate"], record_upcrossings, chunk_size)
-    info = run.info(model, seed=seed, chunk_size=chunk_size)
+    if opts["record_upcrossings"]:
+        upcrossings = run.upcrossings(
+            paths, X0, out["immediate"], opts["record_upcrossings"], opts["chunk_size"]
+        )
     stats = dict(
         run.stats,
-        miss_bound=float(np.mean(run.miss)) if run.miss is not None else 0.0,
-        wall_seconds=time.perf_counter() - wall0,
+        miss_sum=float(np.sum(run.miss)) if run.miss is not None else 0.0,
         compile_seconds=run.timer.compile_seconds,
         unlocated=int(np.sum(~located & out["stuck"])),
     )
+    info = run.info(model, seed=seed, chunk_size=opts["chunk_size"])
+    return dict(
+        out=out, onset_state=X0.T, stick_state=stick_state.T, next_onset_state=next_onset.T,
+        upcrossings=upcrossings, info=info, stats=stats,
+    )  # fmt: skip
+
+
+def _join_blocks(parts, model, wall0, tasks) -> Ensemble:
+    """One `Ensemble` from the results of consecutive blocks of paths."""
+    join = lambda arrays: np.concatenate(arrays, axis=0)
+    out = {k: join([p["out"][k] for p in parts]) for k in parts[0]["out"]}
+    states = {
+        k: join([p[k] for p in parts]) for k in ("onset_state", "stick_state", "next_onset_state")
+    }
+    upcrossings = parts[0]["upcrossings"]
+    if upcrossings is not None and len(parts) > 1:
+        from .upcrossings import Upcrossings
+
+        ups = [p["upcrossings"] for p in parts]
+        upcrossings = Upcrossings(
+            **{k: join([getattr(u, k) for u in ups]) for k in Upcrossings.PER_PATH},
+            t_max=upcrossings.t_max, dt=upcrossings.dt,
+        )  # fmt: skip
+    stats = {}
+    for p in parts:
+        for k, v in p["stats"].items():
+            stats[k] = stats.get(k, 0) + v
+    n_paths = out["slip_time"].size
+    stats["miss_bound"] = stats.pop("miss_sum") / n_paths
+    stats["wall_seconds"] = time.perf_counter() - wall0
+    if tasks:
+        stats["tasks"] = tasks  # compile_seconds: summed over the tasks
     return Ensemble(
-        **out,
-        onset_state=X0.T,
-        stick_state=stick_state.T,
-        next_onset_state=next_onset.T,
-        upcrossings=upcrossings,
-        state_names=tuple(model.state_names),
-        info=info,
-        stats=stats,
-    )
+        **out, **states, upcrossings=upcrossings, state_names=tuple(model.state_names),
+        info=parts[0]["info"], stats=stats,
+    )  # fmt: skip
 
 
 class _Run:

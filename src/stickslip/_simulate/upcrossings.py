@@ -5,6 +5,7 @@ they have `max_crossings` upcrossings."""
 from __future__ import annotations
 
 import dataclasses
+from typing import ClassVar
 
 import diffrax
 import equinox as eqx
@@ -39,6 +40,10 @@ class Upcrossings:
     onset_position: np.ndarray
     t_max: float
     dt: float
+
+    PER_PATH: ClassVar[tuple[str, ...]] = (
+        "times", "positions", "count", "immediate", "onset_position",
+    )  # fmt: skip
 
     @property
     def n_paths(self) -> int:

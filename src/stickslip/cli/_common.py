@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import sys
 
@@ -69,3 +70,36 @@ def output_options(func):
 def report_written(out: str, quiet: bool):
     if not quiet:
         click.echo(f"results in {out}/ (summary.md, results.nc, figures)")
+
+
+def dask_option(func):
+    return click.option(
+        "--dask",
+        "dask",
+        metavar="ADDRESS|local",
+        default=None,
+        help="Run on a Dask cluster: a scheduler address (tcp://host:8786) or 'local' (one "
+        "worker process per core); sweep points run as tasks, a single point's paths as "
+        'blocks. Needs pip install "stickslip[dask]".',
+    )(func)
+
+
+@contextlib.contextmanager
+def dask_client(address: str | None):
+    """The client of `--dask` (None without it) for the length of a command; a scheduler
+    that cannot be reached, or no dask installed, is bad input (one line, exit 2)."""
+    if address is None:
+        yield None
+        return
+    from .. import _distributed
+    from .._errors import ParameterError
+    from ..study import StudyError
+
+    try:
+        client, owned = _distributed.connect("--dask", address)
+    except ParameterError as err:
+        raise StudyError("--dask", None, err.reason) from None
+    try:
+        yield client
+    finally:
+        _distributed.close(client, owned)

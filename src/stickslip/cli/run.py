@@ -4,7 +4,14 @@ from __future__ import annotations
 
 import click
 
-from ._common import handle_errors, output_options, report_written, set_option
+from ._common import (
+    dask_client,
+    dask_option,
+    handle_errors,
+    output_options,
+    report_written,
+    set_option,
+)
 
 
 @click.command()
@@ -12,17 +19,22 @@ from ._common import handle_errors, output_options, report_written, set_option
 @output_options
 @set_option
 @click.option("--no-figures", is_flag=True, help="Write the data and summary only.")
+@dask_option
 @handle_errors
-def run(study, out, overrides, force, no_figures, quiet):
+def run(study, out, overrides, force, no_figures, quiet, dask):
     """Run the study in STUDY (a YAML file) and write the results to --out."""
-    from ..study import run_study
+    from ..study import load_study, run_study
 
-    run_study(
-        study,
-        out,
-        overrides=list(overrides),
-        force=force,
-        figures=not no_figures,
-        progress=False if quiet else None,
-    )
+    if dask is not None:
+        load_study(study, list(overrides))  # a bad study is reported before any cluster starts
+    with dask_client(dask) as client:
+        run_study(
+            study,
+            out,
+            client=client,
+            overrides=list(overrides),
+            force=force,
+            figures=not no_figures,
+            progress=False if quiet else None,
+        )
     report_written(out, quiet)

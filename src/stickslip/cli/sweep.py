@@ -4,7 +4,14 @@ from __future__ import annotations
 
 import click
 
-from ._common import handle_errors, output_options, report_written, set_option
+from ._common import (
+    dask_client,
+    dask_option,
+    handle_errors,
+    output_options,
+    report_written,
+    set_option,
+)
 
 
 @click.command()
@@ -26,12 +33,13 @@ from ._common import handle_errors, output_options, report_written, set_option
 )
 @output_options
 @set_option
+@dask_option
 @handle_errors
-def sweep(study, params, zipped, out, overrides, force, quiet):
+def sweep(study, params, zipped, out, overrides, force, quiet, dask):
     """Run STUDY at each value of the --param settings (this replaces any sweep block)."""
     import yaml
 
-    from ..study import StudyError, run_study
+    from ..study import StudyError, load_study, run_study
     from ..study.load import parse_value
 
     values = {}
@@ -50,11 +58,16 @@ def sweep(study, params, zipped, out, overrides, force, quiet):
     block = {"parameters": values, "mode": "zip" if zipped else "product"}
     from ..study.load import _sweep_override
 
-    run_study(
-        study,
-        out,
-        overrides=[*overrides, _sweep_override(block)],
-        force=force,
-        progress=False if quiet else None,
-    )
+    overrides = [*overrides, _sweep_override(block)]
+    if dask is not None:
+        load_study(study, overrides)  # a bad study is reported before any cluster starts
+    with dask_client(dask) as client:
+        run_study(
+            study,
+            out,
+            client=client,
+            overrides=overrides,
+            force=force,
+            progress=False if quiet else None,
+        )
     report_written(out, quiet)

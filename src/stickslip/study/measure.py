@@ -35,6 +35,7 @@ class Point:
     choices: dict = dataclasses.field(default_factory=dict)
     timings: dict[str, float] = dataclasses.field(default_factory=dict)
     warnings: list[str] = dataclasses.field(default_factory=list)
+    done: bool = False  # computed (here or on a Dask worker)
 
 
 def estimator_source(study: Study, analytic) -> str:

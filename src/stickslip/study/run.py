@@ -42,6 +42,7 @@ def run_study(
     force: bool = False,
     progress: bool | None = None,
     figures: bool = True,
+    client=None,
 ):
     """Run a study and return its results as an `xarray.Dataset`.
 
@@ -56,6 +57,9 @@ def run_study(
     - `overrides`: `["key=value", ...]` applied to the study first (dotted keys, YAML values).
     - `progress`: progress messages and bars on stderr (default: when stderr is a terminal).
     - `figures`: write the figures (with `out`).
+    - `client`: a Dask cluster to run on (a `dask.distributed.Client`, a scheduler address or
+      `"local"`): the points of a sweep run as tasks, a single point's simulations as blocks
+      of paths. The Dataset is the one a local run writes (docs/distributed.md).
 
     **Raises:** `StudyError` for an invalid study or output directory (before any work).
     """
@@ -67,14 +71,21 @@ def run_study(
         progress = sys.stderr.isatty()
     say = _Progress(progress)
     points = [Point(s, values) for values, s in study.points()]
-    if study.method == "auto":
-        _choose(points[0], say)
-        study = points[0].study
-    for i, point in enumerate(points):
-        label = ", ".join(f"{k}={v!r}" for k, v in point.values.items())
-        if label:
-            say(f"[{i + 1}/{len(points)}] {label}")
-        _compute(point, progress, say)
+    from .. import _distributed
+
+    with _distributed.connected("run_study", client) as client:
+        if study.method == "auto":
+            _choose(points[0], say)
+            study = points[0].study
+        if client is not None and len(points) > 1:
+            points = _compute_on(client, points, progress, say)
+        for i, point in enumerate(points):
+            if point.done:
+                continue
+            label = ", ".join(f"{k}={v!r}" for k, v in point.values.items())
+            if label:
+                say(f"[{i + 1}/{len(points)}] {label}")
+            _compute(point, progress, say, client)
     t0 = time.perf_counter()
     grids = _grids(study, points)
     from .dataset import assemble
@@ -163,13 +174,38 @@ def _check_out(out: pathlib.Path, force: bool) -> pathlib.Path:
 
 
 # -- simulation and estimators -----------------------------------------------------------
-def _compute(point: Point, progress: bool, say):
+def _compute_on(client, points: list[Point], progress: bool, say) -> list[Point]:
+    """The points of a sweep, each computed as a task on the cluster, in order."""
+    from distributed import as_completed
+
+    from .._distributed import RETRIES
+
+    futures = [client.submit(_compute_task, p, pure=False, retries=RETRIES) for p in points]
+    index = {f.key: i for i, f in enumerate(futures)}
+    say(f"{len(points)} points on the Dask cluster at {client.scheduler.address}")
+    for n, done in enumerate(as_completed(futures), start=1):
+        point = points[index[done.key]]
+        label = ", ".join(f"{k}={v!r}" for k, v in point.values.items())
+        say(f"[{n}/{len(points)}] done: {label}")
+        if done.status == "error":
+            break  # gather raises the task's own error
+    return client.gather(futures)
+
+
+def _compute_task(point: Point) -> Point:
+    """One point of a sweep, computed on a worker (quietly)."""
+    _compute(point, False, lambda text: None)
+    return point
+
+
+def _compute(point: Point, progress: bool, say, client=None):
     from .._model import ChainModel
 
+    point.done = True
     s = point.study
     model = s.model.instance
     if isinstance(model, ChainModel):
-        _compute_chain(point, say)
+        _compute_chain(point, say, client)
         return
     import stickslip as ss
 
@@ -191,6 +227,7 @@ def _compute(point: Point, progress: bool, say):
             chunk_size=sim.chunk_size,
             progress=progress,
             record_upcrossings=record,
+            client=client,
         )
         point.ensemble = ens
         point.timings["simulation"] = ens.stats["wall_seconds"]
@@ -206,6 +243,7 @@ def _compute(point: Point, progress: bool, say):
             sim.seed,
             solver=sim.solver,
             monitor=sim.monitor,
+            client=client,
         )
         point.timings["cycles"] = time.perf_counter() - t0
     opts = s.estimator
@@ -222,7 +260,7 @@ def _compute(point: Point, progress: bool, say):
         )
 
 
-def _compute_chain(point: Point, say):
+def _compute_chain(point: Point, say, client=None):
     import stickslip as ss
 
     sim = point.study.simulation
@@ -234,6 +272,7 @@ def _compute_chain(point: Point, say):
         dt=sim.dt,
         n_paths=sim.n_paths,
         seed=sim.seed,
+        client=client,
     )
     point.timings["simulation"] = time.perf_counter() - t0
 
