@@ -168,3 +168,25 @@ def test_missing_dask_is_one_line(model, monkeypatch):
     monkeypatch.setitem(sys.modules, "distributed", None)
     with pytest.raises(ss.ParameterError, match=r'pip install "stickslip\[dask\]"'):
         ss.simulate(model, 100, 0.1, 5.0, client="local")
+
+
+@pytest.mark.slow
+def test_command_line_sweep_on_a_local_cluster(tmp_path):
+    """`stickslip sweep ... --dask local` starts a cluster, runs the points there and writes
+    the Dataset of the local sweep."""
+    import xarray as xr
+    import yaml
+
+    study = tmp_path / "s.yaml"
+    study.write_text(yaml.safe_dump({k: v for k, v in SWEEP.items() if k != "sweep"}))
+    args = [sys.executable, "-m", "stickslip.cli", "sweep", str(study), "-p",
+            "model.params.D=0.2,0.6", "-q"]  # fmt: skip
+    for out, extra in (("local", []), ("dask", ["--dask", "local"])):
+        proc = subprocess.run(
+            [*args, "--out", str(tmp_path / out), *extra], capture_output=True, text=True
+        )
+        assert proc.returncode == 0, proc.stderr
+    with xr.open_dataset(tmp_path / "local" / "results.nc") as a:
+        with xr.open_dataset(tmp_path / "dask" / "results.nc") as b:
+            timings = {k for k in a.data_vars if k.startswith("seconds_")}
+            assert a.drop_vars(timings).equals(b.drop_vars(timings))
