@@ -54,6 +54,8 @@ _LAZY = {
     "SelectionWarning": ".selection",
     "clear_caches": "._compile",
     "cache_info": "._compile",
+    "extract_cycles": ".extract",
+    "Cycles": ".extract",
 }
 
 __all__ = [

@@ -10,6 +10,7 @@ import sys
 
 import click
 
+from .cycles import cycles
 from .models import models
 from .run import run
 from .schema import schema
@@ -44,5 +45,5 @@ def main():
     """Statistics of frictional stick-slip motion."""
 
 
-for _command in (run, validate, sweep, models, schema):
+for _command in (run, validate, sweep, models, schema, cycles):
     main.add_command(_command)
