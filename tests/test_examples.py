@@ -142,3 +142,17 @@ def test_accuracy_cost_quick_mode(tmp_path):
     )
     assert run.returncode == 0, run.stderr
     assert (tmp_path / "accuracy_cost.csv").exists() and (tmp_path / "accuracy_cost.png").exists()
+
+
+def test_fit_trace_example(tmp_path):
+    """Reduced: 2 traces of 300 time units, 1e4 simulated cycles per point: the pipeline
+    trace -> cycles -> fit -> figure runs and writes every file."""
+    run = subprocess.run(
+        [sys.executable, str(ROOT / "examples" / "fit_trace.py"), "--out", str(tmp_path),
+         "--paths", "2", "--t-max", "300", "--n-sim", "10000"],
+        capture_output=True, text=True,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    for name in ("trace.csv", "cycles.csv", "fit_study.yaml", "fit/fit.json", "fit/fit.png"):
+        assert (tmp_path / name).stat().st_size > 0, name
+    assert "95 % interval" in run.stdout and "truth tau = 0.1" in run.stdout

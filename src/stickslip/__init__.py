@@ -52,6 +52,8 @@ _LAZY = {
     "MethodChoice": ".selection",
     "SelectionError": ".selection",
     "SelectionWarning": ".selection",
+    "fit": "._fit",
+    "FitResult": "._fit",
     "clear_caches": "._compile",
     "cache_info": "._compile",
     "extract_cycles": ".extract",

@@ -11,6 +11,7 @@ import sys
 import click
 
 from .cycles import cycles
+from .fit import fit
 from .models import models
 from .run import run
 from .schema import schema
@@ -45,5 +46,5 @@ def main():
     """Statistics of frictional stick-slip motion."""
 
 
-for _command in (run, validate, sweep, models, schema, cycles):
+for _command in (run, validate, sweep, models, schema, cycles, fit):
     main.add_command(_command)

@@ -280,6 +280,51 @@ class Sweep(Base):
         return [dict(zip(paths, c, strict=True)) for c in combos]
 
 
+class Fit(Base):
+    """Estimate model parameters from measured per-cycle data (`stickslip fit STUDY.yaml`):
+    the parameters in `free` are estimated, the model's other parameters are held at their
+    values in `model.params` (those of the free ones there are not used)."""
+
+    data: str = Field(
+        description="CSV file of per-cycle values (a header naming slip_time, slip_distance, "
+        "stick_time and/or period, e.g. written by `stickslip cycles`); a relative path is "
+        "taken from the study file's folder."
+    )
+    columns: list[Literal["slip_time", "slip_distance", "stick_time", "period"]] | None = Field(
+        None, description="The columns to fit (default: every known column in the file)."
+    )
+    free: dict[str, Annotated[list[float], Field(min_length=2, max_length=2)]] = Field(
+        min_length=1,
+        description="Parameter -> [low, high]: the parameters to estimate and the box searched "
+        "(log scale where low > 0).",
+    )
+    trace: bool = Field(
+        False,
+        description="The data are the cycles of a measured trace (from `stickslip cycles`): "
+        "simulated cycles are joined as a trace shows them (zero-length sticks and slips).",
+    )
+    sampling: PositiveFloat | None = Field(
+        None, description="With trace: the trace's sampling interval (required there)."
+    )
+    n_sim: int = Field(100_000, ge=1000, description="Simulated cycles per evaluated point.")
+    seed: int = Field(0, ge=0, description="Seed of the simulations (common to every point).")
+    dt: PositiveFloat | None = Field(
+        None, description="Simulation step (default: a fifth of the model's slowest time scale)."
+    )
+    t_max: PositiveFloat | None = Field(
+        None, description="Longest simulated slip (default: 3 x the longest in the data)."
+    )
+
+    @model_validator(mode="after")
+    def _boxes(self):
+        for name, (low, high) in self.free.items():
+            if not low < high:
+                raise fail(
+                    f"free.{name}", f"must be [low, high] with low < high (got {[low, high]})"
+                )
+        return self
+
+
 class Study(Base):
     """A stick-slip study: a model, how to simulate it, which theory to compare, what to
     write. Run it with `stickslip run STUDY.yaml --out DIR` or `stickslip.run_study`."""
@@ -311,6 +356,11 @@ class Study(Base):
     )
     grid: Grid = Field(default_factory=Grid, description="Grids of the densities.")
     sweep: Sweep | None = Field(None, description="Parameters to sweep (optional).")
+    fit: Fit | None = Field(
+        None,
+        description="Estimate parameters from measured cycles (run with `stickslip fit`; "
+        "`stickslip run` does not use it).",
+    )
 
     # -- cross-field checks ------------------------------------------------------------
     @model_validator(mode="after")
@@ -340,6 +390,17 @@ class Study(Base):
             if self.simulation is None:
                 raise fail("simulation", f"is required for {self.model.name} (a chain)")
         self._check_auto(chain)
+        if self.fit is not None:
+            if chain:
+                raise fail("fit", f"needs a single-block model; {self.model.name} is a chain")
+            names = list(type(model).parameters())
+            for name in self.fit.free:
+                if name not in names:
+                    raise fail(
+                        f"fit.free.{name}",
+                        f"is not a parameter of {self.model.name} (parameters: "
+                        f"{', '.join(names)})" + suggest(name, names),
+                    )
         lg = None if chain else model.linear_gaussian()
         keys = [a.key for a in self.analytic]
         for i, key in enumerate(keys):
