@@ -155,8 +155,8 @@ def fit(
     - `model`: a model name (`"langevin"`) or class with a linear-Gaussian slip or not
       (any model `simulate` runs; exact stepping where it applies).
     - `data`: a dict of per-cycle arrays, any of `slip_time`, `slip_distance`, `stick_time`,
-      `period` (e.g. the table of `extract_cycles`); rows with `nan` are dropped per
-      quantity.
+      `period`, one row per cycle (e.g. `extract_cycles`' table or its `Cycles`); rows
+      with a `nan` in any column are dropped.
     - `free`: `{name: (low, high)}`: the parameters to estimate and the box searched; a
       parameter with `low > 0` is searched on a log scale.
     - `fixed`: the model's other parameters.
@@ -226,7 +226,11 @@ def fit(
         return {k: _from_fit(scales[k], float(x)) for k, x in zip(names, u, strict=True)}
 
     # Build the model once at the box's centre: its errors are the user's (one line).
-    centre = Model(**fixed, **params(0.5 * (lo + hi)))
+    try:
+        centre = Model(**fixed, **params(0.5 * (lo + hi)))
+    except TypeError as err:  # a parameter neither fixed nor free, or an unknown one
+        raise ParameterError(owner, "fixed", f"with free does not make a {Model.__name__}: "
+                             f"{str(err).splitlines()[0]}") from None  # fmt: skip
     if dt is None:
         dt = 0.2 * _slow_scale(centre)
     if t_max is None:
