@@ -63,6 +63,7 @@ def test_ensemble_on_two_worker_processes_is_the_local_one(client, model):
     assert remote.stats["miss_bound"] == pytest.approx(local.stats["miss_bound"], rel=1e-12)
 
 
+@pytest.mark.slow
 def test_upcrossings_cycles_and_chains_on_the_cluster(client, model):
     """Recorded upcrossings, successive cycles (with their time series) and chains of blocks
     (random thresholds: a block of paths draws its own paths' strengths) split over tasks
@@ -112,6 +113,7 @@ def test_sweep_on_the_cluster_writes_the_local_dataset(client, tmp_path):
             assert dict(a.sizes) == dict(b.sizes) and 3 in a.sizes.values()
 
 
+@pytest.mark.slow
 def test_a_worker_killed_mid_ensemble_changes_no_number(model):
     """SIGKILL one worker process while it runs a block: the scheduler re-runs the block
     elsewhere (its nanny restarts the worker) and the ensemble is still the local one."""

@@ -144,6 +144,7 @@ def test_accuracy_cost_quick_mode(tmp_path):
     assert (tmp_path / "accuracy_cost.csv").exists() and (tmp_path / "accuracy_cost.png").exists()
 
 
+@pytest.mark.slow
 def test_fit_trace_example(tmp_path):
     """Reduced: 2 traces of 300 time units, 1e4 simulated cycles per point: the pipeline
     trace -> cycles -> fit -> figure runs and writes every file."""
