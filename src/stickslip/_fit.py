@@ -256,7 +256,10 @@ def fit(
         value = -np.inf if terms is None else float(sum(np.sum(v) for v in terms.values()))
         points.append((np.array([params(u)[k] for k in names]), value))
         if progress:
-            print(f"fit: {params(u)} log-likelihood {value:.2f}", flush=True)
+            import sys
+
+            shown = ", ".join(f"{k}={v:.4g}" for k, v in params(u).items())
+            print(f"fit: {shown}: log-likelihood {value:.2f}", file=sys.stderr, flush=True)
         return value, terms
 
     # 1. a coarse grid over the box, 2. Nelder-Mead from its best point
