@@ -112,33 +112,43 @@ def blocks(n_paths: int, client, max_block: int | None = None) -> list[tuple[int
     return [(a, min(a + size, n_paths)) for a in range(0, n_paths, size)]
 
 
-def run_blocks(client, fn, parts: list[tuple[int, int]], *args, progress=None, label="paths"):
-    """`fn(*args, start, stop)` for every block, as tasks; the results in block order. With
-    `progress`, a bar over the paths done across the cluster."""
+def run_tasks(client, fn, calls: list[tuple], on_done=None) -> list:
+    """`fn(*call)` for every call, as tasks (retried `RETRIES` times when they raise; a task
+    on a lost worker is re-run by the scheduler); the results in call order, or the first
+    failed task's own error. `on_done(i)` is called as call `i` completes (progress)."""
     import uuid
 
-    distributed = _import_distributed("run_blocks")
+    distributed = _import_distributed("client")
     run = uuid.uuid4().hex[:12]
     name = fn.__name__.strip("_")
     futures = [
-        client.submit(fn, *args, a, b, retries=RETRIES, key=f"stickslip-{name}-{run}-{a}-{b}")
-        for a, b in parts
+        client.submit(fn, *call, retries=RETRIES, key=f"stickslip-{name}-{run}-{i}")
+        for i, call in enumerate(calls)
     ]
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=parts[-1][1], desc=name, unit=label, leave=False)
+    index = {f.key: i for i, f in enumerate(futures)}
     try:
-        size = {f.key: b - a for f, (a, b) in zip(futures, parts, strict=True)}
         for done in distributed.as_completed(futures):
-            if bar is not None:
-                bar.update(size[done.key])
+            if on_done is not None:
+                on_done(index[done.key])
             if done.status == "error":
                 break  # gather raises the task's own error
         return client.gather(futures)
     finally:
-        if bar is not None:
-            bar.close()
         for f in futures:
             f.release()
+
+
+def run_blocks(client, fn, parts: list[tuple[int, int]], *args, progress=None, label="paths"):
+    """`fn(*args, start, stop)` for every block (`run_tasks`); with `progress`, a bar over
+    the paths done across the cluster."""
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=parts[-1][1], desc=fn.__name__.strip("_"), unit=label, leave=False)
+    try:
+        done = None if bar is None else (lambda i: bar.update(parts[i][1] - parts[i][0]))
+        return run_tasks(client, fn, [(*args, a, b) for a, b in parts], done)
+    finally:
+        if bar is not None:
+            bar.close()

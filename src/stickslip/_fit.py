@@ -1,29 +1,32 @@
-"""`fit`: friction-noise parameters from measured per-cycle statistics.
+r"""`fit`: friction-noise parameters from measured per-cycle statistics.
 
 The estimator is a *simulated likelihood with common random numbers*:
 
-- at a parameter value $\\theta$ the model is simulated (`simulate`, exact in law for
+- at a parameter value $\theta$ the model is simulated (`simulate`, exact in law for
   linear-Gaussian slips at any step) for `n_sim` cycles with one fixed seed, so that the
-  likelihood surface is a smooth function of $\\theta$ rather than a new draw at every
+  likelihood surface is a smooth function of $\theta$ rather than a new draw at every
   point;
 - each observed quantity's density is a Gaussian kernel estimate of the simulated values
   (slip times, periods and positive stick times on a log scale, where the slip-time
   density's spike near zero and its long tail are both resolved by one bandwidth; slip
   distances on their own scale), with one bandwidth per quantity fixed from the data
-  (Silverman's rule at `n_sim` points), the same at every $\\theta$;
+  (Silverman's rule at `n_sim` points), the same at every $\theta$;
 - the data are the cycles a trace shows: slips of positive length that ended, so the
   simulated law is conditioned on the same (zero-length slips and slips cut at `t_max`
   are left out of the simulated sample);
-- several quantities of one cycle are dependent: their log-likelihoods are summed (a
-  composite likelihood) and the intervals then use the sandwich covariance
-  $H^{-1} J H^{-1}$ (per-cycle scores), which for one quantity is the usual inverse
-  observed information;
+- the data are smoothed by the same kernel as the model: a datum contributes
+  $\int K_h(y - y_i) \log (\hat f_\theta * K_h)(y)\,dy$, whose expectation is largest
+  at the true $\theta$ whatever the bandwidth (the kernel estimate at the raw data is
+  biased by the smoothing); several quantities of one cycle add up (a composite
+  likelihood);
 - the maximum is found by a coarse grid over the `free` box and Nelder-Mead from its
-  best point, in log coordinates for positive parameters; the observed information is the
-  Hessian of a quadratic fitted by least squares to the log-likelihood on a design of
-  points around the maximum (steps of 0.1 in those coordinates: wider than the
-  surface's residual Monte Carlo roughness); 95 % intervals are Wald intervals in those
-  coordinates (so asymmetric in the parameter), widened by $\\sqrt{1 + n/n_{sim}}$ for the
+  best point, in log coordinates for positive parameters; then a quadratic plus a cubic
+  term per axis is fitted by least squares on a design of steps 0.1 in those coordinates
+  around it (wide against the surface's Monte Carlo roughness; the cubic terms keep its
+  skew out of the vertex): the vertex is the estimate, its Hessian the information;
+- 95 % intervals are Wald intervals in those coordinates (so asymmetric in the
+  parameter) with the sandwich covariance $H^{-1} J H^{-1}$ (per-cycle scores: the
+  smoothed likelihood is not a likelihood), widened by $\sqrt{1 + n/n_{sim}}$ for the
   simulation's own noise.
 
 What it assumes: independent cycles (the paper's sharp reset: every slip starts from the

@@ -18,11 +18,11 @@ import numpy as np
 
 from .load import StudyError, load_study
 
-KINDS = ("slip_time", "slip_distance", "stick_time", "period")
-
 
 def read_cycles_csv(path: pathlib.Path, columns=None, source: str | None = None) -> dict:
     """Per-cycle columns of a CSV file with a header; bad files are one `StudyError`."""
+    from .._fit import KINDS
+
     name = source or str(path)
     try:
         text = path.read_text(encoding="utf-8")

@@ -176,20 +176,17 @@ def _check_out(out: pathlib.Path, force: bool) -> pathlib.Path:
 # -- simulation and estimators -----------------------------------------------------------
 def _compute_on(client, points: list[Point], progress: bool, say) -> list[Point]:
     """The points of a sweep, each computed as a task on the cluster, in order."""
-    from distributed import as_completed
+    from .._distributed import run_tasks
 
-    from .._distributed import RETRIES
-
-    futures = [client.submit(_compute_task, p, pure=False, retries=RETRIES) for p in points]
-    index = {f.key: i for i, f in enumerate(futures)}
     say(f"{len(points)} points on the Dask cluster at {client.scheduler.address}")
-    for n, done in enumerate(as_completed(futures), start=1):
-        point = points[index[done.key]]
-        label = ", ".join(f"{k}={v!r}" for k, v in point.values.items())
-        say(f"[{n}/{len(points)}] done: {label}")
-        if done.status == "error":
-            break  # gather raises the task's own error
-    return client.gather(futures)
+    finished = []
+
+    def done(i):
+        finished.append(i)
+        label = ", ".join(f"{k}={v!r}" for k, v in points[i].values.items())
+        say(f"[{len(finished)}/{len(points)}] done: {label}")
+
+    return run_tasks(client, _compute_task, [(p,) for p in points], done)
 
 
 def _compute_task(point: Point) -> Point:
