@@ -318,7 +318,7 @@ def _simulate_block(model, dt, t_max, seed, opts, start, stop, bar=None) -> dict
         )
     stats = dict(
         run.stats,
-        miss_sum=float(np.sum(run.miss)) if run.miss is not None else 0.0,
+        miss_sum=run.miss_sum(),
         compile_seconds=run.timer.compile_seconds,
         unlocated=int(np.sum(~located & out["stuck"])),
     )
@@ -424,7 +424,8 @@ class _Run:
         self.stats = {"path_steps": 0, "buffers": 0}
         if detect == "bridge":
             self.stats.update(candidates=0, refined_nodes=0, unresolved=0)
-        self.miss = None  # per-path miss bounds of the last `first_passages`
+        self.miss = None  # per-path miss bounds of the stepping of the last `first_passages`
+        self.refined_miss = 0.0  # the summed miss bounds of every exact refinement
         self._refiner = None  # the exact refinement (compiled), made on first use
 
     def info(self, model, **extra):
@@ -449,9 +450,16 @@ class _Run:
     def first_passages(self, paths, chunk_size):
         """Onset state, stick state, stick time (`nan` if none by the last step) and whether
         the stick was located, for the paths with counters `paths`, chunk by chunk."""
+        self.refined_miss = 0.0
         parts = [self._chunk(paths[i : i + chunk_size]) for i in range(0, paths.size, chunk_size)]
         self.miss = np.concatenate([p[4] for p in parts])
         return tuple(np.concatenate([p[i] for p in parts], axis=-1) for i in range(4))
+
+    def miss_sum(self) -> float:
+        """Summed bounds on a missed crossing over the paths of the last `first_passages`:
+        of the steps the stepping loop certified, and of the refined sub-intervals."""
+        stepped = float(np.sum(self.miss)) if self.miss is not None else 0.0
+        return stepped + self.refined_miss
 
     def cycle_outputs(self, X0, stick_state, t_stick, next_onset):
         """The per-path outputs of an `Ensemble` from the raw first-passage results."""
@@ -570,7 +578,7 @@ class _Run:
             real = slot >= 0
             if refine:
                 cand = np.nonzero(real & (ks >= 0))[0]
-                found, frac, state = self._refine(cand, X_prev, X, ks, p, miss)
+                found, frac, state = self._refine(cand, X_prev, X, ks, p)
                 hit, back = cand[found], cand[~found]
                 rows = slot[hit]
                 t_stick[rows] = (ks[hit] + frac[found]) * self.dt
@@ -600,10 +608,10 @@ class _Run:
         t_stick[imm] = 0.0
         return X0[:, :count], stick_state, t_stick, located, miss_end[:count]
 
-    def _refine(self, cand, X_prev, X, ks, p, miss):
+    def _refine(self, cand, X_prev, X, ks, p):
         """Refine the candidate steps `cand` of the buffer exactly (bridge detector): adds
-        their certified bounds to `miss` and returns, for each, whether it crossed, where
-        (fraction of its step) and the state there."""
+        their certified bounds to `refined_miss` and returns, for each, whether it crossed,
+        where (fraction of its step) and the state there."""
         n = cand.size
         if n == 0:
             return np.zeros(0, dtype=bool), np.zeros(0), np.zeros((X.shape[0], 0))
@@ -616,7 +624,7 @@ class _Run:
         found, frac, state, add, unresolved, splits = self._refiner.first_crossing(
             X_prev[:, cand], X[:, cand], p[cand], ks[cand].astype(np.uint32)
         )
-        miss[cand] += add
+        self.refined_miss += add
         self.stats["unresolved"] += int(np.sum(unresolved))
         self.stats["refined_nodes"] += int(splits)
         return found, frac, state
