@@ -12,7 +12,17 @@ FILES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 BLOCK = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
 
 
-@pytest.mark.parametrize("path", FILES, ids=[p.name for p in FILES])
+# Pages whose blocks start a Dask cluster (worker processes that each compile the simulator
+# on a cold cache: 16 s of the default tier) run in the slow tier; tests/test_distributed.py
+# runs a cluster in the default one.
+SLOW = {"distributed.md"}
+
+
+@pytest.mark.parametrize(
+    "path",
+    [pytest.param(p, marks=pytest.mark.slow) if p.name in SLOW else p for p in FILES],
+    ids=[p.name for p in FILES],
+)
 def test_code_blocks_run(path):
     blocks = BLOCK.findall(path.read_text())
     namespace: dict = {}

@@ -219,7 +219,8 @@ REDUCED = {
         "sweep.parameters={model.params.v_b: [0.5, 1.25, 2.0]}",
     ],
     "fig7": ["simulation.n_paths=1000", "simulation.cycles.t_max=100"],
-    "random_threshold": ["simulation.n_paths=2000"],
+    # The period and slip-distance mixtures (14 s here) are tested in test_random_threshold.py.
+    "random_threshold": ["simulation.n_paths=2000", "outputs=[slip_time, stick_time]"],
     "public_auto": ["tolerance=0.1"],  # method: auto sizes the run itself
     "ou_exact_theory": ["simulation.n_paths=1000", "simulation.t_max=10"],
     # Free runs recording upcrossings: the cost is paths x t_max / dt.
@@ -235,7 +236,7 @@ def test_example_study(path, tmp_path):
     ds = ss.run_study(path, out, overrides=overrides, progress=False)
     files = {p.name for p in out.iterdir()}
     assert {"results.nc", "summary.md", "study.yaml"} <= files
-    study = ss.load_study(path)
+    study = ss.load_study(path, overrides=overrides)
     assert study.description, "each example states its choices (x0, noise)"
     for q in study.resolved_outputs():  # one figure per output
         assert f"{q}.png" in files, (q, files)
