@@ -51,8 +51,9 @@ QUADRATURE = 8  # Gauss-Legendre nodes of the Rice integral on one (sub-)interva
 MAX_DEPTH = 20  # levels of the tables (the depths used are runtime values below it)
 # Location: the stick lies in a sub-interval of the finest located level, at most this many
 # times the fastest time scale 1/rho(A) long; inside it, time and state are interpolated
-# linearly. The bridge's spread about that line there is ~(0.1)^1.5 of the slip's own
-# scale, so the time error is below 1e-3/rho (measured effect: none at 2e5 paths).
+# linearly. Measured against locating 16 times finer (same draws, public set, 1e5 paths, dt
+# 0.2 and 0.8): slip-time error rms 3.7e-4 = 0.004/rho, mean 5e-6, largest 5.4e-3; slip
+# distance rms 3.7e-4. (Each level deeper costs about one split per path.)
 LOCATE_SCALE = 0.1
 # Certification: an interval that ends below the level but keeps a bound above the tolerance
 # is split further, down to sub-intervals this many times 1/rho(A) (where the bridge
