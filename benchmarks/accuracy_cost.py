@@ -277,7 +277,7 @@ def measure(name, params, cfg, say):
                 _, first_run, first_comp, _ = run_mc(model, solver, dt, n, 10**6 + seed, edges)
                 for _ in range(cfg["repeats"]):
                     seed += 1
-                    dens, run, comp, n_steps = run_mc(model, solver, dt, n, seed, edges)
+                    dens, run, _, n_steps = run_mc(model, solver, dt, n, seed, edges)
                     runs.append(run), steps.append(n_steps)
                     for q in edges:
                         errs[q].append(l1(dens[q], refd[q], edges[q]))

@@ -326,5 +326,5 @@ def test_compiled_refinement_is_the_depth_first_one(Langevin, dt, monkeypatch):
             ref_miss += ref[3]
             checked += 1
         # The summed miss bound of the pass (all its candidates) bounds that of the sample.
-        assert miss >= ref_miss * (1 - 1e-9) and (ref_miss == 0 or miss > 0)
+        assert miss >= ref_miss * (1 - 1e-9)
     assert checked > 150 and sum(np.sum(o[0]) for _, o in got) > 100
