@@ -328,3 +328,43 @@ def test_compiled_refinement_is_the_depth_first_one(Langevin, dt, monkeypatch):
         # The summed miss bound of the pass (all its candidates) bounds that of the sample.
         assert miss >= ref_miss * (1 - 1e-9)
     assert checked > 150 and sum(np.sum(o[0]) for _, o in got) > 100
+
+
+def test_refinement_in_two_threads_is_the_one_thread_one(Langevin, monkeypatch):
+    """Candidates enough for two threads (the first step of 5000 paths: every slip's onset):
+    the same refinements as in one thread, candidate by candidate, whatever the threads'
+    order (the one-thread refinement is checked against the depth-first reference above)."""
+    from stickslip._simulate import driver
+
+    model = Langevin(**PUBLIC)
+    run = driver._Run("test", driver._to_arrays(model), "auto", "continuous", 0.8, 30.0,
+                      ss._rng.seed_key(7))  # fmt: skip
+    got = []
+    original = bridge.Refiner.first_crossing
+
+    def spy(self, Xa, Xb, path, step):
+        got.append((Xa.copy(), Xb.copy(), path.copy(), step.copy()))
+        return original(self, Xa, Xb, path, step)
+
+    monkeypatch.setattr(bridge.Refiner, "first_crossing", spy)
+    run.first_passages(np.arange(5000, dtype=np.uint32), 5000)
+    cands = got[0]
+    assert cands[0].shape[1] >= 2 * bridge.CAPACITIES[1]
+    refiner, part = run._refiner, bridge.Refiner._refine_part
+    calls = []
+    for threads in (2, 1):
+        monkeypatch.setattr(bridge, "_threads", lambda threads=threads: threads)
+        parts = []
+
+        def spy_part(self, *a, parts=parts):
+            parts.append(a[4:6])  # the candidates lo:hi of the part
+            return part(self, *a)
+
+        monkeypatch.setattr(bridge.Refiner, "_refine_part", spy_part)
+        calls.append((original(refiner, *cands), parts))
+    (two, parts2), (one, parts1) = calls
+    assert len(parts2) == 2 and len(parts1) == 1
+    for a, b in zip(two[:3] + two[4:], one[:3] + one[4:], strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert two[3] == pytest.approx(one[3], rel=1e-12)
+    assert np.sum(one[0]) > 100

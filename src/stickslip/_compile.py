@@ -272,7 +272,8 @@ def _package_hash(top: str) -> str:
 @functools.cache
 def _environment(sources: bool = True) -> str:
     """Versions of the libraries and the device (and of stickslip's own sources)."""
-    parts = []
+    # XLA's options change the code it emits (`_jax`'s vector width, or the user's own).
+    parts = [f"XLA_FLAGS={os.environ.get('XLA_FLAGS', '')}"]
     for dist in ("jax", "jaxlib", "diffrax", "equinox"):
         try:
             parts.append(f"{dist}={importlib.metadata.version(dist)}")

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import functools
 import math
+import threading
 
 import equinox as eqx
 import numpy as np
@@ -472,6 +473,23 @@ def _shrink_at(C: int) -> int:
     return int(smaller[-1] / HEADROOM) if smaller else 0
 
 
+@functools.cache
+def _threads() -> int:
+    """Threads for the refinement: 2 on a CPU with 2 cores or more (measured there), 1 on
+    one core or on an accelerator (one call keeps it busy)."""
+    import os
+
+    cpu = jax.default_backend() == "cpu"
+    return 2 if cpu and (os.cpu_count() or 1) >= 2 else 1
+
+
+@functools.cache
+def _pool():
+    from concurrent.futures import ThreadPoolExecutor
+
+    return ThreadPoolExecutor(2, thread_name_prefix="stickslip-refine")
+
+
 class Refiner:
     """The exact refinement of one run (its tables, level, tolerance, depths and key):
     `first_crossing` on the host, `_refine_levels` compiled once per buffer capacity (traced
@@ -489,6 +507,7 @@ class Refiner:
         )  # fmt: skip
         self.timer = timer
         self.sizes: dict = {}
+        self._lock = threading.Lock()
 
     def _call(self, j, a, b, owner, pos, path, step, count):
         C = a.shape[-1]
@@ -499,10 +518,14 @@ class Refiner:
             np.asarray(count, np.int32),
         )  # fmt: skip
         if C not in self.sizes:
-            compiled, flat, _ = _compile.executable(
-                _refine_levels, *args, self.layout, timer=self.timer, paths=C
-            )
-            self.sizes[C] = compiled if flat else functools.partial(_tail, compiled, self.layout)
+            with self._lock:  # the two threads of `first_crossing` compile each size once
+                if C not in self.sizes:
+                    compiled, flat, _ = _compile.executable(
+                        _refine_levels, *args, self.layout, timer=self.timer, paths=C
+                    )
+                    self.sizes[C] = (
+                        compiled if flat else functools.partial(_tail, compiled, self.layout)
+                    )
         return self.sizes[C](*args)
 
     def first_crossing(self, Xa, Xb, path, step):
@@ -534,12 +557,32 @@ class Refiner:
         found = np.zeros(n, dtype=bool)
         frac = np.ones(n)
         state = np.array(Xb, dtype=float, copy=True)
-        miss = 0.0
         unresolved = np.zeros(n, dtype=bool)
+        into = (found, frac, state, unresolved)
+        Xa, Xb = np.asarray(Xa, float), np.asarray(Xb, float)
         path, step = np.asarray(path, np.uint32), np.asarray(step, np.uint32)
-        splits = 0
-        for first in range(0, n, BATCH):
-            who = np.arange(first, min(first + BATCH, n))  # the candidate of each owner
+        # Two halves of the candidates in two threads (JAX releases the GIL while a call
+        # runs): the refinement's many small operations per pass keep XLA's own threads
+        # half idle (measured on 2 cores, 211 000 candidates: 0.125 s in one call, 0.097 s
+        # in two threads; the same refinements, each candidate's being its own).
+        parts = 2 if n >= 2 * CAPACITIES[1] and _threads() >= 2 else 1
+        cuts = np.linspace(0, n, parts + 1).astype(int)
+        args = [(Xa, Xb, path, step, cuts[i], cuts[i + 1], into) for i in range(parts)]
+        if parts == 1:
+            sums = [self._refine_part(*args[0])]
+        else:
+            sums = list(_pool().map(lambda a: self._refine_part(*a), args))
+        miss = float(sum(m for m, _ in sums))
+        splits = sum(k for _, k in sums)
+        return found, frac, state, miss, unresolved, splits
+
+    def _refine_part(self, Xa, Xb, path, step, lo, hi, into):
+        """`first_crossing` for the candidates `lo:hi`, written into `into` (found, frac,
+        state, unresolved); returns their summed miss bound and number of splits."""
+        found, frac, state, unresolved = into
+        miss, splits = 0.0, 0
+        for first in range(lo, hi, BATCH):
+            who = np.arange(first, min(first + BATCH, hi))  # the candidate of each owner
             m = who.size
             C = _capacity(m)
             buf = [
@@ -576,7 +619,7 @@ class Refiner:
                 who = who[owner[starts]]
                 buf[2] = np.array(buf[2])
                 buf[2][:count] = np.cumsum(starts) - 1
-        return found, frac, state, miss, unresolved, splits
+        return miss, splits
 
 
 def _padded(x, pad):
