@@ -9,6 +9,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 import stickslip as ss
 from stickslip import _compile
@@ -25,8 +26,8 @@ print(json.dumps({"info": ss.cache_info(), "slip_time": np.nan_to_num(e.slip_tim
 """
 
 
-def _fresh_process(cache_dir, dt):
-    env = dict(os.environ, STICKSLIP_CACHE_DIR=str(cache_dir))
+def _fresh_process(cache_dir, dt, **env):
+    env = dict(os.environ, STICKSLIP_CACHE_DIR=str(cache_dir), **env)
     out = subprocess.run(
         [sys.executable, "-c", SCRIPT, str(dt)], env=env, capture_output=True, text=True,
         check=True, timeout=600,
@@ -74,6 +75,17 @@ def test_a_new_process_neither_traces_nor_compiles(tmp_path):
         entry.write_bytes(b"not an executable")
     third = _fresh_process(tmp_path, 0.1)
     assert third["info"]["compiles"] > 0 and third["slip_time"] == first["slip_time"]
+
+
+@pytest.mark.slow
+def test_other_xla_options_compile_again_with_the_same_numbers(tmp_path):
+    """Executables are keyed by `XLA_FLAGS` too (they change the code XLA emits): a process
+    with XLA's default 256-bit vectors does not load the entries of one with stickslip's
+    choice (512-bit on an AVX-512 CPU), and gets the same numbers to the last bit."""
+    first = _fresh_process(tmp_path, 0.1)
+    other = _fresh_process(tmp_path, 0.1, XLA_FLAGS="--xla_cpu_prefer_vector_width=256")
+    assert other["info"]["compiles"] > 0 and other["info"]["executables_loaded"] == 0
+    assert other["slip_time"] == first["slip_time"]
 
 
 def test_executables_are_kept_whatever_jax_own_cache_holds(tmp_path):

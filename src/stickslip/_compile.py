@@ -272,8 +272,7 @@ def _package_hash(top: str) -> str:
 @functools.cache
 def _environment(sources: bool = True) -> str:
     """Versions of the libraries and the device (and of stickslip's own sources)."""
-    # XLA's options change the code it emits (`_jax`'s vector width, or the user's own).
-    parts = [f"XLA_FLAGS={os.environ.get('XLA_FLAGS', '')}"]
+    parts = []
     for dist in ("jax", "jaxlib", "diffrax", "equinox"):
         try:
             parts.append(f"{dist}={importlib.metadata.version(dist)}")
@@ -323,6 +322,8 @@ def _executable_file(exported, leaves) -> pathlib.Path | None:
     if not where:
         return None
     digest = hashlib.sha256(_environment(sources=False).encode())
+    # XLA's options change the code it emits (`_jax`'s vector width, or the user's own).
+    digest.update(os.environ.get("XLA_FLAGS", "").encode())
     digest.update(bytes(exported.mlir_module_serialized))
     digest.update(repr([(tuple(x.shape), str(x.dtype)) for x in leaves]).encode())
     return pathlib.Path(where) / "stickslip-executable" / f"{digest.hexdigest()[:40]}.bin"
