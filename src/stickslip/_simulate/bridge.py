@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 import threading
 
 import equinox as eqx
@@ -477,8 +478,6 @@ def _shrink_at(C: int) -> int:
 def _threads() -> int:
     """Threads for the refinement: 2 on a CPU with 2 cores or more (measured there), 1 on
     one core or on an accelerator (one call keeps it busy)."""
-    import os
-
     cpu = jax.default_backend() == "cpu"
     return 2 if cpu and (os.cpu_count() or 1) >= 2 else 1
 
@@ -488,6 +487,10 @@ def _pool():
     from concurrent.futures import ThreadPoolExecutor
 
     return ThreadPoolExecutor(2, thread_name_prefix="stickslip-refine")
+
+
+# A forked child has none of the parent's threads: it makes a pool of its own.
+os.register_at_fork(after_in_child=_pool.cache_clear)
 
 
 class Refiner:
