@@ -7,6 +7,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -75,6 +76,58 @@ def test_a_new_process_neither_traces_nor_compiles(tmp_path):
         entry.write_bytes(b"not an executable")
     third = _fresh_process(tmp_path, 0.1)
     assert third["info"]["compiles"] > 0 and third["slip_time"] == first["slip_time"]
+
+
+HOLDER = """
+import sys
+import jax.numpy as jnp
+from stickslip import _compile
+x = jnp.linspace(0.0, 1.0, 64)
+f = _compile.eqx.filter_jit(lambda x: jnp.sin(x) * 1.25)
+dynamic, static = _compile.eqx.partition((x,), _compile.eqx.is_array)
+leaves, treedef = _compile.jax.tree_util.tree_flatten(dynamic)
+exported = _compile._export(f, leaves, treedef, static, 64)
+file = _compile._executable_file(exported, leaves)
+with _compile._exclusive(file):
+    print("locked", flush=True)
+    sys.stdin.readline()  # the waiter is now at the lock
+    compiled = _compile._fresh(_compile.jax.jit(exported.call).lower(*leaves))
+    _compile._save_executable(file, compiled)
+"""
+
+WAITER = """
+import json
+import jax.numpy as jnp
+from stickslip import _compile
+x = jnp.linspace(0.0, 1.0, 64)
+f = _compile.eqx.filter_jit(lambda x: jnp.sin(x) * 1.25)
+print("calling", flush=True)
+y = _compile.call(f, x, paths=64)
+print(json.dumps(dict(_compile.stats, y=float(y.sum()))), flush=True)
+"""
+
+
+def test_a_process_waits_for_the_one_compiling_the_same_code(tmp_path):
+    """Two processes that meet the same executable cold compile it once: the second waits
+    for the first (a lock beside the disk entry) and loads its copy."""
+    env = dict(os.environ, STICKSLIP_CACHE_DIR=str(tmp_path))
+    run = dict(env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    holder = subprocess.Popen([sys.executable, "-c", HOLDER], **run)
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        waiter = subprocess.Popen([sys.executable, "-c", WAITER], **run)
+        assert waiter.stdout.readline().strip() == "calling"
+        time.sleep(1.0)  # unlocked, the waiter would have compiled by now
+        holder.stdin.write("go\n")
+        holder.stdin.flush()
+        assert holder.wait(timeout=120) == 0
+        out, _ = waiter.communicate(timeout=120)
+    finally:
+        holder.kill()
+    stats = json.loads(out.strip().splitlines()[-1])
+    assert stats["compiles"] == 0 and stats["traces"] == 0
+    assert stats["executables_loaded"] == 1
+    assert stats["y"] == pytest.approx(float(np.sum(np.sin(np.linspace(0.0, 1.0, 64)) * 1.25)))
 
 
 @pytest.mark.slow

@@ -53,6 +53,7 @@ def assert_same(a, b, names):
         assert np.array_equal(x, y, equal_nan=True), name
 
 
+@pytest.mark.slow  # 15 s (the default tier keeps the sweep below on the same cluster)
 def test_ensemble_on_two_worker_processes_is_the_local_one(client, model):
     """The issue's acceptance: 40000 paths, dt 0.01, t_max 30, seed 3 on a 2-process local
     cluster give exactly the local arrays."""

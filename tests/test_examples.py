@@ -37,6 +37,7 @@ def test_public_reference_example(tmp_path):
     assert "mean slip time" in (out / "summary.md").read_text()
 
 
+@pytest.mark.slow  # 10 s and more on a cold cache
 def test_carlson_langer_example(tmp_path):
     """Reduced: 100 blocks for 3000 time units; the run has localized and delocalized
     events and the small-event fit is made."""

@@ -19,6 +19,7 @@ shapes, the versions and the device. A damaged entry is traced or compiled again
 from __future__ import annotations
 
 import collections
+import contextlib
 import dataclasses
 import functools
 import hashlib
@@ -134,17 +135,23 @@ def _compile(fn, args, leaves, treedef, static, paths):
         if exported is not None:
             file = _executable_file(exported, leaves)
             compiled = _load_executable(file)
-            if compiled is not None:
-                stats["executables_loaded"] += 1
-                return compiled, True
-            stats["compiles"] += 1
-            hits = _cache_hits[0]
-            compiled = _fresh(jax.jit(exported.call).lower(*leaves))
-            # An executable that JAX itself loaded from its persistent cache cannot be
-            # serialised again (XLA's CPU runtime then loses its functions: "Function ...
-            # not found" when the copy runs); only freshly compiled ones are written.
-            if _cache_hits[0] == hits:
-                _save_executable(file, compiled)
+            if compiled is None:
+                # Another process may be compiling the same executable (test workers, a
+                # sweep's processes, all starting cold): wait for it and load its copy.
+                with _exclusive(file):
+                    compiled = _load_executable(file)
+                    if compiled is None:
+                        stats["compiles"] += 1
+                        hits = _cache_hits[0]
+                        compiled = _fresh(jax.jit(exported.call).lower(*leaves))
+                        # An executable that JAX itself loaded from its persistent cache
+                        # cannot be serialised again (XLA's CPU runtime then loses its
+                        # functions: "Function ... not found" when the copy runs); only
+                        # freshly compiled ones are written.
+                        if _cache_hits[0] == hits:
+                            _save_executable(file, compiled)
+                        return compiled, True
+            stats["executables_loaded"] += 1
             return compiled, True
     stats["traces"] += 1
     stats["compiles"] += 1
@@ -196,29 +203,65 @@ def _export(fn, leaves, treedef, static, paths):
     file = _trace_file(fn, treedef, poly_shapes, static)
     exported = _load_exported(file)
     if exported is None:
-        from jax import export
-
-        def flat_fn(*flat):
-            dynamic = jax.tree_util.tree_unflatten(treedef, flat)
-            return fn(*eqx.combine(dynamic, static))
-
-        try:
-            exported = export.export(jax.jit(flat_fn))(*specs)
-        except Exception as err:  # not shape-polymorphic: one trace per shape instead
-            warnings.warn(
-                f"stickslip: {_name(fn)} cannot be traced once for every buffer size "
-                f"({type(err).__name__}); tracing it per size",
-                RuntimeWarning,
-                stacklevel=4,
-            )
-            exported = None
-        else:
-            stats["traces"] += 1
-            _save(file, lambda: exported.serialize())
+        with _exclusive(file):
+            # Another process may be tracing it (see `_compile`): load its copy after it.
+            exported = _load_exported(file)
+            if exported is None:
+                exported = _trace(fn, specs, treedef, static, file)
+            else:
+                stats["exported_loaded"] += 1
     else:
         stats["exported_loaded"] += 1
     _exported[key] = exported
     return exported
+
+
+def _trace(fn, specs, treedef, static, file):
+    """A new shape-polymorphic trace of `fn`, kept in `file`; `None` where it cannot be
+    exported."""
+    from jax import export
+
+    def flat_fn(*flat):
+        dynamic = jax.tree_util.tree_unflatten(treedef, flat)
+        return fn(*eqx.combine(dynamic, static))
+
+    try:
+        exported = export.export(jax.jit(flat_fn))(*specs)
+    except Exception as err:  # not shape-polymorphic: one trace per shape instead
+        warnings.warn(
+            f"stickslip: {_name(fn)} cannot be traced once for every buffer size "
+            f"({type(err).__name__}); tracing it per size",
+            RuntimeWarning,
+            stacklevel=5,
+        )
+        return None
+    stats["traces"] += 1
+    _save(file, lambda: exported.serialize())
+    return exported
+
+
+@contextlib.contextmanager
+def _exclusive(file):
+    """Hold an exclusive lock on `file`'s lock file across processes (POSIX `flock`; the
+    lock goes with the process if it dies). Without a lock (no cache directory, a
+    read-only one, no `fcntl`), go on unlocked: the entries are written atomically anyway."""
+    handle = None
+    if file is not None:
+        try:
+            import fcntl
+
+            file.parent.mkdir(parents=True, exist_ok=True)
+            handle = open(file.with_suffix(".lock"), "a")  # noqa: SIM115
+            fcntl.flock(handle, fcntl.LOCK_EX)
+        except (ImportError, OSError):
+            if handle is not None:
+                handle.close()
+            handle = None
+    try:
+        yield
+    finally:
+        if handle is not None:
+            handle.close()  # releases the lock
 
 
 # -- disk entries --------------------------------------------------------------------------------
