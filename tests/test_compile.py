@@ -113,6 +113,7 @@ def test_a_process_waits_for_the_one_compiling_the_same_code(tmp_path):
     env = dict(os.environ, STICKSLIP_CACHE_DIR=str(tmp_path))
     run = dict(env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     holder = subprocess.Popen([sys.executable, "-c", HOLDER], **run)
+    waiter = None
     try:
         assert holder.stdout.readline().strip() == "locked"
         waiter = subprocess.Popen([sys.executable, "-c", WAITER], **run)
@@ -122,8 +123,10 @@ def test_a_process_waits_for_the_one_compiling_the_same_code(tmp_path):
         holder.stdin.flush()
         assert holder.wait(timeout=120) == 0
         out, _ = waiter.communicate(timeout=120)
-    finally:
-        holder.kill()
+    finally:  # nothing left running if an assertion failed
+        for proc in (holder, waiter):
+            if proc is not None:
+                proc.kill()
     stats = json.loads(out.strip().splitlines()[-1])
     assert stats["compiles"] == 0 and stats["traces"] == 0
     assert stats["executables_loaded"] == 1
