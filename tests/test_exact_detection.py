@@ -333,7 +333,8 @@ def test_compiled_refinement_is_the_depth_first_one(Langevin, dt, monkeypatch):
 def test_refinement_in_two_threads_is_the_one_thread_one(Langevin, monkeypatch):
     """Candidates enough for two threads (the first step of 5000 paths: every slip's onset):
     the same refinements as in one thread, candidate by candidate, whatever the threads'
-    order (the one-thread refinement is checked against the depth-first reference above)."""
+    order (the one-thread refinement is checked against the depth-first reference above);
+    and in one thread in several batches of equal size."""
     from stickslip._simulate import driver
 
     model = Langevin(**PUBLIC)
@@ -362,9 +363,25 @@ def test_refinement_in_two_threads_is_the_one_thread_one(Langevin, monkeypatch):
 
         monkeypatch.setattr(bridge.Refiner, "_refine_part", spy_part)
         calls.append((original(refiner, *cands), parts))
+    # One thread in batches of equal size, each in its own buffer (a size no batch fills).
+    monkeypatch.setattr(bridge.Refiner, "_refine_part", part)
+    monkeypatch.setattr(bridge, "BATCH", 1500)
+    sizes = []
+    call = bridge.Refiner._call
+
+    def spy_call(self, j, *a, sizes=sizes):
+        if j == 0:
+            sizes.append(a[-1])  # a batch's first call: its candidates
+        return call(self, j, *a)
+
+    monkeypatch.setattr(bridge.Refiner, "_call", spy_call)
+    batched = original(refiner, *cands)
     (two, parts2), (one, parts1) = calls
     assert len(parts2) == 2 and len(parts1) == 1
-    for a, b in zip(two[:3] + two[4:], one[:3] + one[4:], strict=True):
-        np.testing.assert_array_equal(a, b)
-    assert two[3] == pytest.approx(one[3], rel=1e-12)
+    n = cands[0].shape[1]
+    assert len(sizes) == 4 and sum(sizes) == n and max(sizes) - min(sizes) <= 1
+    for other in (two, batched):
+        for a, b in zip(other[:3] + other[4:], one[:3] + one[4:], strict=True):
+            np.testing.assert_array_equal(a, b)
+        assert other[3] == pytest.approx(one[3], rel=1e-12)
     assert np.sum(one[0]) > 100

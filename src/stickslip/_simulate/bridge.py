@@ -584,8 +584,15 @@ class Refiner:
         state, unresolved); returns their summed miss bound and number of splits."""
         found, frac, state, unresolved = into
         miss, splits = 0.0, 0
-        for first in range(lo, hi, BATCH):
-            who = np.arange(first, min(first + BATCH, hi))  # the candidate of each owner
+        # Batches of equal size: with batches of BATCH and a remainder, the remainder could
+        # fill its buffer and outgrow it at its first level (onset steps: 24000 candidates in
+        # 24576 slots, then 4 passes over 65536, out of the cache). Measured, replaying the
+        # refinements of a run (public set, dt 0.8, 1e5 paths): the onset call 60 -> 42 ms,
+        # all calls 129 -> 110 ms.
+        batches = -(-(hi - lo) // BATCH)
+        cuts = np.linspace(lo, hi, batches + 1).astype(int)
+        for first, last in zip(cuts[:-1], cuts[1:], strict=True):
+            who = np.arange(first, last)  # the candidate of each owner
             m = who.size
             C = _capacity(m)
             buf = [

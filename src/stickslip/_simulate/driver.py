@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import sys
 import time
@@ -62,11 +63,19 @@ def _make_solver(lg, cfg: _Config, dt: float, nodes: int):
     """The run's slip solver, its tables computed in NumPy (nothing to compile). `nodes` are
     the interpolation nodes of the exact solver's dense output."""
     if cfg.solver == "exact":
-        tables = None
-        if cfg.detect == "bridge":
-            tables = bridge.bridge_tables(lg.A, lg.b, lg.B, lg.crossing, dt, host=True)
-        return ExactGaussian(lg.A, lg.b, lg.B, dt, nodes=nodes, bridge=tables, host=True)
+        arrays = tuple(np.asarray(x, dtype=np.float64) for x in (lg.A, lg.b, lg.B, lg.crossing))
+        key = tuple((x.shape, x.tobytes()) for x in arrays)
+        return _exact_solver(key, cfg.detect == "bridge", float(dt), nodes)
     return EulerMaruyama()
+
+
+@functools.lru_cache(maxsize=32)
+def _exact_solver(key, bridged: bool, dt: float, nodes: int):
+    """`_make_solver`'s exact solver, kept for the runs that repeat a model and a step (its
+    tables took ~4 ms of a 0.2 s run of 1e5 paths; the solver is immutable)."""
+    A, b, B, crossing = (np.frombuffer(data).reshape(shape) for shape, data in key)
+    tables = bridge.bridge_tables(A, b, B, crossing, dt, host=True) if bridged else None
+    return ExactGaussian(A, b, B, dt, nodes=nodes, bridge=tables, host=True)
 
 
 def _detector(lg, solver: str, monitor: str, smooth: bool, dt: float) -> str:
