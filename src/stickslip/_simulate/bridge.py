@@ -584,13 +584,7 @@ class Refiner:
         state, unresolved); returns their summed miss bound and number of splits."""
         found, frac, state, unresolved = into
         miss, splits = 0.0, 0
-        # Batches of equal size: with batches of BATCH and a remainder, the remainder could
-        # fill its buffer and outgrow it at its first level (onset steps: 24000 candidates in
-        # 24576 slots, then 4 passes over 65536, out of the cache). Measured, replaying the
-        # refinements of a run (public set, dt 0.8, 1e5 paths): the onset call 60 -> 42 ms,
-        # all calls 129 -> 110 ms.
-        batches = -(-(hi - lo) // BATCH)
-        cuts = np.linspace(lo, hi, batches + 1).astype(int)
+        cuts = _batch_cuts(lo, hi, BATCH)
         for first, last in zip(cuts[:-1], cuts[1:], strict=True):
             who = np.arange(first, last)  # the candidate of each owner
             m = who.size
@@ -630,6 +624,16 @@ class Refiner:
                 buf[2] = np.array(buf[2])
                 buf[2][:count] = np.cumsum(starts) - 1
         return miss, splits
+
+
+def _batch_cuts(lo: int, hi: int, batch: int):
+    """Bounds of the refinement batches of the candidates `lo:hi`: as few as hold at most
+    `batch` each, of equal size. (Batches of `batch` and a remainder: the remainder could fill
+    its buffer and outgrow it at its first level, e.g. a run's 100 000 onset steps as
+    26000 + 24000 per thread, the 24000 in 24576 slots, then 4 passes over 65536, out of the
+    cache; `python benchmarks/refine_batches.py`.)"""
+    batches = max(1, -(-(hi - lo) // batch))
+    return np.linspace(lo, hi, batches + 1).astype(int)
 
 
 def _padded(x, pad):
