@@ -86,6 +86,7 @@ def test_released_blocks_move_and_thresholds_follow_their_law(BK):
     assert stats.kstest(limits, stats.uniform(0.6, 0.4).cdf).pvalue > 1e-3
 
 
+@pytest.mark.slow
 def test_event_statistics_converge_in_dt(BK):
     """OU noise, dt = 0.01 against 0.0025: event sizes and durations are one distribution
     (chi-square, p > 1e-3) and the event rate agrees within 4 standard errors. The drop at
@@ -143,6 +144,7 @@ def test_noise_free_single_block_is_periodic(BK):
     assert d.size > 5 and np.ptp(d) < 2e-3 and np.ptp(s) < 2e-3
 
 
+@pytest.mark.slow
 def test_hundred_blocks_broad_event_sizes(BK):
     """N = 100 with noise over 1e4 time units: sizes span 1 to N, and P(s) falls over two
     decades as a power law for small events (slope of log P against log s between -3 and -1)."""

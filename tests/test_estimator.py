@@ -426,6 +426,7 @@ def test_joint_density_integrates_to_n1(exact, Langevin):
     np.testing.assert_allclose(joint.sum(axis=0) * 0.25, emp.n1(cells_t), rtol=1e-9)
 
 
+@pytest.mark.slow
 def test_white_noise_closure_second_order(Langevin):
     """The closure's n2 diverges like tau^-1/2 on the diagonal (integrable): the second-order
     decoupling stays finite, with a positive escape rate and most of its mass by t = 40."""

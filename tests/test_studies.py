@@ -229,7 +229,20 @@ REDUCED = {
 }
 
 
-@pytest.mark.parametrize("path", sorted(EXAMPLES.glob("*.yaml")), ids=lambda p: p.stem)
+# Slow tier (8-18 s each from a cold cache, the default tier's budget): the random-threshold
+# example (its model and mixtures are tested in test_random_threshold.py), the exact theory
+# (test_estimator.py) and fig. 6C (a Langevin run as in the other examples).
+SLOW_EXAMPLES = {"random_threshold", "ou_exact_theory", "fig6c"}
+
+
+@pytest.mark.parametrize(
+    "path",
+    [
+        pytest.param(p, marks=pytest.mark.slow) if p.stem in SLOW_EXAMPLES else p
+        for p in sorted(EXAMPLES.glob("*.yaml"))
+    ],
+    ids=lambda p: p.stem,
+)
 def test_example_study(path, tmp_path):
     overrides = REDUCED.get(path.stem, ["simulation.n_paths=2000"])
     out = tmp_path / "out"
