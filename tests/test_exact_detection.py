@@ -330,6 +330,28 @@ def test_compiled_refinement_is_the_depth_first_one(Langevin, dt, monkeypatch):
     assert checked > 150 and sum(np.sum(o[0]) for _, o in got) > 100
 
 
+def test_stepping_past_candidates_finds_the_same_sticks(Langevin, monkeypatch):
+    """Small buffers step past candidate steps that end below the level and refine them all
+    at the end (`driver.SPECULATE_BELOW`): the same sticks, bit for bit, as refining each
+    candidate before stepping on (the scheme checked against the depth-first reference
+    above), although some paths were stepped past the step that holds their stick."""
+    from stickslip._simulate import driver
+
+    model = Langevin(**PUBLIC)
+    runs = []
+    for below in (0, 1 << 30):  # never, always
+        monkeypatch.setattr(driver, "SPECULATE_BELOW", below)
+        runs.append(ss.simulate(model, 3000, 0.8, 30.0, seed=4, solver="exact", progress=False))
+    each, past = runs
+    assert "speculated" not in each.stats and past.stats["speculated"] > 0
+    np.testing.assert_array_equal(past.slip_time, each.slip_time)
+    np.testing.assert_array_equal(past.slip_distance, each.slip_distance)
+    np.testing.assert_array_equal(past.stick_state, each.stick_state)
+    # Candidates refined past a path's stick: work that refining each first would not do.
+    assert past.stats["candidates"] > 1.1 * each.stats["candidates"]
+    assert np.isfinite(each.slip_time).mean() > 0.99
+
+
 def test_refinement_in_two_threads_is_the_one_thread_one(Langevin, monkeypatch):
     """Candidates enough for two threads (the first step of 5000 paths: every slip's onset):
     the same refinements as in one thread, candidate by candidate, whatever the threads'

@@ -31,6 +31,7 @@ MIN_BUFFER = 128  # smallest buffer; below it a step costs the same whatever the
 # cost milliseconds (measured per step: 48 us at 128, 228 us at 1024, 495 us at 4096).
 FINE_BUFFER = 8192
 LOCATE_BATCH = 4096  # paths located at once (bounds the memory of the dense nodes)
+SPECULATE_BELOW = 16384  # buffers from this size down step past candidates (`_Run._chunk`)
 DEFAULT_CROSSING_TOL = 1e-5  # bound on the chance of a missed crossing per certified step
 DEFAULT_CHUNK = 2**20  # about 100 bytes of state per path: 100 MB
 # Interpolation sub-steps of the exact solver: chosen so that h_sub * rho(A) <= this, where
@@ -407,6 +408,9 @@ class _Run:
         # count, so one compiled loop serves every dt.
         self.nodes = _nodes_for(lg.A, dt, detect == "cubic") if solver == "exact" else 1
         self.depths = None  # (location, certification) levels of the bridge detector
+        # The crossing functional and level on the host (`_chunk`'s speculative stepping).
+        self.crossing = np.asarray(lg.crossing, dtype=np.float64) if lg is not None else None
+        self.model_level = float(np.asarray(self.model.stick_level))
         if detect == "bridge":
             self.depths = (
                 bridge.depth_for(lg.A, dt, bridge.LOCATE_SCALE),
@@ -568,9 +572,16 @@ class _Run:
         horizon = np.asarray(float(self.n_steps))
         tol = np.asarray(self.tol)
         advance = self.advance
+        # Small buffers step past candidate steps that end below the level (as if refuted)
+        # and refine them all at the end, each path's in step order: the same first crossing
+        # as refining each before going on (the draws are keyed by path, step and node), in
+        # one refinement instead of one per stepping round (each ~1 ms whatever its size).
+        pending = []
         while True:
             n_slip = int(np.sum(ks == SLIPPING))
             if n_slip == 0:
+                if pending:
+                    self._settle(pending, t_stick, stick_state)
                 break
             stop_at = _smaller_buffer(size)
             X, X_prev, ks, miss, taken = (
@@ -585,7 +596,16 @@ class _Run:
             self.stats["buffers"] += 1
             offset = np.where(ks == SLIPPING, offset + taken, offset)
             real = slot >= 0
-            if refine:
+            if refine and size <= SPECULATE_BELOW:
+                # Left to the end: step on past the candidates that end below the level.
+                cand = np.nonzero(real & (ks >= 0))[0]
+                pending.append((slot[cand], ks[cand], X_prev[:, cand], X[:, cand], p[cand]))
+                below = self.crossing @ X[:, cand] < self.model_level
+                back = cand[below]
+                offset[back] = ks[back] + 1.0
+                ks[back] = SLIPPING
+                ks[cand[~below]] = INACTIVE
+            elif refine:
                 cand = np.nonzero(real & (ks >= 0))[0]
                 found, frac, state = self._refine(cand, X_prev, X, ks, p)
                 hit, back = cand[found], cand[~found]
@@ -616,6 +636,26 @@ class _Run:
         imm = immediate[:count]
         t_stick[imm] = 0.0
         return X0[:, :count], stick_state, t_stick, located, miss_end[:count]
+
+    def _settle(self, pending, t_stick, stick_state):
+        """Refine the candidate steps that `_chunk` stepped past (`pending`: per stepping
+        round, their chunk rows, steps, both end states and paths) and write each path's
+        stick: in its first candidate, in step order, that holds a crossing. A path's last
+        candidate ends at or above the level (on the host's reckoning); should its
+        refinement find no crossing there (an end within rounding of the level), the stick
+        is placed at the step's end."""
+        rows, step, Xa, Xb, path = (np.concatenate(x, axis=-1) for x in zip(*pending, strict=True))
+        order = np.lexsort((step, rows))
+        rows, step, path, Xa, Xb = rows[order], step[order], path[order], Xa[:, order], Xb[:, order]
+        found, frac, state = self._refine(np.arange(rows.size), Xa, Xb, step, path)
+        last = np.r_[rows[1:] != rows[:-1], True]
+        ended = last & ~found & (self.crossing @ Xb >= self.model_level)
+        frac[ended], state[:, ended] = 1.0, Xb[:, ended]
+        idx = np.nonzero(found | ended)[0]
+        first = idx[np.unique(rows[idx], return_index=True)[1]]
+        t_stick[rows[first]] = (step[first] + frac[first]) * self.dt
+        stick_state[:, rows[first]] = state[:, first]
+        self.stats["speculated"] = self.stats.get("speculated", 0) + int(rows.size)
 
     def _refine(self, cand, X_prev, X, ks, p):
         """Refine the candidate steps `cand` of the buffer exactly (bridge detector): adds

@@ -1,0 +1,79 @@
+"""Stepping past candidate steps in small buffers against refining each before going on.
+
+    python benchmarks/speculate.py [--repeats 12] [--n-paths 10000 100000] [--dt 0.8]
+
+Exact stepping of the public reference set. In buffers of `driver.SPECULATE_BELOW` paths
+or fewer the simulator steps on past a candidate step that ends below the stick level (as
+if refuted) and refines all such candidates at the end, each path's in step order
+(`driver._Run._chunk`); the baseline (`SPECULATE_BELOW = 0`) refines every candidate
+before stepping on. Both run in the same process, compiled and warmed alike, alternated
+`--repeats` times with the same seeds, so that a drift of the machine's speed falls on
+both. Prints the minimum and median wall time of each, their ratio, and whether the two
+give the same slip times, slip distances and stick states to the last bit (they must:
+every draw is keyed by path, step and tree node).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+PUBLIC = dict(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=0.1)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=12)
+    parser.add_argument("--n-paths", type=int, nargs="+", default=[10_000, 100_000])
+    parser.add_argument("--dt", type=float, default=0.8)
+    args = parser.parse_args(argv)
+
+    import stickslip as ss
+    from stickslip._simulate import driver
+    from stickslip.selection import calibration_seconds
+
+    model = ss.get_model("langevin")(**PUBLIC)
+    default = driver.SPECULATE_BELOW
+    ways = {"refine each first": 0, f"step past (<= {default})": default}
+
+    def run(n, below, seed):
+        driver.SPECULATE_BELOW = below
+        try:
+            start = time.perf_counter()
+            ens = ss.simulate(model, n, args.dt, 100.0, seed=seed, solver="exact", progress=False)
+            return time.perf_counter() - start, ens
+        finally:
+            driver.SPECULATE_BELOW = default
+
+    print(f"public set, exact stepping, dt = {args.dt}, calibration "
+          f"{calibration_seconds() * 1e3:.1f} ms")  # fmt: skip
+    same = True
+    for n in args.n_paths:
+        for below in ways.values():  # compile and warm both
+            run(n, below, seed=99)
+        times = {name: [] for name in ways}
+        for rep in range(args.repeats):
+            out = []
+            for name, below in ways.items():
+                seconds, ens = run(n, below, seed=rep + 1)
+                times[name].append(seconds)
+                out.append(ens)
+            a, b = out
+            same &= all(
+                np.array_equal(getattr(a, f), getattr(b, f), equal_nan=True)
+                for f in ("slip_time", "slip_distance", "stick_state")
+            )
+        print(f"  {n} paths:")
+        for name, t in times.items():
+            print(f"    {name:24s} min {min(t) * 1e3:6.1f} ms, median {np.median(t) * 1e3:6.1f} ms")
+        (base, new) = (times[k] for k in ways)
+        print(f"    ratio (refine each first / step past): min {min(base) / min(new):.2f}x, "
+              f"median {np.median(base) / np.median(new):.2f}x")  # fmt: skip
+    print(f"  same sticks to the last bit: {same}")
+    return 0 if same else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
