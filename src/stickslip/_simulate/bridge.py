@@ -330,9 +330,9 @@ def _refine_levels(
     call returns to the host when the refinement is done (`_DONE`), when fewer are open
     (`_SHRINK`: a smaller buffer is cheaper), or when the next level would
     overflow the buffer (`_GROW`: that level is left undone). It returns the buffer and,
-    per owner, what its passes found: `found`, `frac` (fraction of the step), `state` and
-    `unresolved`, the summed bounds of the certified halves (`miss`, all owners together: only
-    the total is reported) and the number of intervals split.
+    per owner, what its passes found: `found`, `frac` (fraction of the step), `state`,
+    `unresolved` and the summed bounds of its certified halves (`miss`); and the number of
+    intervals split.
 
     The two halves of every interval are kept as two planes, left and right, never
     interleaved: XLA evaluated both operands of an interleaving for every element (measured
@@ -414,7 +414,7 @@ def _refine_levels(
             return jnp.where(cert, p, jnp.where(und & last_level, jnp.minimum(p, 1.0), 0.0))
 
         add = added(cert_l, und_l, p_l) + added(cert_r, und_r, p_r)
-        miss = miss + jnp.sum(add)
+        miss = miss.at[idx].add(add, mode="drop")
 
         def unresolved(unres):
             left_over = (und_l | und_r).astype(jnp.int32)
@@ -452,7 +452,7 @@ def _refine_levels(
     zeros = jnp.zeros(C)
     init = (
         j0, a, b, owner, pos, path, step, draw(j0, pos, path, step), count,
-        jnp.zeros(C, bool), zeros, jnp.zeros_like(a), jnp.zeros(()), jnp.zeros(C, bool),
+        jnp.zeros(C, bool), zeros, jnp.zeros_like(a), zeros, jnp.zeros(C, bool),
         jnp.zeros((), count.dtype), jnp.asarray(_GO),
     )  # fmt: skip
     return jax.lax.while_loop(lambda c: c[-1] == _GO, one_level, init)
@@ -550,10 +550,10 @@ class Refiner:
 
         **Returns:** `(found, frac, state, miss, unresolved, splits)`: per candidate, whether
         it crossed inside the step, where (fraction of the step) and the state there (linear
-        interpolation inside the finest interval); the summed bounds of the certified
-        intervals (all candidates together: breadth first, this may include intervals
-        after a crossing found later at a deeper level, so it bounds the depth-first sum);
-        per candidate, whether an interval stayed undecided at the certification depth
+        interpolation inside the finest interval); per candidate, the summed bounds of its
+        certified intervals (breadth first, this may include intervals after a crossing
+        found later at a deeper level, so it bounds the depth-first sum); per candidate,
+        whether an interval stayed undecided at the certification depth
         (certified all the same); the number of intervals split.
         """
         d, n = Xa.shape
@@ -561,7 +561,8 @@ class Refiner:
         frac = np.ones(n)
         state = np.array(Xb, dtype=float, copy=True)
         unresolved = np.zeros(n, dtype=bool)
-        into = (found, frac, state, unresolved)
+        miss = np.zeros(n)
+        into = (found, frac, state, unresolved, miss)
         Xa, Xb = np.asarray(Xa, float), np.asarray(Xb, float)
         path, step = np.asarray(path, np.uint32), np.asarray(step, np.uint32)
         # Two halves of the candidates in two threads (JAX releases the GIL while a call
@@ -572,18 +573,16 @@ class Refiner:
         cuts = np.linspace(0, n, parts + 1).astype(int)
         args = [(Xa, Xb, path, step, cuts[i], cuts[i + 1], into) for i in range(parts)]
         if parts == 1:
-            sums = [self._refine_part(*args[0])]
+            splits = self._refine_part(*args[0])
         else:
-            sums = list(_pool().map(lambda a: self._refine_part(*a), args))
-        miss = float(sum(m for m, _ in sums))
-        splits = sum(k for _, k in sums)
+            splits = sum(_pool().map(lambda a: self._refine_part(*a), args))
         return found, frac, state, miss, unresolved, splits
 
     def _refine_part(self, Xa, Xb, path, step, lo, hi, into):
         """`first_crossing` for the candidates `lo:hi`, written into `into` (found, frac,
-        state, unresolved); returns their summed miss bound and number of splits."""
-        found, frac, state, unresolved = into
-        miss, splits = 0.0, 0
+        state, unresolved, miss); returns their number of splits."""
+        found, frac, state, unresolved, miss = into
+        splits = 0
         cuts = _batch_cuts(lo, hi, BATCH)
         for first, last in zip(cuts[:-1], cuts[1:], strict=True):
             who = np.arange(first, last)  # the candidate of each owner
@@ -605,7 +604,7 @@ class Refiner:
                     found[who[hit]] = True
                     frac[who[hit]] = np.asarray(out[10])[hit]
                     state[:, who[hit]] = np.asarray(out[11])[:, hit]
-                miss += float(out[12])
+                miss[who] += np.asarray(out[12])[:k]
                 unresolved[who] |= np.asarray(out[13])[:k]
                 splits += int(out[14])
                 if status == _DONE:
@@ -623,7 +622,7 @@ class Refiner:
                 who = who[owner[starts]]
                 buf[2] = np.array(buf[2])
                 buf[2][:count] = np.cumsum(starts) - 1
-        return miss, splits
+        return splits
 
 
 def _batch_cuts(lo: int, hi: int, batch: int):

@@ -581,7 +581,7 @@ class _Run:
             n_slip = int(np.sum(ks == SLIPPING))
             if n_slip == 0:
                 if pending:
-                    self._settle(pending, t_stick, stick_state)
+                    self._settle(pending, t_stick, stick_state, miss_end)
                 break
             stop_at = _smaller_buffer(size)
             X, X_prev, ks, miss, taken = (
@@ -599,7 +599,9 @@ class _Run:
             if refine and size <= SPECULATE_BELOW:
                 # Left to the end: step on past the candidates that end below the level.
                 cand = np.nonzero(real & (ks >= 0))[0]
-                pending.append((slot[cand], ks[cand], X_prev[:, cand], X[:, cand], p[cand]))
+                pending.append(
+                    (slot[cand], ks[cand], miss[cand], p[cand], X_prev[:, cand], X[:, cand])
+                )
                 below = self.crossing @ X[:, cand] < self.model_level
                 back = cand[below]
                 offset[back] = ks[back] + 1.0
@@ -607,7 +609,8 @@ class _Run:
                 ks[cand[~below]] = INACTIVE
             elif refine:
                 cand = np.nonzero(real & (ks >= 0))[0]
-                found, frac, state = self._refine(cand, X_prev, X, ks, p)
+                found, frac, state, refined = self._refine(cand, X_prev, X, ks, p)
+                self.refined_miss += float(np.sum(refined))
                 hit, back = cand[found], cand[~found]
                 rows = slot[hit]
                 t_stick[rows] = (ks[hit] + frac[found]) * self.dt
@@ -637,33 +640,43 @@ class _Run:
         t_stick[imm] = 0.0
         return X0[:, :count], stick_state, t_stick, located, miss_end[:count]
 
-    def _settle(self, pending, t_stick, stick_state):
+    def _settle(self, pending, t_stick, stick_state, miss_end):
         """Refine the candidate steps that `_chunk` stepped past (`pending`: per stepping
-        round, their chunk rows, steps, both end states and paths) and write each path's
-        stick: in its first candidate, in step order, that holds a crossing. A path's last
-        candidate ends at or above the level (on the host's reckoning); should its
-        refinement find no crossing there (an end within rounding of the level), the stick
-        is placed at the step's end."""
-        rows, step, Xa, Xb, path = (np.concatenate(x, axis=-1) for x in zip(*pending, strict=True))
+        round, their chunk rows, steps, stepping miss bounds so far, paths and both end
+        states) and write each path's stick, in its first candidate (in step order) that
+        holds a crossing, with its miss bound there. The refinements of candidates past a
+        path's stick are not counted in the miss bound: it is the one of refining each
+        candidate before stepping on. A path's last candidate ends at or above the level
+        (on the host's reckoning); should its refinement find no crossing there (an end
+        within rounding of the level), the stick is placed at the step's end."""
+        rows, step, miss, path, Xa, Xb = (
+            np.concatenate(x, axis=-1) for x in zip(*pending, strict=True)
+        )
         order = np.lexsort((step, rows))
-        rows, step, path, Xa, Xb = rows[order], step[order], path[order], Xa[:, order], Xb[:, order]
-        found, frac, state = self._refine(np.arange(rows.size), Xa, Xb, step, path)
-        last = np.r_[rows[1:] != rows[:-1], True]
-        ended = last & ~found & (self.crossing @ Xb >= self.model_level)
+        rows, step, miss, path = rows[order], step[order], miss[order], path[order]
+        Xa, Xb = Xa[:, order], Xb[:, order]
+        found, frac, state, refined = self._refine(np.arange(rows.size), Xa, Xb, step, path)
+        first = np.r_[True, rows[1:] != rows[:-1]]
+        ended = np.r_[first[1:], True] & ~found & (self.crossing @ Xb >= self.model_level)
         frac[ended], state[:, ended] = 1.0, Xb[:, ended]
-        idx = np.nonzero(found | ended)[0]
-        first = idx[np.unique(rows[idx], return_index=True)[1]]
-        t_stick[rows[first]] = (step[first] + frac[first]) * self.dt
-        stick_state[:, rows[first]] = state[:, first]
-        self.stats["speculated"] = self.stats.get("speculated", 0) + int(rows.size)
+        hit = found | ended
+        # A candidate was needed if no earlier one of its path holds the stick.
+        seen = np.cumsum(hit) - hit
+        needed = seen == np.maximum.accumulate(np.where(first, seen, 0))
+        stick = np.nonzero(hit & needed)[0]
+        t_stick[rows[stick]] = (step[stick] + frac[stick]) * self.dt
+        stick_state[:, rows[stick]] = state[:, stick]
+        miss_end[rows[stick]] = miss[stick]
+        self.refined_miss += float(np.sum(refined[needed]))
+        self.stats["speculated"] = self.stats.get("speculated", 0) + int(np.sum(~needed))
 
     def _refine(self, cand, X_prev, X, ks, p):
-        """Refine the candidate steps `cand` of the buffer exactly (bridge detector): adds
-        their certified bounds to `refined_miss` and returns, for each, whether it crossed,
-        where (fraction of its step) and the state there."""
+        """Refine the candidate steps `cand` of the buffer exactly (bridge detector): for
+        each, whether it crossed, where (fraction of its step), the state there and the
+        summed bounds of its certified sub-intervals."""
         n = cand.size
         if n == 0:
-            return np.zeros(0, dtype=bool), np.zeros(0), np.zeros((X.shape[0], 0))
+            return np.zeros(0, bool), np.zeros(0), np.zeros((X.shape[0], 0)), np.zeros(0)
         self.stats["candidates"] += n
         if self._refiner is None:
             self._refiner = bridge.Refiner(
@@ -673,10 +686,9 @@ class _Run:
         found, frac, state, add, unresolved, splits = self._refiner.first_crossing(
             X_prev[:, cand], X[:, cand], p[cand], ks[cand].astype(np.uint32)
         )
-        self.refined_miss += add
         self.stats["unresolved"] += int(np.sum(unresolved))
         self.stats["refined_nodes"] += int(splits)
-        return found, frac, state
+        return found, frac, state, add
 
     def _locate_chunk(self, X_end, X_prev_end, k_end, path, count, t_stick, stick_state, located):
         """Locate each stick inside its step (all detectors but the bridge), in batches that
