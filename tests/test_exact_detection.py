@@ -353,6 +353,41 @@ def test_stepping_past_candidates_finds_the_same_sticks(Langevin, monkeypatch):
     assert np.isfinite(each.slip_time).mean() > 0.99
 
 
+def test_stepped_past_candidates_are_settled_in_step_order(Langevin, monkeypatch):
+    """`_settle` by hand: a path's stick is in its first candidate (in step order, whatever
+    the order recorded) that holds a crossing; a last candidate that ends at the level but
+    whose refinement finds none (rounding) places the stick at its end; the miss bound is
+    the stepping bound at the stick plus the refinements of the candidates up to it."""
+    from stickslip._simulate import driver
+
+    run = driver._Run("test", driver._to_arrays(Langevin(**PUBLIC)), "exact", "continuous",
+                      0.5, 30.0, ss._rng.seed_key(1))  # fmt: skip
+    below, above = np.array([[0.5], [0.9], [0.0]]), np.array([[0.4], [1.0], [0.0]])
+    # Path rows 0 and 1. Row 0: steps 2 (crossing found at 0.25), 5; row 1: steps 3, 4
+    # (none found; step 4 ends at the level). Recorded in two rounds, out of order.
+    rounds = [
+        (np.array([0, 1]), np.array([5.0, 4.0]), np.array([0.3, 0.7]), np.array([9, 8]),
+         np.hstack([below, below]), np.hstack([above, above])),
+        (np.array([1, 0]), np.array([3.0, 2.0]), np.array([0.2, 0.1]), np.array([8, 9]),
+         np.hstack([below, below]), np.hstack([below, below])),
+    ]  # fmt: skip
+
+    def refine(cand, Xa, Xb, step, path):
+        found = step[cand] == 2.0
+        frac = np.where(found, 0.25, 1.0)
+        return found, frac, Xa[:, cand] + 0.01, np.full(cand.size, 1e-3)
+
+    monkeypatch.setattr(run, "_refine", refine)
+    t_stick, state, miss = np.full(2, np.nan), np.zeros((3, 2)), np.zeros(2)
+    run._settle(rounds, t_stick, state, miss)
+    np.testing.assert_allclose(t_stick, [2.25 * 0.5, 5.0 * 0.5])
+    np.testing.assert_allclose(state[:, 0], below[:, 0] + 0.01)
+    np.testing.assert_allclose(state[:, 1], above[:, 0])
+    np.testing.assert_allclose(miss, [0.1, 0.7])
+    # Row 0's step 5 came after its stick: neither its refinement nor its bound counts.
+    assert run.refined_miss == pytest.approx(3e-3) and run.stats["speculated"] == 1
+
+
 def test_refinement_in_two_threads_is_the_one_thread_one(Langevin, monkeypatch):
     """Candidates enough for two threads (the first step of 5000 paths: every slip's onset):
     the same refinements as in one thread, candidate by candidate, whatever the threads'
