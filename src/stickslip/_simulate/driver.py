@@ -599,9 +599,10 @@ class _Run:
             if refine and size <= SPECULATE_BELOW:
                 # Left to the end: step on past the candidates that end below the level.
                 cand = np.nonzero(real & (ks >= 0))[0]
-                pending.append(
-                    (slot[cand], ks[cand], miss[cand], p[cand], X_prev[:, cand], X[:, cand])
-                )
+                if cand.size:
+                    pending.append(
+                        (slot[cand], ks[cand], miss[cand], p[cand], X_prev[:, cand], X[:, cand])
+                    )
                 below = self.crossing @ X[:, cand] < self.model_level
                 back = cand[below]
                 offset[back] = ks[back] + 1.0
