@@ -5,12 +5,16 @@
 Exact stepping of the public reference set. In buffers of `driver.SPECULATE_BELOW` paths
 or fewer the simulator steps on past a candidate step that ends below the stick level (as
 if refuted) and refines all such candidates at the end, each path's in step order
-(`driver._Run._chunk`); the baseline (`SPECULATE_BELOW = 0`) refines every candidate
-before stepping on. Both run in the same process, compiled and warmed alike, alternated
-`--repeats` times with the same seeds, so that a drift of the machine's speed falls on
-both. Prints the minimum and median wall time of each, their ratio, and whether the two
-give the same slip times, slip distances and stick states to the last bit (they must:
-every draw is keyed by path, step and tree node).
+(`driver._Run._chunk`): inside the stepping loop, up to `driver.PAST_SLOTS` candidates per
+path and call (`hybrid.SteppingPastHybrid`), and by the host between calls for the rest.
+Three ways: the baseline refines every candidate before stepping on (`SPECULATE_BELOW =
+0`); "host" steps past between calls only (`PAST_SLOTS = 0`, the scheme before
+2026-11-26's second change); "loop" is the default. All run in the same process, compiled
+and warmed alike, alternated `--repeats` times with the same seeds, so that a drift of the
+machine's speed falls on all. Prints the minimum and median wall time of each, the ratios
+to the baseline, the stepping calls, and whether all give the same slip times, slip
+distances and stick states to the last bit (they must: every draw is keyed by path, step
+and tree node).
 """
 
 from __future__ import annotations
@@ -35,42 +39,48 @@ def main(argv=None) -> int:
     from stickslip.selection import calibration_seconds
 
     model = ss.get_model("langevin")(**PUBLIC)
-    default = driver.SPECULATE_BELOW
-    ways = {"refine each first": 0, f"step past (<= {default})": default}
+    default = (driver.SPECULATE_BELOW, driver.PAST_SLOTS)
+    ways = {
+        "refine each first": (0, default[1]),
+        f"step past, host (<= {default[0]})": (default[0], 0),
+        f"step past, loop ({default[1]} slots)": default,
+    }
 
-    def run(n, below, seed):
-        driver.SPECULATE_BELOW = below
+    def run(n, way, seed):
+        driver.SPECULATE_BELOW, driver.PAST_SLOTS = way
         try:
             start = time.perf_counter()
             ens = ss.simulate(model, n, args.dt, 100.0, seed=seed, solver="exact", progress=False)
             return time.perf_counter() - start, ens
         finally:
-            driver.SPECULATE_BELOW = default
+            driver.SPECULATE_BELOW, driver.PAST_SLOTS = default
 
     print(f"public set, exact stepping, dt = {args.dt}, calibration "
           f"{calibration_seconds() * 1e3:.1f} ms")  # fmt: skip
     same = True
     for n in args.n_paths:
-        for below in ways.values():  # compile and warm both
-            run(n, below, seed=99)
+        for way in ways.values():  # compile and warm all
+            run(n, way, seed=99)
         times = {name: [] for name in ways}
+        calls = {}
         for rep in range(args.repeats):
             out = []
-            for name, below in ways.items():
-                seconds, ens = run(n, below, seed=rep + 1)
+            for name, way in ways.items():
+                seconds, ens = run(n, way, seed=rep + 1)
                 times[name].append(seconds)
+                calls[name] = ens.stats["buffers"]
                 out.append(ens)
-            a, b = out
             same &= all(
-                np.array_equal(getattr(a, f), getattr(b, f), equal_nan=True)
+                np.array_equal(getattr(out[0], f), getattr(b, f), equal_nan=True)
+                for b in out[1:]
                 for f in ("slip_time", "slip_distance", "stick_state")
             )
         print(f"  {n} paths:")
+        base = times["refine each first"]
         for name, t in times.items():
-            print(f"    {name:24s} min {min(t) * 1e3:6.1f} ms, median {np.median(t) * 1e3:6.1f} ms")
-        (base, new) = (times[k] for k in ways)
-        print(f"    ratio (refine each first / step past): min {min(base) / min(new):.2f}x, "
-              f"median {np.median(base) / np.median(new):.2f}x")  # fmt: skip
+            print(f"    {name:26s} min {min(t) * 1e3:6.1f} ms, median {np.median(t) * 1e3:6.1f} ms"
+                  f" ({min(base) / min(t):.2f}x, {np.median(base) / np.median(t):.2f}x),"
+                  f" {calls[name]} stepping calls")  # fmt: skip
     print(f"  same sticks to the last bit: {same}")
     return 0 if same else 1
 

@@ -337,19 +337,26 @@ def test_stepping_past_candidates_finds_the_same_sticks(Langevin, monkeypatch):
 
     model = Langevin(**PUBLIC)
     runs = []
-    for below in (0, 1 << 30):  # never, always
+    # Never; always, by the host between stepping calls; always, inside the stepping loop
+    # (up to 1 or 2 per path and call, `driver.PAST_SLOTS`; the host takes the rest).
+    for below, slots in ((0, 2), (1 << 30, 0), (1 << 30, 1), (1 << 30, 2)):
         monkeypatch.setattr(driver, "SPECULATE_BELOW", below)
+        monkeypatch.setattr(driver, "PAST_SLOTS", slots)
         runs.append(ss.simulate(model, 3000, 0.8, 30.0, seed=4, solver="exact", progress=False))
-    each, past = runs
+    each, *pasts = runs
     assert "speculated" not in each.stats
-    np.testing.assert_array_equal(past.slip_time, each.slip_time)
-    np.testing.assert_array_equal(past.slip_distance, each.slip_distance)
-    np.testing.assert_array_equal(past.stick_state, each.stick_state)
-    # Candidates refined past a path's stick: work that refining each first does not do,
-    # and that the miss bound does not count.
-    extra = past.stats["candidates"] - each.stats["candidates"]
-    assert extra == past.stats["speculated"] > 0.1 * each.stats["candidates"]
-    assert past.stats["miss_bound"] == pytest.approx(each.stats["miss_bound"], rel=1e-12)
+    for past in pasts:
+        np.testing.assert_array_equal(past.slip_time, each.slip_time)
+        np.testing.assert_array_equal(past.slip_distance, each.slip_distance)
+        np.testing.assert_array_equal(past.stick_state, each.stick_state)
+        # Candidates refined past a path's stick: work that refining each first does not
+        # do, and that the miss bound does not count.
+        extra = past.stats["candidates"] - each.stats["candidates"]
+        assert extra == past.stats["speculated"] > 0.1 * each.stats["candidates"]
+        assert past.stats["miss_bound"] == pytest.approx(each.stats["miss_bound"], rel=1e-12)
+    # Stepping past inside the loop saves stepping calls.
+    calls = [past.stats["buffers"] for past in pasts]
+    assert calls[0] > calls[1] > calls[2]
     assert np.isfinite(each.slip_time).mean() > 0.99
 
 

@@ -21,7 +21,7 @@ from .._solver import EulerMaruyama, ExactGaussian
 from .._solver.base import over_paths
 from . import bridge, localise
 from .ensemble import Ensemble
-from .hybrid import INACTIVE, SLIPPING
+from .hybrid import INACTIVE, PASSED, SLIPPING, SteppingPastHybrid, StickSlipHybrid
 from .loop import HORIZON, solve
 
 MIN_BUFFER = 128  # smallest buffer; below it a step costs the same whatever the size
@@ -32,6 +32,7 @@ MIN_BUFFER = 128  # smallest buffer; below it a step costs the same whatever the
 FINE_BUFFER = 8192
 LOCATE_BATCH = 4096  # paths located at once (bounds the memory of the dense nodes)
 SPECULATE_BELOW = 16384  # buffers from this size down step past candidates (`_Run._chunk`)
+PAST_SLOTS = 2  # candidates a path steps past inside one stepping call (`SteppingPastHybrid`)
 DEFAULT_CROSSING_TOL = 1e-5  # bound on the chance of a missed crossing per certified step
 DEFAULT_CHUNK = 2**20  # about 100 bytes of state per path: 100 MB
 # Interpolation sub-steps of the exact solver: chosen so that h_sub * rho(A) <= this, where
@@ -109,23 +110,34 @@ def _onset_rate(model, X):
 
 @eqx.filter_jit
 def _advance(
-    model, solver, cfg, X, X_prev, k_stick, miss, path, offset, horizon, dt, step_key,
+    model, solver, cfg, slots, X, X_prev, k_stick, miss, path, offset, horizon, dt, step_key,
     bridge_key, stop_at, tol,
 ):  # fmt: skip
     """Run the buffer, each path from its own global step `offset`, until at most `stop_at`
     paths slip (the solve heads for a far horizon and the event ends it; a path expires at
-    global step `horizon`). Returns the new buffer and the number of steps taken."""
+    global step `horizon`). Returns the new buffer and the number of steps taken, and with
+    `slots > 0` (static) the record of the candidate steps stepped past
+    (`SteppingPastHybrid`)."""
 
     def stop(t, y, args, **kwargs):
-        return jnp.sum(y[1][1] == SLIPPING) <= stop_at
+        mode = y[1][1]
+        return jnp.sum((mode == SLIPPING) | (mode == PASSED)) <= stop_at
 
+    record, wrapper = (), StickSlipHybrid
+    if slots:
+        n, shape = k_stick.shape[0], (slots,) + k_stick.shape
+        record = (
+            jnp.zeros(n, jnp.int32), jnp.zeros(shape), jnp.zeros(shape),
+            jnp.zeros((slots,) + X.shape), jnp.zeros((slots,) + X.shape),
+        )  # fmt: skip
+        wrapper = functools.partial(SteppingPastHybrid, slots=slots)
     sol = solve(
-        model, solver, cfg, (X, (X_prev, k_stick, miss)), path, dt, (step_key, bridge_key),
-        offset, t1=HORIZON, saveat=diffrax.SaveAt(t1=True), event=diffrax.Event(stop),
-        horizon=horizon, tol=tol,
+        model, solver, cfg, (X, (X_prev, k_stick, miss, *record)), path, dt,
+        (step_key, bridge_key), offset, t1=HORIZON, saveat=diffrax.SaveAt(t1=True),
+        event=diffrax.Event(stop), wrapper=wrapper, horizon=horizon, tol=tol,
     )  # fmt: skip
-    X, (X_prev, k_stick, miss) = sol.ys
-    return X[0], X_prev[0], k_stick[0], miss[0], sol.ts[0]
+    X, (X_prev, k_stick, miss, *record) = sol.ys
+    return (X[0], X_prev[0], k_stick[0], miss[0], sol.ts[0]) + tuple(r[0] for r in record)
 
 
 @eqx.filter_jit
@@ -433,7 +445,13 @@ class _Run:
         if solver == "exact" and detect != "bridge":
             self.locator = _make_solver(lg, self.cfg, dt, self.nodes)
         # The stepping loop, its model and solver flattened once for all its calls.
-        self.advance = _compile.Fixed(_advance, self.model, self.solver, self.cfg, timer=self.timer)
+        self.advance = _compile.Fixed(
+            _advance, self.model, self.solver, self.cfg, 0, timer=self.timer
+        )
+        # Small buffers of the bridge detector (`_chunk`): the loop that steps past candidates.
+        self.advance_past = _compile.Fixed(
+            _advance, self.model, self.solver, self.cfg, PAST_SLOTS, timer=self.timer
+        )
         self.stats = {"path_steps": 0, "buffers": 0}
         if detect == "bridge":
             self.stats.update(candidates=0, refined_nodes=0, unresolved=0)
@@ -584,20 +602,40 @@ class _Run:
                     self._settle(pending, t_stick, stick_state, miss_end)
                 break
             stop_at = _smaller_buffer(size)
-            X, X_prev, ks, miss, taken = (
-                np.array(a)
-                for a in advance(
-                    X, X_prev, ks, miss, p, offset, horizon, self.dt_arr, keys["step"],
-                    keys["bridge"], np.asarray(stop_at), tol, paths=size,
-                )
+            past = refine and size <= SPECULATE_BELOW
+            out = (self.advance_past if past and PAST_SLOTS else advance)(
+                X, X_prev, ks, miss, p, offset, horizon, self.dt_arr, keys["step"],
+                keys["bridge"], np.asarray(stop_at), tol, paths=size,
             )  # fmt: skip
+            X, X_prev, ks, miss, taken = (np.array(a) for a in out[:5])
             taken = int(round(float(taken)))
             self.stats["path_steps"] += size * taken
             self.stats["buffers"] += 1
+            passing = ks == PASSED
+            ks[passing] = SLIPPING
             offset = np.where(ks == SLIPPING, offset + taken, offset)
             real = slot >= 0
-            if refine and size <= SPECULATE_BELOW:
-                # Left to the end: step on past the candidates that end below the level.
+            if past:
+                # Left to the end: step on past the candidates that end below the level. The
+                # loop stepped past up to PAST_SLOTS of them per path (its record, and the
+                # paths that stepped past one in their last step); a candidate beyond them
+                # ended the path's stepping and is stepped past here.
+                held_n, rec_step, rec_miss, rec_a, rec_b = (
+                    (np.asarray(a) for a in out[5:]) if len(out) > 5 else [np.zeros((0, 0))] * 5
+                )
+                for r in range(rec_step.shape[0]):
+                    held = np.nonzero(real & (held_n > r))[0]
+                    if held.size:
+                        pending.append((
+                            slot[held], rec_step[r, held], rec_miss[r, held], p[held],
+                            rec_a[r][:, held], rec_b[r][:, held],
+                        ))  # fmt: skip
+                held = np.nonzero(real & passing)[0]
+                if held.size:
+                    pending.append((
+                        slot[held], offset[held] - 1.0, miss[held], p[held], X_prev[:, held],
+                        X[:, held],
+                    ))  # fmt: skip
                 cand = np.nonzero(real & (ks >= 0))[0]
                 if cand.size:
                     pending.append(

@@ -34,6 +34,7 @@ from . import bridge, localise
 SLIPPING = -1.0
 INACTIVE = -2.0
 EXPIRED = -3.0
+PASSED = -4.0  # slipping, after stepping past a candidate in the last step (`SteppingPastHybrid`)
 
 
 class AbstractCrossingSolver(diffrax.AbstractItoSolver):
@@ -139,5 +140,54 @@ class StickSlipHybrid(AbstractCrossingSolver):
         k_out = jnp.where(slipping & hit, k_here, jnp.where(expired, EXPIRED, k_stick))
         miss_out = miss + jnp.where(slipping & ~hit, bound, 0.0)
         y1 = (X_out, (X_prev_out, k_out, miss_out))
+        state = (inner_state, self._uniforms(t1))
+        return y1, None, dict(y0=y0, y1=y1), state, result
+
+
+class SteppingPastHybrid(StickSlipHybrid):
+    """`StickSlipHybrid` (bridge detector) that steps past a candidate step ending below the
+    level, up to `slots` of them per path and solve, and records each: its step, the miss
+    bound before it and both end states, for refinement after the solve. A path's candidate
+    past its slots ends its stepping as in `StickSlipHybrid`.
+
+    The state gains the record, `(count, step, miss, X_start, X_end)`, `(n,)`, `(slots, n)`,
+    `(slots, n)`, `(slots, d, n)`, `(slots, d, n)`. A candidate stepped past is marked in
+    the mode (`PASSED`: slipping on) and recorded at the path's next step, from the state at
+    its start (`X_prev`, `X` are then the candidate's end states): as with freezing, the
+    crossing test feeds the mode alone, not every written record (measured: recording at
+    once made a step 30x slower, XLA re-deriving the test in each). A path still `PASSED`
+    when the solve ends is recorded by the caller."""
+
+    slots: int = eqx.field(static=True, default=2)
+
+    def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
+        X, (X_prev, k_stick, miss, count, steps, misses, starts, ends) = y0
+        X1, inner_state, result, u = self.advance(terms, t0, t1, y0, args, solver_state, made_jump)
+        _, _, at_end, inside, bound = self.crossing_tests(args, X, X1, t0, t1, u, self.tol)
+        was_passed = k_stick == PASSED
+        slipping = (k_stick == SLIPPING) | was_passed
+        k_here = jnp.round(t0) + self.offset
+        into = [was_passed & (count == r) for r in range(self.slots)]
+        steps = jnp.stack([jnp.where(w, k_here - 1.0, steps[r]) for r, w in enumerate(into)])
+        misses = jnp.stack([jnp.where(w, miss, misses[r]) for r, w in enumerate(into)])
+        starts = jnp.stack([jnp.where(w[None], X_prev, starts[r]) for r, w in enumerate(into)])
+        ends = jnp.stack([jnp.where(w[None], X, ends[r]) for r, w in enumerate(into)])
+        count = count + was_passed
+        hit = at_end | inside
+        passed = slipping & inside & ~at_end & (count < self.slots)
+        expired = slipping & ~hit & (k_here + 1.0 >= self.horizon)
+        X_out = jnp.where(slipping[None], X1, X)
+        X_prev_out = jnp.where(slipping[None], X, X_prev)
+        k_out = jnp.where(
+            passed,
+            PASSED,
+            jnp.where(
+                slipping & hit,
+                k_here,
+                jnp.where(expired, EXPIRED, jnp.where(slipping, SLIPPING, k_stick)),
+            ),
+        )
+        miss_out = miss + jnp.where(slipping & ~hit, bound, 0.0)
+        y1 = (X_out, (X_prev_out, k_out, miss_out, count, steps, misses, starts, ends))
         state = (inner_state, self._uniforms(t1))
         return y1, None, dict(y0=y0, y1=y1), state, result
