@@ -523,12 +523,16 @@ class Refiner:
         if C not in self.sizes:
             with self._lock:  # the two threads of `first_crossing` compile each size once
                 if C not in self.sizes:
-                    compiled, flat, _ = _compile.executable(
-                        _refine_levels, *args, self.layout, timer=self.timer, paths=C
-                    )
-                    self.sizes[C] = (
-                        compiled if flat else functools.partial(_tail, compiled, self.layout)
-                    )
+
+                    def make():
+                        compiled, flat, _ = _compile.executable(
+                            _refine_levels, *args, self.layout, timer=self.timer, paths=C
+                        )
+                        return compiled if flat else functools.partial(_tail, compiled, self.layout)
+
+                    # The layout fixes every argument's shape and dtype: the runs of one
+                    # model structure share the executables.
+                    self.sizes[C] = _compile.memoized((Refiner, self.layout, C), make)
         return self.sizes[C](*args)
 
     def first_crossing(self, Xa, Xb, path, step):
