@@ -650,10 +650,11 @@ class _Run:
                 cand = np.nonzero(real & (ks >= 0))[0]
                 found, frac, state, refined = self._refine(cand, X_prev, X, ks, p)
                 self.refined_miss += float(np.sum(refined))
-                hit, back = cand[found], cand[~found]
+                f = np.flatnonzero(found)  # integer indices: ~2x faster than the mask here
+                hit, back = cand[f], cand[~found]
                 rows = slot[hit]
-                t_stick[rows] = (ks[hit] + frac[found]) * self.dt
-                stick_state[:, rows] = state[:, found]
+                t_stick[rows] = (ks[hit] + frac[f]) * self.dt
+                stick_state[:, rows] = state.take(f, axis=1)
                 offset[back] = ks[back] + 1.0  # refuted: resume at the next step
                 ks[back] = SLIPPING
                 ks[hit] = INACTIVE
