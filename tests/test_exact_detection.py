@@ -338,8 +338,9 @@ def test_stepping_past_candidates_finds_the_same_sticks(Langevin, monkeypatch):
     model = Langevin(**PUBLIC)
     runs = []
     # Never; always, by the host between stepping calls; always, inside the stepping loop
-    # (up to 1 or 2 per path and call, `driver.PAST_SLOTS`; the host takes the rest).
-    for below, slots in ((0, 2), (1 << 30, 0), (1 << 30, 1), (1 << 30, 2)):
+    # (up to 2 per path and call, `driver.PAST_SLOTS`; the host takes the rest: here ~40 %
+    # of the paths fill both slots in some call, ~20 % end a call just past one).
+    for below, slots in ((0, 2), (1 << 30, 0), (1 << 30, 2)):
         monkeypatch.setattr(driver, "SPECULATE_BELOW", below)
         monkeypatch.setattr(driver, "PAST_SLOTS", slots)
         runs.append(ss.simulate(model, 3000, 0.8, 30.0, seed=4, solver="exact", progress=False))
@@ -356,7 +357,7 @@ def test_stepping_past_candidates_finds_the_same_sticks(Langevin, monkeypatch):
         assert past.stats["miss_bound"] == pytest.approx(each.stats["miss_bound"], rel=1e-12)
     # Stepping past inside the loop saves stepping calls.
     calls = [past.stats["buffers"] for past in pasts]
-    assert calls[0] > calls[1] > calls[2]
+    assert calls[0] > calls[1]
     assert np.isfinite(each.slip_time).mean() > 0.99
 
 
