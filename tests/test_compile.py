@@ -50,6 +50,26 @@ def test_a_new_step_size_reuses_the_compiled_code():
     assert (after["traces"], after["compiles"]) == (before["traces"], before["compiles"])
 
 
+def test_a_repeated_run_looks_up_its_loops_by_a_cheap_key(monkeypatch):
+    """A second run of one configuration (a new model instance and new step) finds the
+    stepping loop's and the refinement's executables without `_compile.executable`, whose
+    key partitions and hashes the model and solver (~0.3 ms a call, 20 calls a run)."""
+    model = ss.get_model("langevin")(**WHITE, tau=0.1)
+    ss.simulate(model, 3000, 0.8, 20.0, seed=1)
+    seen = []
+    lookup = _compile.executable
+
+    def spy(fn, *args, **kwargs):
+        seen.append(getattr(fn, "__name__", repr(fn)))
+        return lookup(fn, *args, **kwargs)
+
+    monkeypatch.setattr(_compile, "executable", spy)
+    again = ss.get_model("langevin")(**WHITE, tau=0.1)
+    ens = ss.simulate(again, 3000, 0.4, 20.0, seed=2)
+    assert ens.stats["candidates"] > 1000  # the refinement ran
+    assert not {"_advance", "_refine_levels"} & set(seen), seen
+
+
 def test_white_noise_recompiles_only_the_locator_per_node_count():
     """White noise (Brownian-bridge location): the stepping loop is shared by every dt; only
     the stick locator, whose interpolation nodes follow dt (powers of two), is compiled per

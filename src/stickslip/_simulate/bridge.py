@@ -532,7 +532,7 @@ class Refiner:
 
                     # The layout fixes every argument's shape and dtype: the runs of one
                     # model structure share the executables.
-                    self.sizes[C] = _compile.memoized((Refiner, self.layout, C), make)
+                    self.sizes[C] = _compile.memoized((_refine_levels, self.layout, C), make)
         return self.sizes[C](*args)
 
     def first_crossing(self, Xa, Xb, path, step):
