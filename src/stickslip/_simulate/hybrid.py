@@ -162,10 +162,8 @@ class SteppingPastHybrid(StickSlipHybrid):
 
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
         X, (X_prev, k_stick, miss, count, steps, misses, starts, ends) = y0
-        X1, inner_state, result, u = self.advance(terms, t0, t1, y0, args, solver_state, made_jump)
-        _, _, at_end, inside, bound = self.crossing_tests(args, X, X1, t0, t1, u, self.tol)
+        # Record the candidate stepped past in the last step: its ends are X_prev and X.
         was_passed = k_stick == PASSED
-        slipping = (k_stick == SLIPPING) | was_passed
         k_here = jnp.round(t0) + self.offset
         into = [was_passed & (count == r) for r in range(self.slots)]
         steps = jnp.stack([jnp.where(w, k_here - 1.0, steps[r]) for r, w in enumerate(into)])
@@ -173,21 +171,13 @@ class SteppingPastHybrid(StickSlipHybrid):
         starts = jnp.stack([jnp.where(w[None], X_prev, starts[r]) for r, w in enumerate(into)])
         ends = jnp.stack([jnp.where(w[None], X, ends[r]) for r, w in enumerate(into)])
         count = count + was_passed
-        hit = at_end | inside
-        passed = slipping & inside & ~at_end & (count < self.slots)
-        expired = slipping & ~hit & (k_here + 1.0 >= self.horizon)
-        X_out = jnp.where(slipping[None], X1, X)
-        X_prev_out = jnp.where(slipping[None], X, X_prev)
-        k_out = jnp.where(
-            passed,
-            PASSED,
-            jnp.where(
-                slipping & hit,
-                k_here,
-                jnp.where(expired, EXPIRED, jnp.where(slipping, SLIPPING, k_stick)),
-            ),
+        # The step itself is `StickSlipHybrid`'s; of the paths that became candidates in it,
+        # those that end below the level step on while they have slots.
+        base = (X, (X_prev, jnp.where(was_passed, SLIPPING, k_stick), miss))
+        (X1, (X_prev1, k1, miss1)), _, _, state, result = super().step(
+            terms, t0, t1, base, args, solver_state, made_jump
         )
-        miss_out = miss + jnp.where(slipping & ~hit, bound, 0.0)
-        y1 = (X_out, (X_prev_out, k_out, miss_out, count, steps, misses, starts, ends))
-        state = (inner_state, self._uniforms(t1))
+        below = over_paths(args.crossing)(X1) < args.stick_level
+        k1 = jnp.where((k1 == k_here) & below & (count < self.slots), PASSED, k1)
+        y1 = (X1, (X_prev1, k1, miss1, count, steps, misses, starts, ends))
         return y1, None, dict(y0=y0, y1=y1), state, result
