@@ -620,16 +620,15 @@ class _Run:
                 # loop stepped past up to PAST_SLOTS of them per path (its record, and the
                 # paths that stepped past one in their last step); a candidate beyond them
                 # ended the path's stepping and is stepped past here.
-                held_n, rec_step, rec_miss, rec_a, rec_b = (
-                    (np.asarray(a) for a in out[5:]) if len(out) > 5 else [np.zeros((0, 0))] * 5
-                )
-                for r in range(rec_step.shape[0]):
-                    held = np.nonzero(real & (held_n > r))[0]
-                    if held.size:
-                        pending.append((
-                            slot[held], rec_step[r, held], rec_miss[r, held], p[held],
-                            rec_a[r][:, held], rec_b[r][:, held],
-                        ))  # fmt: skip
+                if len(out) > 5:  # the loop's record (PAST_SLOTS > 0)
+                    held_n, rec_step, rec_miss, rec_a, rec_b = (np.asarray(a) for a in out[5:])
+                    for r in range(rec_step.shape[0]):
+                        held = np.nonzero(real & (held_n > r))[0]
+                        if held.size:
+                            pending.append((
+                                slot[held], rec_step[r, held], rec_miss[r, held], p[held],
+                                rec_a[r][:, held], rec_b[r][:, held],
+                            ))  # fmt: skip
                 held = np.nonzero(real & passing)[0]
                 if held.size:
                     pending.append((
