@@ -620,26 +620,19 @@ class _Run:
                 # loop stepped past up to PAST_SLOTS of them per path (its record, and the
                 # paths that stepped past one in their last step); a candidate beyond them
                 # ended the path's stepping and is stepped past here.
+                # (which paths, their candidate's step, miss bound before it, both ends)
+                held = [(passing, offset - 1.0, miss, X_prev, X), (ks >= 0, ks, miss, X_prev, X)]
                 if len(out) > 5:  # the loop's record (PAST_SLOTS > 0)
                     held_n, rec_step, rec_miss, rec_a, rec_b = (np.asarray(a) for a in out[5:])
-                    for r in range(rec_step.shape[0]):
-                        held = np.nonzero(real & (held_n > r))[0]
-                        if held.size:
-                            pending.append((
-                                slot[held], rec_step[r, held], rec_miss[r, held], p[held],
-                                rec_a[r][:, held], rec_b[r][:, held],
-                            ))  # fmt: skip
-                held = np.nonzero(real & passing)[0]
-                if held.size:
-                    pending.append((
-                        slot[held], offset[held] - 1.0, miss[held], p[held], X_prev[:, held],
-                        X[:, held],
-                    ))  # fmt: skip
+                    held += [
+                        (held_n > r, rec_step[r], rec_miss[r], rec_a[r], rec_b[r])
+                        for r in range(rec_step.shape[0])
+                    ]
+                for mask, step, miss_at, Xa, Xb in held:
+                    i = np.nonzero(real & mask)[0]
+                    if i.size:
+                        pending.append((slot[i], step[i], miss_at[i], p[i], Xa[:, i], Xb[:, i]))
                 cand = np.nonzero(real & (ks >= 0))[0]
-                if cand.size:
-                    pending.append(
-                        (slot[cand], ks[cand], miss[cand], p[cand], X_prev[:, cand], X[:, cand])
-                    )
                 below = self.crossing @ X[:, cand] < self.model_level
                 back = cand[below]
                 offset[back] = ks[back] + 1.0
