@@ -103,19 +103,31 @@ def bits(key, path, counter, nblocks: int):
     return jnp.stack([w[0] for w in words] + [w[1] for w in words])
 
 
+def candidate_key(key, path, step):
+    """The key of one candidate step's refinement tree (two words, each `(n,)`): a function
+    of (key, path, step) alone, computed once per candidate and carried with its intervals."""
+    key = jnp.asarray(key, dtype=jnp.uint32)
+    return threefry2x32(
+        key, jnp.asarray(path, dtype=jnp.uint32), jnp.asarray(step, dtype=jnp.uint32)
+    )
+
+
+def node_normals(ckey, node, k: int):
+    """`k` standard normals per interval for node `node` (uint32, one per interval) of the
+    tree whose `candidate_key` words are `ckey` (two arrays): two Threefry blocks for k <= 4
+    (hashing (step, node) and then the path cost a third, 6 % of a refinement pass)."""
+    sub = jnp.stack([jnp.asarray(w, dtype=jnp.uint32) for w in ckey])  # a key per interval
+    node = jnp.asarray(node, dtype=jnp.uint32)
+    nblocks = (k + 1) // 2
+    blocks = [threefry2x32(sub, node, jnp.full(node.shape, j, jnp.uint32)) for j in range(nblocks)]
+    b = jnp.stack([w[0] for w in blocks] + [w[1] for w in blocks])
+    return _to_normals(b[:k])
+
+
 def tree_normals(key, path, step, node, k: int):
     """`k` standard normals per path for node `node` (uint32, one per path) of the refinement
     tree of step `step` (one per path): a function of (key, path, step, node) alone."""
-    key = jnp.asarray(key, dtype=jnp.uint32)
-    w0, w1 = threefry2x32(
-        key, jnp.asarray(step, dtype=jnp.uint32), jnp.asarray(node, dtype=jnp.uint32)
-    )
-    sub = jnp.stack([w0, w1])  # a key per path
-    path = jnp.asarray(path, dtype=jnp.uint32)
-    nblocks = (k + 1) // 2
-    blocks = [threefry2x32(sub, path, jnp.full(path.shape, j, jnp.uint32)) for j in range(nblocks)]
-    b = jnp.stack([w[0] for w in blocks] + [w[1] for w in blocks])
-    return _to_normals(b[:k])
+    return node_normals(candidate_key(key, path, step), node, k)
 
 
 # Giles (2010), "Approximating the erfinv function", single precision: the same

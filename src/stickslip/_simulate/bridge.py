@@ -316,15 +316,17 @@ HEADROOM = 1.25  # a buffer is chosen for this many times its open intervals
 
 
 def _refine_levels(
-    rows_t, j0, depths, level, tol, key, shrink_at, a, b, owner, pos, path, step, count, layout
+    rows_t, j0, depths, level, tol, key, shrink_at, keyed, a, b, owner, pos, k0, k1, count, layout
 ):
     """Refine the open intervals of one tree level after another, inside one compiled call.
 
     The intervals are the first `count` columns of a buffer of capacity `C` (the last axis):
     end states `a`, `b` `(d, C)`, `owner` (the candidate each belongs to, `< C`; an owner's
     intervals are contiguous and in time order), position `pos` in their level, and the
-    path and step counters of their candidate. A pass splits every interval at its exact
-    bridge midpoint (noise keyed by path, step and tree node), decides each half as
+    key words of their candidate's tree (`_rng.candidate_key`; `keyed` 0: the buffer holds
+    the candidate's path and step counters instead, hashed here once). A pass splits every
+    interval at its exact bridge midpoint (noise keyed by path, step and tree node, through
+    the candidate's key), decides each half as
     `Refiner.first_crossing` describes, and compacts the halves still open into the buffer,
     in order. Passes run from level `j0` while at least `shrink_at` intervals are open. The
     call returns to the host when the refinement is done (`_DONE`), when fewer are open
@@ -342,16 +344,16 @@ def _refine_levels(
     locate, certify = depths[0], depths[1]
     slots = jnp.arange(C, dtype=jnp.int32)
 
-    def draw(j, pos, path, step):
+    def draw(j, pos, k0, k1):
         # The bridge noise of the midpoints of level j, keyed by path, step and tree node. It
         # is drawn a level ahead and carried: a carried value is materialised once, where XLA
         # re-derived a draw (Threefry hashes and the inverse error function) inside each of
         # its consumers.
         node = (jnp.left_shift(1, j) + pos).astype(jnp.uint32)
-        return _rng.tree_normals(key, path, step, node, d)
+        return _rng.node_normals((k0, k1), node, d)
 
     def one_level(carry):
-        j, a, b, owner, pos, path, step, z, count = carry[:9]
+        j, a, b, owner, pos, k0, k1, z, count = carry[:9]
         found, frac, state, miss, unres, splits = carry[9:-1]
         Tp, Tc = _unpack(rows, j, layout), _unpack(rows, j + 1, layout)
         valid = slots < count
@@ -435,9 +437,9 @@ def _refine_levels(
         Xm_i = Xm[:, i]
         a_ = jnp.where(r, Xm_i, a[:, i])
         b_ = jnp.where(r, b[:, i], Xm_i)
-        owner_, path_, step_, pos_ = owner[i], path[i], step[i], 2 * pos[i] + r
+        owner_, k0_, k1_, pos_ = owner[i], k0[i], k1[i], 2 * pos[i] + r
         new = (
-            j + 1, a_, b_, owner_, pos_, path_, step_, draw(j + 1, pos_, path_, step_), total,
+            j + 1, a_, b_, owner_, pos_, k0_, k1_, draw(j + 1, pos_, k0_, k1_), total,
             found, frac, state, miss, unres, splits + count,
         )  # fmt: skip
         status = jnp.where(
@@ -450,8 +452,9 @@ def _refine_levels(
         return kept + (jnp.where(grow, _GROW, status),)
 
     zeros = jnp.zeros(C)
+    k0, k1 = jax.lax.cond(keyed > 0, lambda: (k0, k1), lambda: _rng.candidate_key(key, k0, k1))
     init = (
-        j0, a, b, owner, pos, path, step, draw(j0, pos, path, step), count,
+        j0, a, b, owner, pos, k0, k1, draw(j0, pos, k0, k1), count,
         jnp.zeros(C, bool), zeros, jnp.zeros_like(a), zeros, jnp.zeros(C, bool),
         jnp.zeros((), count.dtype), jnp.asarray(_GO),
     )  # fmt: skip
@@ -512,12 +515,13 @@ class Refiner:
         self.sizes: dict = {}
         self._lock = threading.Lock()
 
-    def _call(self, j, a, b, owner, pos, path, step, count):
+    def _call(self, j, keyed, a, b, owner, pos, k0, k1, count):
         C = a.shape[-1]
         rows_t, depths, level, tol, key = self.fixed
         args = (
             rows_t, np.asarray(j, np.int32), depths, level, tol, key,
-            np.asarray(_shrink_at(C), np.int32), a, b, owner, pos, path, step,
+            np.asarray(_shrink_at(C), np.int32), np.asarray(keyed, np.int32),
+            a, b, owner, pos, k0, k1,
             np.asarray(count, np.int32),
         )  # fmt: skip
         if C not in self.sizes:
@@ -597,9 +601,10 @@ class Refiner:
                 np.arange(m, dtype=np.int32), np.zeros(m, np.int32), path[who], step[who],
             ]  # fmt: skip
             buf = [_padded(x, C - m) for x in buf]
-            j, count = 0, m
+            j, count, keyed = 0, m, 0  # the first call hashes (path, step) into a key
             while True:
-                out = self._call(j, *buf, count)
+                out = self._call(j, keyed, *buf, count)
+                keyed = 1
                 status, j, count = int(out[-1]), int(out[0]), int(out[8])
                 k = who.size
                 found_ = np.asarray(out[9])[:k]
