@@ -596,9 +596,11 @@ class Refiner:
             who = np.arange(first, last)  # the candidate of each owner
             m = who.size
             C = _capacity(m)
+            # Slices, not gathers (`who` is a range): each copied once, into its buffer.
+            part = slice(first, last)
             buf = [
-                np.asarray(Xa[:, who], float), np.asarray(Xb[:, who], float),
-                np.arange(m, dtype=np.int32), np.zeros(m, np.int32), path[who], step[who],
+                Xa[:, part], Xb[:, part], np.arange(m, dtype=np.int32), np.zeros(m, np.int32),
+                path[part], step[part],
             ]  # fmt: skip
             buf = [_padded(x, C - m) for x in buf]
             j, count, keyed = 0, m, 0  # the first call hashes (path, step) into a key
@@ -645,10 +647,11 @@ def _batch_cuts(lo: int, hi: int, batch: int):
 
 
 def _padded(x, pad):
-    """`x` with `pad` more columns of zeros (the unused slots of a buffer)."""
-    if pad == 0:
-        return x
-    return np.concatenate([x, np.zeros(x.shape[:-1] + (pad,), x.dtype)], axis=-1)
+    """`x` with `pad` more columns of zeros (the unused slots of a buffer), a new array."""
+    out = np.empty(x.shape[:-1] + (x.shape[-1] + pad,), x.dtype)
+    out[..., : x.shape[-1]] = x
+    out[..., x.shape[-1] :] = 0
+    return out
 
 
 def _tail(compiled, layout, *args):
