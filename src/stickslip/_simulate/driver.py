@@ -594,7 +594,8 @@ class _Run:
         if self.bar is not None:
             self.bar.update(int(np.sum(immediate)))
         # Chunk-level results; buffers are written back into them by `slot` (-1: padding).
-        X_end, X_prev_end, k_end = X0.copy(), X0.copy(), k_stick.copy()
+        if not refine:  # (the bridge detector writes sticks as it refines them)
+            X_end, X_prev_end, k_end = X0.copy(), X0.copy(), k_stick.copy()
         t_stick = np.full(count, np.nan)
         stick_state = X0[:, :count].copy()
         located = np.ones(count, dtype=bool)
