@@ -122,7 +122,9 @@ def grid(values, bins):
 def density(values, n_paths, edges):
     """Histogram of one run, normalised by all its paths (unstuck paths count as missing
     mass), and its standard errors."""
-    counts, _ = np.histogram(values[np.isfinite(values)], bins=edges)
+    from stickslip._histogram import counts as histogram_counts
+
+    counts = histogram_counts(values, edges)  # np.histogram's counts, faster (nan not counted)
     p = counts / n_paths
     return p / np.diff(edges), np.sqrt(p * (1 - p) / n_paths) / np.diff(edges)
 

@@ -58,6 +58,7 @@ from importlib import resources
 
 import numpy as np
 
+from . import _histogram
 from ._errors import ParameterError, StickSlipError, check_positive
 from ._model import FrictionModel, time_scales
 from .stability import ANALYTIC_METHODS as ANALYTIC
@@ -504,7 +505,7 @@ def _pilot(model, output, t_max, seed) -> dict:
     finite = x[np.isfinite(x)]
     top = float(np.quantile(finite, 0.999)) if finite.size else t_max
     edges = np.linspace(0.0, max(top, 1e-12), BINS[output] + 1)
-    counts, _ = np.histogram(finite, bins=edges)
+    counts = _histogram.counts(finite, edges)
     p = counts / PILOT_PATHS
     slip = np.asarray(ens.slip_time, float)
     return dict(
@@ -709,7 +710,7 @@ def first_passage_density(
             model, s["n_paths"], s["dt"], t_max, seed=seed, solver=s["solver"], progress=False
         )
         x = np.asarray(getattr(ens, output))
-        counts, _ = np.histogram(x[np.isfinite(x)], bins=edges)
+        counts = _histogram.counts(x, edges)  # nan (no stick) not counted
         p = counts / s["n_paths"]
         density, se = p / h, np.sqrt(p * (1 - p) / s["n_paths"]) / h
     return DensityResult(t, np.asarray(density, float), se, choice, time.perf_counter() - start)

@@ -7,6 +7,8 @@ from typing import Any
 
 import numpy as np
 
+from .. import _histogram
+
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Ensemble:
@@ -77,7 +79,11 @@ class Ensemble:
         **Returns:** `(values, standard_errors, edges)`.
         """
         x = np.asarray(getattr(self, name))[self.stuck]
-        counts, edges = np.histogram(x, bins=bins)
+        if np.ndim(bins) == 1:  # given edges
+            edges = np.asarray(bins, dtype=float)
+            counts = _histogram.counts(x, edges)
+        else:
+            counts, edges = np.histogram(x, bins=bins)
         n = self.n_paths
         p = counts / n
         se = np.sqrt(p * (1 - p) / n)
