@@ -80,7 +80,7 @@ def _exact_solver(key, bridged: bool, dt: float, nodes: int):
     return ExactGaussian(A, b, B, dt, nodes=nodes, bridge=tables, host=True)
 
 
-def _detector(lg, solver: str, monitor: str, smooth: bool, dt: float) -> str:
+def _detector(lg, solver: str, monitor: str, smooth: bool) -> str:
     """The in-step stick test of a run (static): exact in law (`"bridge"`) wherever the slip
     is linear-Gaussian with noise reaching the differentiable crossing variable."""
     if monitor == "grid":
@@ -417,7 +417,7 @@ class _Run:
                 solver,
             )
         smooth = bool(model.crossing_is_smooth)
-        detect = _detector(lg, solver, monitor, smooth, dt)
+        detect = _detector(lg, solver, monitor, smooth)
         self.cfg = _Config(
             solver=solver,
             monitor=monitor,
@@ -605,7 +605,7 @@ class _Run:
         # Buffer: states, modes, path counters, each path's next global step, miss bounds.
         X, X_prev, ks, p = X0, X0, k_stick, path
         offset, miss = np.zeros(size), np.zeros(size)
-        X_dev, X_prev_dev, miss_dev, p_dev = X, X_prev, miss, p
+        X_dev, X_prev_dev, miss_dev = X, X_prev, miss
         horizon = np.asarray(float(self.n_steps))
         tol = np.asarray(self.tol)
         advance = self.advance
@@ -623,14 +623,14 @@ class _Run:
             stop_at = _smaller_buffer(size)
             past = refine and size <= SPECULATE_BELOW
             out = (self.advance_past if past and PAST_SLOTS else advance)(
-                X_dev, X_prev_dev, ks, miss_dev, p_dev, offset, horizon, self.dt_arr, keys["step"],
+                X_dev, X_prev_dev, ks, miss_dev, p, offset, horizon, self.dt_arr, keys["step"],
                 keys["bridge"], np.asarray(stop_at), tol, paths=size,
             )  # fmt: skip
             # The states stay where the loop left them for its next call (read here through
             # zero-copy views; copying them in and out cost ~3 ms a call at 131072 paths).
             X_dev, X_prev_dev, miss_dev = out[0], out[1], out[3]
             X, X_prev, miss = np.asarray(X_dev), np.asarray(X_prev_dev), np.asarray(miss_dev)
-            ks = np.array(out[2])  # changed here
+            ks = np.array(out[2])  # a copy: the host sets modes in it
             taken = int(round(float(out[4])))
             self.stats["path_steps"] += size * taken
             self.stats["buffers"] += 1
@@ -689,7 +689,7 @@ class _Run:
                 ks = _repack(ks, alive, pad, INACTIVE)
                 p, slot = _repack(p, alive, pad, 0), _repack(slot, alive, pad, -1)
                 offset, miss = _repack(offset, alive, pad, 0.0), _repack(miss, alive, pad, 0.0)
-                X_dev, X_prev_dev, miss_dev, p_dev = X, X_prev, miss, p
+                X_dev, X_prev_dev, miss_dev = X, X_prev, miss
         if not refine:
             self._locate_chunk(X_end, X_prev_end, k_end, path, count, t_stick, stick_state, located)
         imm = immediate[:count]
