@@ -115,7 +115,7 @@ def candidate_key(key, path, step):
 def node_normals(ckey, node, k: int):
     """`k` standard normals per interval for node `node` (uint32, one per interval) of the
     tree whose `candidate_key` words are `ckey` (two arrays): two Threefry blocks for k <= 4
-    (hashing (step, node) and then the path cost a third, 6 % of a refinement pass)."""
+    (hashing (step, node) and then the path cost a third block: 3-7 % of a refinement pass)."""
     sub = jnp.stack([jnp.asarray(w, dtype=jnp.uint32) for w in ckey])  # a key per interval
     node = jnp.asarray(node, dtype=jnp.uint32)
     nblocks = (k + 1) // 2
