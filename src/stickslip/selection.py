@@ -638,11 +638,12 @@ def _checked_analytic(model, rows, tolerance, speed, pilot, output, mc) -> list[
         values = _analytic_cells(model, settings, output, ext)
         cost = time.perf_counter() - start
         width = np.diff(ext)
-        l1 = float(np.sum(np.abs(values[:k] * width[:k] - pilot["mass"])))
+        inside = values[:k]  # the pilot's range (the stability rule looks at it alone)
+        l1 = float(np.sum(np.abs(inside * width[:k] - pilot["mass"])))
         tail = float(np.sum(np.abs(values[k:] * width[k:]))) + pilot["beyond"]
         bound = l1 + noise + pilot["unfinished"] + tail
         rejected = None
-        if np.min(values) < -NEGATIVE * np.max(np.abs(values)):
+        if np.min(inside) < -NEGATIVE * np.max(np.abs(inside)):
             rejected = "stability: density negative"
         out.append(
             Candidate(
