@@ -50,6 +50,28 @@ def test_a_new_step_size_reuses_the_compiled_code():
     assert (after["traces"], after["compiles"]) == (before["traces"], before["compiles"])
 
 
+def test_a_new_number_of_paths_reuses_the_compiled_code():
+    """Runs of 1000 and then 300, 500, 700 paths (one buffer size): nothing is compiled or
+    loaded again, the per-path helpers (onset states, stick times) included, which run on
+    the buffer size; their results are those of the run itself (cut back, not padded).
+    (The refinement's buffers follow the number of candidates: the first run, the largest,
+    compiles every size the others use.)"""
+    model = ss.get_model("langevin")(**WHITE, tau=0.1)
+    big = ss.simulate(model, 1000, 0.4, 20.0, seed=1)
+    before = ss.cache_info()
+    for n in (300, 500, 700):
+        ens = ss.simulate(model, n, 0.4, 20.0, seed=1)
+        assert ens.stats["compile_seconds"] == 0.0
+        assert ens.next_onset_state.shape == ens.onset_state.shape == (n, 3)
+        assert ens.slip_time.shape == ens.stick_time.shape == (n,)
+    after = ss.cache_info()
+    keys = ("traces", "compiles", "exported_loaded", "executables_loaded")
+    assert [after[k] for k in keys] == [before[k] for k in keys]
+    # The 700-path run is the first 700 paths of the 1000-path one (padding changes nothing).
+    for name in ("slip_time", "stick_time", "slip_distance", "next_onset_state"):
+        np.testing.assert_array_equal(getattr(big, name)[:700], getattr(ens, name))
+
+
 def test_a_repeated_run_looks_up_its_loops_by_a_cheap_key(monkeypatch):
     """A second run of one configuration (a new model instance and new step) finds the
     stepping loop's and the refinement's executables without `_compile.executable`, whose

@@ -185,6 +185,24 @@ def _buffer_size(n: int) -> int:
     return size
 
 
+def _padded_size(n: int) -> int:
+    """The size that per-path helper calls (onset states, stick times) of `n` paths run on:
+    the buffer size that holds them (up to a chunk; above it, whole chunks), so that runs of
+    any number of paths share the executables of a few sizes (each new size was a
+    compilation of ~0.3 s on a cold cache, or a load from disk)."""
+    return _buffer_size(n) if n <= DEFAULT_CHUNK else -(-n // DEFAULT_CHUNK) * DEFAULT_CHUNK
+
+
+def _pad_paths(x, size: int):
+    """`x` with its last axis (paths) padded to `size` by repeating its first path."""
+    n = x.shape[-1]
+    if n == size:
+        return x
+    if n == 0:
+        return np.zeros(x.shape[:-1] + (size,), x.dtype)
+    return np.concatenate([x, np.repeat(x[..., :1], size - n, axis=-1)], axis=-1)
+
+
 def _smaller_buffer(size: int) -> int:
     """The next buffer size below `size` (0 below the smallest)."""
     if size <= MIN_BUFFER:
@@ -509,13 +527,20 @@ class _Run:
         stepped = float(np.sum(self.miss)) if self.miss is not None else 0.0
         return stepped + self.refined_miss
 
+    def finish(self, stick_state, next_onset):
+        """`_finish` (stick times, positions) for per-path states, on the padded size."""
+        n = stick_state.shape[-1]
+        size = _padded_size(n)
+        out = self.call(
+            _finish, self.model, _pad_paths(stick_state, size), _pad_paths(next_onset, size),
+            paths=size,
+        )  # fmt: skip
+        return tuple(np.asarray(a)[..., :n] for a in out)
+
     def cycle_outputs(self, X0, stick_state, t_stick, next_onset):
         """The per-path outputs of an `Ensemble` from the raw first-passage results."""
-        T_st, x_sl = (
-            np.asarray(a)
-            for a in self.call(_finish, self.model, stick_state, next_onset, paths=X0.shape[-1])
-        )
-        x_start = np.asarray(self.call(_finish, self.model, X0, X0, paths=X0.shape[-1])[1])
+        T_st, x_sl = self.finish(stick_state, next_onset)
+        x_start = self.finish(X0, X0)[1]
         stuck = np.isfinite(t_stick) & (t_stick <= self.t_max)
         nan = np.where(stuck, 1.0, np.nan)
         stick_state *= nan  # no stick state for the paths that never stuck
@@ -558,20 +583,18 @@ class _Run:
             count[rows] = np.asarray(c)[: rows.size].astype(np.int64)
             times[rows] = np.asarray(t)[:, : rows.size].T
             positions[rows] = np.asarray(x)[:, : rows.size].T
-        pos = np.asarray(self.call(_finish, self.model, X0, X0, paths=X0.shape[-1])[1])
+        pos = self.finish(X0, X0)[1]
         return Upcrossings(times, positions, count, immediate.copy(), pos, self.t_max, self.dt)
 
     def onsets(self, paths, counter=0):
-        return np.asarray(
-            self.call(
-                _onset,
-                self.model,
-                self.keys["onset"],
-                paths,
-                np.uint32(counter),
-                paths=paths.size,
-            )
-        )
+        """Onset states of the paths with counters `paths` (on the padded size)."""
+        n = paths.size
+        size = _padded_size(n)
+        X = self.call(
+            _onset, self.model, self.keys["onset"], _pad_paths(paths, size), np.uint32(counter),
+            paths=size,
+        )  # fmt: skip
+        return np.asarray(X)[:, :n]
 
     def _chunk(self, paths):
         """First passages of one chunk of paths; see `simulate`. Also returns each path's
