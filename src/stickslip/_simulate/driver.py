@@ -567,9 +567,7 @@ class _Run:
         for start in range(0, n, chunk_size):
             rows = np.arange(start, min(start + chunk_size, n))
             size = _buffer_size(rows.size)
-            pad = size - rows.size
-            X = np.concatenate([X0[:, rows], np.repeat(X0[:, rows[:1]], pad, axis=1)], axis=1)
-            p = np.concatenate([paths[rows], np.repeat(paths[rows[:1]], pad)])
+            X, p = _pad_paths(X0[:, rows], size), _pad_paths(paths[rows], size)
             # The free run counts upcrossings with the cubic check (the exact detector
             # refines only a path's first crossing).
             cfg = self.cfg
@@ -780,7 +778,7 @@ class _Run:
         batch = min(LOCATE_BATCH, _buffer_size(max(done.size, 1)))
         for start in range(0, done.size, batch):
             rows = done[start : start + batch]
-            rows_padded = np.concatenate([rows, np.repeat(rows[:1], batch - rows.size)])
+            rows_padded = _pad_paths(rows, batch)
             frac, state, found = self.call(
                 _locate, model, self.locator, cfg, X_prev_end[:, rows_padded],
                 X_end[:, rows_padded], k_end[rows_padded], path[rows_padded], self.dt_arr,
