@@ -122,6 +122,46 @@ def test_a_new_process_neither_traces_nor_compiles(tmp_path):
     assert third["info"]["compiles"] > 0 and third["slip_time"] == first["slip_time"]
 
 
+SHARED = """
+import json
+import jax.numpy as jnp
+from stickslip import _compile
+def loop(x, option):  # `option`: a static argument the program does not read
+    return jnp.sin(x) * 1.25
+f = _compile.eqx.filter_jit(loop)
+x = jnp.linspace(0.0, 1.0, 64)
+def here():
+    return _compile.call(f, x, "a", paths=64)
+def there():
+    def deeper():
+        return _compile.call(f, x, "b", paths=64)
+    return deeper()
+first = here()
+before = dict(_compile.stats)
+second = there()
+print(json.dumps(dict(before=before, after=_compile.stats, same=bool((first == second).all()))))
+"""
+
+
+def test_one_program_reached_from_two_places_compiles_once(tmp_path):
+    """Two static keys that trace the same program, from two call stacks (say `langevin`
+    with `eta0="zero"` and `"stationary"`, which the stepping loop does not read, one run
+    by a test and one by `select_method`): the second trace loads the first one's
+    executable. (Source locations in the traces made them two modules before 2026-11-26,
+    and the test suite compiled ~1.5 s per buffer size again for each.)"""
+    env = dict(os.environ, STICKSLIP_CACHE_DIR=str(tmp_path))
+    out = subprocess.run(
+        [sys.executable, "-c", SHARED], env=env, capture_output=True, text=True, check=True,
+        timeout=300,
+    )  # fmt: skip
+    got = json.loads(out.stdout.strip().splitlines()[-1])
+    before, after = got["before"], got["after"]
+    assert after["traces"] == before["traces"] + 1  # a new static key: a new trace
+    assert after["compiles"] == before["compiles"]  # ... but no new compilation
+    assert after["executables_loaded"] == before["executables_loaded"] + 1
+    assert got["same"]
+
+
 HOLDER = """
 import sys
 import jax.numpy as jnp

@@ -253,7 +253,8 @@ def _trace(fn, specs, treedef, static, file):
         return fn(*eqx.combine(dynamic, static))
 
     try:
-        exported = export.export(jax.jit(flat_fn))(*specs)
+        with _without_source_locations():
+            exported = export.export(jax.jit(flat_fn))(*specs)
     except Exception as err:  # not shape-polymorphic: one trace per shape instead
         warnings.warn(
             f"stickslip: {_name(fn)} cannot be traced once for every buffer size "
@@ -265,6 +266,23 @@ def _trace(fn, specs, treedef, static, file):
     stats["traces"] += 1
     _save(file, lambda: exported.serialize())
     return exported
+
+
+def _without_source_locations():
+    """Trace with no source lines in the module's locations. The executables on disk are
+    keyed by the traced module, and its locations hold the Python frames that led to each
+    operation: the caller's own (a test, `select_method`, a study) among them. The same
+    program reached from two places (say two models whose static fields differ where the
+    loop does not look, as `langevin`'s `eta0`) was then two modules and two compilations
+    of ~1.5 s per buffer size. Locations only serve profiles and error messages, which the
+    loop's names still give. (A JAX-internal switch, thread-local; if it is gone, traces
+    keep their locations and only the sharing is lost.)"""
+    try:
+        from jax._src import config
+
+        return config.traceback_in_locations_limit(0)
+    except (ImportError, AttributeError, TypeError):  # pragma: no cover - another JAX
+        return contextlib.nullcontext()
 
 
 @contextlib.contextmanager
