@@ -531,3 +531,58 @@ def test_position_densities_do_not_depend_on_what_was_asked_before(Langevin):
         b = ss.CrossingEstimator(m, horizon=16.0)
         b.slip_distance_density(d, *args)
         np.testing.assert_allclose(b.period_density(T, *args), first, rtol=1e-12, atol=1e-14)
+
+
+def _kernel_compilations(run):
+    """Names of the estimator's kernels that `run()` compiles (JAX's compile log)."""
+    import logging
+
+    import jax
+
+    from stickslip._estimate import kernels
+
+    names = {n for n in dir(kernels) if not n.startswith("__")}
+    seen = []
+
+    class Grab(logging.Handler):
+        def emit(self, record):
+            msg = record.getMessage()
+            if msg.startswith("Compiling jit("):
+                name = msg[len("Compiling jit(") :].split(")", 1)[0]
+                if name in names:
+                    seen.append(name)
+
+    logger, handler = logging.getLogger("jax"), Grab()
+    logger.addHandler(handler)
+    try:
+        with jax.log_compiles(True):
+            run()
+    finally:
+        logger.removeHandler(handler)
+    return seen
+
+
+def test_a_new_step_or_time_grid_compiles_no_kernel(Langevin):
+    """The step enters the kernels as a traced value and point requests are padded to a few
+    lengths: after one estimator has run, another step and time grids of other lengths
+    compile none of the estimator's kernels (each new step compiled four, ~1 s each; each
+    new length two or three). The numbers are those of the unpadded evaluation."""
+    model = Langevin(**PUBLIC)
+    first = ss.CrossingEstimator(model, dt=0.01)
+    first.first_passage(np.linspace(0.0, 6.0, 601))
+    first.n1(np.linspace(0.05, 6.0, 300))
+    first.n2(np.array([1.0, 2.0]), np.array([1.5, 2.5]))
+    second = ss.CrossingEstimator(model, dt=0.0125)
+    t = np.linspace(0.05, 5.0, 77)
+    got = {}
+
+    def run():
+        got["F"] = second.first_passage(np.linspace(0.0, 5.0, 401))
+        got["n1"] = second.n1(t)
+        got["n2"] = second.n2(np.array([1.0, 2.0, 3.0]), np.array([1.25, 2.5, 4.0]))
+
+    assert _kernel_compilations(run) == []
+    # the padded point evaluations against one request per time (no padding involved)
+    each = np.array([second.n1(np.array([s]))[0] for s in t[:5]])
+    np.testing.assert_allclose(got["n1"][:5], each, rtol=1e-12)
+    assert got["n2"][1, 1] == pytest.approx(second.n2(2.0, 2.5)[0, 0], rel=1e-12)

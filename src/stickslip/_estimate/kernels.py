@@ -12,9 +12,20 @@ from . import gaussian as G
 _PAIR_CHUNK = 1 << 15  # pairs evaluated at once (bounds the memory of the n2 kernels)
 
 
-@eqx.filter_jit
+def _step(h):
+    """A step or lag as a traced scalar: under `eqx.filter_jit` a Python float is a static
+    argument, and every new step size was a new compilation of the kernel (~1 s each of
+    `grid_moments`, `step_moments`, `grid_lag_propagators` and `short_lag_propagators`)."""
+    return jnp.asarray(h, dtype=jnp.float64)
+
+
 def grid_moments(cr, m0s, P0s, h, n):
     """Moments of every component at t_k = k h, k < n: shapes (K, n, d), (K, n, d, d)."""
+    return _grid_moments(cr, m0s, P0s, _step(h), n)
+
+
+@eqx.filter_jit
+def _grid_moments(cr, m0s, P0s, h, n):
     Phi, _, c, Sig = G.grid_propagators(cr.A, cr.b, cr.B, h, n)
     return jax.vmap(
         lambda m0, P0: jax.vmap(lambda a, b, s: G.moments(m0, P0, a, b, s))(Phi, c, Sig)
@@ -30,9 +41,13 @@ def moments_at(cr, m0s, P0s, t):
     )(m0s, P0s)
 
 
-@eqx.filter_jit
 def step_moments(cr, ms, Ps, s):
     """Moments (K, n, ...) carried on by the lag `s` (one propagator for all)."""
+    return _step_moments(cr, ms, Ps, _step(s))
+
+
+@eqx.filter_jit
+def _step_moments(cr, ms, Ps, s):
     Phi, _, c, Sig = propagators(cr.A, cr.b, cr.B, s)
     return jax.vmap(jax.vmap(lambda m, P: G.moments(m, P, Phi, c, Sig)))(ms, Ps)
 
@@ -93,10 +108,14 @@ def n2_pairs(cr, m1, P1, Phi, Phi1, c, Sig, tau):
     return _chunked(lambda *a: G.n2(cr, *a), n_pairs, m1, P1, Phi, Phi1, c, Sig, tau)
 
 
-@eqx.filter_jit
 def short_lag_propagators(cr, h, taus):
     """`propagators` at lags 0 <= tau <= h: the Taylor series alone (no doublings) when
     |A| h <= 1/4, where it is exact to rounding (see `_linear`); else `propagators`."""
+    return _short_lag_propagators(cr, _step(h), taus)
+
+
+@eqx.filter_jit
+def _short_lag_propagators(cr, h, taus):
     norm = jnp.max(jnp.sum(jnp.abs(cr.A), axis=0)) * h
 
     def taylor(s):
@@ -109,9 +128,13 @@ def short_lag_propagators(cr, h, taus):
     return jax.lax.cond(norm <= 0.25, lambda: jax.vmap(taylor)(taus), lambda: jax.vmap(full)(taus))
 
 
-@eqx.filter_jit
 def grid_lag_propagators(cr, h, n):
     """`propagators` at the lags j h, j < n (by the exact recursion of `grid_propagators`)."""
+    return _grid_lag_propagators(cr, _step(h), n)
+
+
+@eqx.filter_jit
+def _grid_lag_propagators(cr, h, n):
     return G.grid_propagators(cr.A, cr.b, cr.B, h, n)
 
 

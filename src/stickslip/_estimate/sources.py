@@ -111,6 +111,15 @@ CELL_DEPTH = 14  # finest sub-interval h / 2**14
 N1_BLOCK = 1024  # times per evaluation of n1 at arbitrary times
 
 
+def _padded(a):
+    """`a` (1-d) padded with its last entry to a power-of-two length (`kernels._bucket`):
+    the point evaluations' kernels are compiled per length, and a user's time grids come
+    in every length."""
+    a = np.asarray(a)
+    size = kernels._bucket(a.size)
+    return np.pad(a, (0, size - a.size), mode="edge") if 0 < a.size < size else a
+
+
 class GaussianSource:
     """Closed-form densities of a linear-Gaussian slip (see `gaussian.py`)."""
 
@@ -180,29 +189,32 @@ class GaussianSource:
         )
 
     def n1(self, t):
-        ms, Ps = self.moments(t)
-        out = self.w @ np.asarray(kernels.n1_from(self.cr, ms, Ps))
-        return np.where(t > 0, out, 0.0)
+        return self.w @ self._n1_at(t)  # in blocks of one shape: any t compiles nothing new
 
     def n1_joint(self, x, t):
-        ms, Ps = self.moments(t)
-        xs = jnp.broadcast_to(jnp.asarray(x), (self.n_components, x.size))
-        out = np.einsum("k,kxt->xt", self.w, np.asarray(kernels.n1_joint_from(self.cr, ms, Ps, xs)))
+        nx, nt = x.size, t.size
+        ms, Ps = self.moments(_padded(t))
+        xs = jnp.broadcast_to(jnp.asarray(_padded(x)), (self.n_components, kernels._bucket(nx)))
+        joint = np.asarray(kernels.n1_joint_from(self.cr, ms, Ps, xs))[:, :nx, :nt]
+        out = np.einsum("k,kxt->xt", self.w, joint)
         out[:, t <= 0] = 0.0
         return out
 
     def n2(self, lo, lag):
-        """n2 for flat arrays of (earlier time, lag > 0), mixed over components."""
+        """n2 for flat arrays of (earlier time, lag > 0), mixed over components. (Times,
+        lags and pairs are padded to a few lengths, `_padded`: any request compiles nothing
+        new once those are.)"""
         ut, ti = np.unique(lo, return_inverse=True)
         ul, li = np.unique(lag, return_inverse=True)
-        ms, Ps = self.moments(ut)
-        prop = kernels.lag_propagators(self.cr, jnp.asarray(ul))
-        total = np.zeros(lo.size)
+        ms, Ps = self.moments(_padded(ut))
+        prop = kernels.lag_propagators(self.cr, jnp.asarray(_padded(ul)))
+        n = lo.size
+        ti, li = _padded(ti), _padded(li)
+        ul = jnp.asarray(_padded(ul)[li])
+        total = np.zeros(n)
         for c in range(self.n_components):
-            vals = kernels.n2_pairs(
-                self.cr, ms[c][ti], Ps[c][ti], *(a[li] for a in prop), jnp.asarray(ul[li])
-            )
-            total += self.w[c] * np.asarray(vals)
+            vals = kernels.n2_pairs(self.cr, ms[c][ti], Ps[c][ti], *(a[li] for a in prop), ul)
+            total += self.w[c] * np.asarray(vals)[:n]
         return total
 
     def stationary_rate(self):
