@@ -563,10 +563,11 @@ def _kernel_compilations(run):
 
 
 def test_a_new_step_or_time_grid_compiles_no_kernel(Langevin):
-    """The step enters the kernels as a traced value and point requests are padded to a few
-    lengths: after one estimator has run, another step and time grids of other lengths
-    compile none of the estimator's kernels (each new step compiled four, ~1 s each; each
-    new length two or three). The numbers are those of the unpadded evaluation."""
+    """The step enters the kernels as a traced value and point requests are evaluated in
+    blocks of one length (n1) or padded to a few (n1_joint, n2: powers of two): after one
+    estimator has run, another step and time grids of other lengths compile none of the
+    estimator's kernels (each new step compiled four, ~1 s each; each new length two or
+    three). The numbers are those of the unpadded evaluation."""
     model = Langevin(**PUBLIC)
     first = ss.CrossingEstimator(model, dt=0.01)
     first.first_passage(np.linspace(0.0, 6.0, 601))
