@@ -194,7 +194,8 @@ class GaussianSource:
     def n1_joint(self, x, t):
         nx, nt = x.size, t.size
         ms, Ps = self.moments(_padded(t))
-        xs = jnp.broadcast_to(jnp.asarray(_padded(x)), (self.n_components, kernels._bucket(nx)))
+        x = _padded(x)
+        xs = jnp.broadcast_to(jnp.asarray(x), (self.n_components, x.size))
         joint = np.asarray(kernels.n1_joint_from(self.cr, ms, Ps, xs))[:, :nx, :nt]
         out = np.einsum("k,kxt->xt", self.w, joint)
         out[:, t <= 0] = 0.0
@@ -206,11 +207,12 @@ class GaussianSource:
         new once those are.)"""
         ut, ti = np.unique(lo, return_inverse=True)
         ul, li = np.unique(lag, return_inverse=True)
+        ul = _padded(ul)
         ms, Ps = self.moments(_padded(ut))
-        prop = kernels.lag_propagators(self.cr, jnp.asarray(_padded(ul)))
+        prop = kernels.lag_propagators(self.cr, jnp.asarray(ul))
         n = lo.size
         ti, li = _padded(ti), _padded(li)
-        ul = jnp.asarray(_padded(ul)[li])
+        ul = jnp.asarray(ul[li])
         total = np.zeros(n)
         for c in range(self.n_components):
             vals = kernels.n2_pairs(self.cr, ms[c][ti], Ps[c][ti], *(a[li] for a in prop), ul)
