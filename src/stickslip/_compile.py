@@ -35,6 +35,7 @@ import time
 import warnings
 
 import equinox as eqx
+import numpy as np
 
 from ._jax import jax
 
@@ -46,6 +47,9 @@ _entries_lock = threading.RLock()
 _exported: dict = {}  # shape-polymorphic traces (few: one per function and model structure)
 stats = {"traces": 0, "compiles": 0, "exported_loaded": 0, "executables_loaded": 0}
 _cache_hits = [0]  # hits of JAX's own persistent cache (see `_compile`)
+_resident: collections.OrderedDict = collections.OrderedDict()  # `_on_device`, LRU
+_RESIDENT_ENTRIES = 512
+_keys: dict = {}  # `Fixed` keys, one object per distinct key (`_interned`)
 
 
 def _count_hits(event: str, **kwargs) -> None:
@@ -69,6 +73,8 @@ def clear_caches() -> None:
     _cache.clear()
     _entries.clear()
     _exported.clear()
+    _resident.clear()
+    _keys.clear()
     jax.clear_caches()
 
 
@@ -124,19 +130,66 @@ def executable(fn, *args, timer: Timer | None = None, paths: int | None = None):
     return entry + (leaves,)
 
 
+def _on_device(x):
+    """`x` as a device array if it is a NumPy array (kept by content, so that the runs of one
+    model reuse one copy: a compiled call converts every NumPy argument again, ~4 us each,
+    and the simulator's model and solver are ~30 of them), else `x`."""
+    if not isinstance(x, np.ndarray):
+        return x
+    key = (x.dtype.str, x.shape, x.tobytes())
+    with _entries_lock:
+        out = _resident.get(key)
+        if out is None:
+            out = _resident[key] = jax.device_put(x)
+            while len(_resident) > _RESIDENT_ENTRIES:
+                _resident.popitem(last=False)
+        else:
+            _resident.move_to_end(key)
+        return out
+
+
+class _Key:
+    """A key hashed once (hashing the model's static parts took ~0.1 ms a look-up)."""
+
+    __slots__ = ("key", "hash")
+
+    def __init__(self, key):
+        self.key, self.hash = key, hash(key)
+
+    def __hash__(self):
+        return self.hash
+
+    def __eq__(self, other):
+        return self is other or (
+            isinstance(other, _Key) and self.hash == other.hash and self.key == other.key
+        )
+
+
+def _interned(key) -> _Key:
+    """One `_Key` for equal keys: the `memoized` look-ups of later runs compare it by
+    identity."""
+    k = _Key(key)
+    with _entries_lock:
+        if len(_keys) > 4 * MAX_ENTRIES:
+            _keys.clear()
+        return _keys.setdefault(k, k)
+
+
 class Fixed:
     """`call(fn, *fixed, *rest)` for calls that share their leading arguments `fixed` (a
-    run's model and solver): those are partitioned and flattened once, and the executable of
-    each shape of `rest` (arrays only) is kept, so a call costs a dictionary look-up (the
-    generic `call` re-partitions every argument, about 0.7 ms a call for the simulator)."""
+    run's model and solver): those are partitioned and flattened once (their arrays put on
+    the device once), and the executable of each shape of `rest` (arrays only) is kept, so a
+    call costs a dictionary look-up (the generic `call` re-partitions every argument, about
+    0.7 ms a call for the simulator)."""
 
     def __init__(self, fn, *fixed, timer: Timer | None = None):
         self.fn, self.fixed, self.timer = fn, fixed, timer
         dynamic, static = eqx.partition(fixed, eqx.is_array)
-        self.leaves, treedef = jax.tree_util.tree_flatten(dynamic)
+        leaves, treedef = jax.tree_util.tree_flatten(dynamic)
         # What the executable depends on in `fixed` (as `executable`'s key): the entries are
         # shared with every `Fixed` of the same structure (the runs of one configuration).
-        self.key = (fn, treedef, tuple((x.shape, x.dtype) for x in self.leaves), static)
+        self.key = _interned((fn, treedef, tuple((x.shape, x.dtype) for x in leaves), static))
+        self.leaves = [_on_device(x) for x in leaves]
         self.entries: dict = {}
 
     def __call__(self, *rest, paths: int | None = None):
