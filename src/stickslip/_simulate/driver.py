@@ -178,6 +178,18 @@ def _repack(a, keep, pad, value):
     return out
 
 
+def _cols(a, idx):
+    """`a[..., idx]` for an index array or a slice `idx` (`np.take`: 5x faster than fancy
+    indexing of the columns of a `(d, n)` state)."""
+    return a[..., idx] if isinstance(idx, slice) else np.take(a, idx, axis=-1)
+
+
+def _set_cols(a, idx, values):
+    """`a[:, idx] = values` for a `(d, n)` state, row by row (1.3x faster)."""
+    for row, v in zip(a, values, strict=True):
+        row[idx] = v
+
+
 def _next_pow2(n: int) -> int:
     return 1 << max(0, (int(n) - 1).bit_length())
 
@@ -688,9 +700,10 @@ class _Run:
                 for mask, step, miss_at, Xa, Xb in held:
                     i = np.nonzero(real & mask)[0]
                     if i.size:
-                        pending.append((slot[i], step[i], miss_at[i], p[i], Xa[:, i], Xb[:, i]))
+                        ends = _cols(Xa, i), _cols(Xb, i)
+                        pending.append((slot[i], step[i], miss_at[i], p[i], *ends))
                 cand = np.nonzero(real & (ks >= 0))[0]
-                below = self.crossing @ X[:, cand] < self.model_level
+                below = self.crossing @ _cols(X, cand) < self.model_level
                 back = cand[below]
                 offset[back] = ks[back] + 1.0
                 ks[back] = SLIPPING
@@ -703,7 +716,7 @@ class _Run:
                 hit, back = cand[f], cand[~found]
                 rows = slot[hit]
                 t_stick[rows] = (ks[hit] + frac[f]) * self.dt
-                stick_state[:, rows] = state.take(f, axis=1)
+                _set_cols(stick_state, rows, _cols(state, f))
                 offset[back] = ks[back] + 1.0  # refuted: resume at the next step
                 ks[back] = SLIPPING
                 ks[hit] = INACTIVE
@@ -747,7 +760,7 @@ class _Run:
         # faster than the default quicksort).
         order = np.argsort((rows.astype(np.int64) << 32) | step.astype(np.int64), kind="stable")
         rows, step, miss, path = rows[order], step[order], miss[order], path[order]
-        Xa, Xb = Xa[:, order], Xb[:, order]
+        Xa, Xb = _cols(Xa, order), _cols(Xb, order)
         found, frac, state, refined = self._refine(np.arange(rows.size), Xa, Xb, step, path)
         first = np.r_[True, rows[1:] != rows[:-1]]
         ended = np.r_[first[1:], True] & ~found & (self.crossing @ Xb >= self.model_level)
@@ -758,7 +771,7 @@ class _Run:
         needed = seen == np.maximum.accumulate(np.where(first, seen, 0))
         stick = np.nonzero(hit & needed)[0]
         t_stick[rows[stick]] = (step[stick] + frac[stick]) * self.dt
-        stick_state[:, rows[stick]] = state[:, stick]
+        _set_cols(stick_state, rows[stick], _cols(state, stick))
         miss_end[rows[stick]] = miss[stick]
         self.refined_miss += float(np.sum(refined[needed]))
         self.stats["speculated"] = self.stats.get("speculated", 0) + int(np.sum(~needed))
@@ -779,7 +792,7 @@ class _Run:
         if cand[-1] - cand[0] + 1 == n:  # a range (a buffer's onset steps): slices, no gathers
             cand = slice(cand[0], cand[-1] + 1)
         found, frac, state, add, unresolved, splits = self._refiner.first_crossing(
-            X_prev[:, cand], X[:, cand], p[cand], ks[cand].astype(np.uint32)
+            _cols(X_prev, cand), _cols(X, cand), p[cand], ks[cand].astype(np.uint32)
         )
         self.stats["unresolved"] += int(np.sum(unresolved))
         self.stats["refined_nodes"] += int(splits)
