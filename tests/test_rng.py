@@ -29,6 +29,17 @@ def test_draws_do_not_depend_on_the_batch():
     np.testing.assert_array_equal(per_path_counter, full[:, :4])
 
 
+def test_stream_keys_at_once_equal_jax_threefry():
+    # The keys of a run, evaluated together in NumPy, against JAX's own Threefry on each.
+    root = _rng.seed_key(2**40 + 7)
+    pairs = [(_rng.STEP, 0), (_rng.LOCATE, 1), (_rng.TREE, 3)]
+    for (stream, cycle), key in zip(pairs, _rng.stream_keys(root, pairs), strict=True):
+        x = jnp.asarray(np.array([[stream], [cycle]], dtype=np.uint32))
+        ref = np.asarray(threefry_2x32(jnp.asarray(root), x))[:, 0]
+        assert key.dtype == np.uint32
+        np.testing.assert_array_equal(key, ref)
+
+
 def test_streams_seeds_and_counters_differ():
     paths = np.arange(64, dtype=np.uint32)
     root = _rng.seed_key(0)

@@ -58,6 +58,16 @@ def stream_key(root, stream: int, cycle: int = 0):
     return jnp.stack([w0, w1])
 
 
+def stream_keys(root, pairs):
+    """`stream_key` of several `(stream, cycle)` pairs under one root, in one NumPy
+    evaluation for a NumPy root (~0.1 ms for each key apart)."""
+    if not isinstance(root, np.ndarray):
+        return [stream_key(root, s, c) for s, c in pairs]
+    streams, cycles = (np.array(x, dtype=np.uint32) for x in zip(*pairs, strict=True))
+    w0, w1 = threefry2x32(np.asarray(root, dtype=np.uint32), streams, cycles)
+    return [np.array([a, b], dtype=np.uint32) for a, b in zip(w0, w1, strict=True)]
+
+
 def _rotl(x, r: int):
     return (x << np.uint32(r)) | (x >> np.uint32(32 - r))
 

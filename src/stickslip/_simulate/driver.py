@@ -475,14 +475,15 @@ class _Run:
                 bridge.depth_for(lg.A, dt, bridge.CERTIFY_SCALE),
             )
         self.tol = float(crossing_tol)
-        self.keys = {
-            "step": _rng.stream_key(root, _rng.STEP),
-            "bridge": _rng.stream_key(root, _rng.BRIDGE),
-            "z": _rng.stream_key(root, _rng.LOCATE, 0),
-            "u": _rng.stream_key(root, _rng.LOCATE, 1),
-            "onset": _rng.stream_key(root, _rng.ONSET),
-            "tree": _rng.stream_key(root, _rng.TREE),
+        streams = {
+            "step": (_rng.STEP, 0),
+            "bridge": (_rng.BRIDGE, 0),
+            "z": (_rng.LOCATE, 0),
+            "u": (_rng.LOCATE, 1),
+            "onset": (_rng.ONSET, 0),
+            "tree": (_rng.TREE, 0),
         }
+        self.keys = dict(zip(streams, _rng.stream_keys(root, streams.values()), strict=True))
         self.dt, self.t_max, self.bar = dt, t_max, bar
         self.n_steps = max(1, math.ceil(t_max / dt - 1e-9))
         self.dt_arr = np.asarray(dt, dtype=np.float64)
