@@ -92,6 +92,33 @@ def test_a_repeated_run_looks_up_its_loops_by_a_cheap_key(monkeypatch):
     assert not {"_advance", "_refine_levels"} & set(seen), seen
 
 
+def test_a_repeated_run_passes_its_model_arrays_already_on_the_device(monkeypatch):
+    """The model's and solver's arrays go to the device once, for every run of the model: a
+    second run's stepping loop gets device arrays (the same ones), not NumPy arrays that a
+    compiled call would copy again."""
+    import jax
+
+    made = []
+    fixed_init = _compile.Fixed.__init__
+
+    def spy(self, fn, *args, **kwargs):
+        fixed_init(self, fn, *args, **kwargs)
+        made.append(self)
+
+    monkeypatch.setattr(_compile.Fixed, "__init__", spy)
+    runs = []
+    for seed in (1, 2):
+        made.clear()
+        ss.simulate(ss.get_model("langevin")(**WHITE, tau=0.1), 1000, 0.8, 20.0, seed=seed)
+        runs.append([f.leaves for f in made if f.fn.__name__ == "_advance"][0])
+    first, second = runs
+    assert len(first) > 10 and all(isinstance(x, jax.Array) for x in first + second)
+    assert all(a is b for a, b in zip(first, second, strict=True))
+    big = np.arange(2.0 * _compile._RESIDENT_BYTES)
+    assert _compile._on_device(big) is not _compile._on_device(big)  # large: not kept
+    np.testing.assert_array_equal(np.asarray(_compile._on_device(big)), big)
+
+
 def test_white_noise_recompiles_only_the_locator_per_node_count():
     """White noise (Brownian-bridge location): the stepping loop is shared by every dt; only
     the stick locator, whose interpolation nodes follow dt (powers of two), is compiled per

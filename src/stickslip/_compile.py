@@ -49,6 +49,7 @@ stats = {"traces": 0, "compiles": 0, "exported_loaded": 0, "executables_loaded":
 _cache_hits = [0]  # hits of JAX's own persistent cache (see `_compile`)
 _resident: collections.OrderedDict = collections.OrderedDict()  # `_on_device`, LRU
 _RESIDENT_ENTRIES = 512
+_RESIDENT_BYTES = 1 << 16
 _keys: dict = {}  # `Fixed` keys, one object per distinct key (`_interned`)
 
 
@@ -136,6 +137,8 @@ def _on_device(x):
     and the simulator's model and solver are ~30 of them), else `x`."""
     if not isinstance(x, np.ndarray):
         return x
+    if x.nbytes > _RESIDENT_BYTES:  # (not kept: its key would be a copy as large)
+        return jax.device_put(x)
     key = (x.dtype.str, x.shape, x.tobytes())
     with _entries_lock:
         out = _resident.get(key)

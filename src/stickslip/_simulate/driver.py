@@ -376,8 +376,11 @@ def _simulate_block(model, dt, t_max, seed, opts, start, stop, bar=None) -> dict
     )  # fmt: skip
     paths = np.arange(start, stop, dtype=np.uint32)
     X0, stick_state, t_stick, located = run.first_passages(paths, opts["chunk_size"])
-    next_onset = run.onsets(paths, counter=1)
-    out = run.cycle_outputs(X0, stick_state, t_stick, next_onset)
+    # The next onsets as the call left them (padded, on the device: `cycle_outputs` takes
+    # them as they are), read through a view.
+    next_dev = run._onset_states(paths, counter=1)
+    next_onset = np.asarray(next_dev)[:, : paths.size]
+    out = run.cycle_outputs(X0, stick_state, t_stick, next_dev)
     upcrossings = None
     if opts["record_upcrossings"]:
         upcrossings = run.upcrossings(
@@ -561,7 +564,8 @@ class _Run:
         return tuple(np.asarray(a)[..., :n] for a in out)
 
     def cycle_outputs(self, X0, stick_state, t_stick, next_onset):
-        """The per-path outputs of an `Ensemble` from the raw first-passage results."""
+        """The per-path outputs of an `Ensemble` from the raw first-passage results (each
+        state `(d, n)`, or already padded to the size the helper calls run on)."""
         n = stick_state.shape[-1]
         size = _padded_size(n)
         states = (_pad_paths(x, size) for x in (X0, stick_state, next_onset))
@@ -667,7 +671,7 @@ class _Run:
         # one refinement instead of one per stepping round (each ~1 ms whatever its size).
         pending = []
         while True:
-            n_slip = int(np.sum(ks == SLIPPING))
+            n_slip = np.count_nonzero(ks == SLIPPING)
             if n_slip == 0:
                 if pending:
                     self._settle(pending, t_stick, stick_state, miss_end)
@@ -688,7 +692,8 @@ class _Run:
             self.stats["buffers"] += 1
             passing = ks == PASSED
             ks[passing] = SLIPPING
-            offset = np.where(ks == SLIPPING, offset + taken, offset)
+            # (+ 0.0 elsewhere: the same numbers as a select, without its branches; 2x faster)
+            offset = offset + (ks == SLIPPING) * float(taken)
             real = slot >= 0
             if past:
                 # Left to the end: step on past the candidates that end below the level. The
@@ -710,27 +715,28 @@ class _Run:
                         pending.append((slot[i], step[i], miss_at[i], p[i], *ends))
                 cand = np.nonzero(real & (ks >= 0))[0]
                 below = self.crossing @ _cols(X, cand) < self.model_level
-                back = cand[below]
-                offset[back] = ks[back] + 1.0
+                back = np.compress(below, cand)
+                offset[back] = ks.take(back) + 1.0
                 ks[back] = SLIPPING
-                ks[cand[~below]] = INACTIVE
+                ks[np.compress(~below, cand)] = INACTIVE
             elif refine:
                 cand = np.nonzero(real & (ks >= 0))[0]
                 found, frac, state, refined = self._refine(cand, X_prev, X, ks, p)
                 self.refined_miss += float(np.sum(refined))
                 f = np.flatnonzero(found)  # integer indices: ~2x faster than the mask here
-                hit, back = cand[f], cand[~found]
-                rows = slot[hit]
-                t_stick[rows] = (ks[hit] + frac[f]) * self.dt
+                # (`take` and `compress`: 1.5x and 4x faster than fancy and mask indexing)
+                hit, back = cand.take(f), np.compress(~found, cand)
+                rows = slot.take(hit)
+                t_stick[rows] = (ks.take(hit) + frac.take(f)) * self.dt
                 _set_cols(stick_state, rows, _cols(state, f))
-                offset[back] = ks[back] + 1.0  # refuted: resume at the next step
+                offset[back] = ks.take(back) + 1.0  # refuted: resume at the next step
                 ks[back] = SLIPPING
                 ks[hit] = INACTIVE
             else:
                 X_end[:, slot[real]] = X[:, real]
                 X_prev_end[:, slot[real]] = X_prev[:, real]
                 k_end[slot[real]] = ks[real]
-            miss_end[slot[real]] = miss[real]
+            miss_end[np.compress(real, slot)] = np.compress(real, miss)
             alive = np.nonzero(ks == SLIPPING)[0]
             if self.bar is not None:
                 self.bar.update(n_slip - alive.size)
