@@ -744,7 +744,10 @@ class _Run:
                 # Re-pack the survivors into a smaller buffer: finished paths cost nothing.
                 size = _buffer_size(alive.size)
                 pad = size - alive.size
-                X, X_prev = _repack(X, alive, pad, 0.0), _repack(X_prev, alive, pad, 0.0)
+                # Every path left slips, and the loop's first step sets a slipping path's
+                # `X_prev` (the start of its last step) before anything reads it: the repacked
+                # states serve as both (one repack and one copy into the call fewer).
+                X = X_prev = _repack(X, alive, pad, 0.0)
                 ks = _repack(ks, alive, pad, INACTIVE)
                 p, slot = _repack(p, alive, pad, 0), _repack(slot, alive, pad, -1)
                 offset, miss = _repack(offset, alive, pad, 0.0), _repack(miss, alive, pad, 0.0)
