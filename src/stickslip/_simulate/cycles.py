@@ -178,7 +178,7 @@ def _cycles_block(model, dt, t_max, seed, opts, start, stop) -> dict:
         )
         X0, stick_state, t_stick, _ = run.first_passages(slots, 2**16)
         next_onset = run.onsets(slots + np.uint32(1))
-        out = run.cycle_outputs(X0, stick_state, t_stick, next_onset)
+        out = run.cycle_outputs(stick_state, t_stick, next_onset)
         out.update(
             path=np.repeat(path_ids[ids], count),
             cycle=np.tile(np.arange(first, first + count), ids.size),

@@ -106,8 +106,11 @@ def _onset(model, key, path, counter):
 
 
 @eqx.filter_jit
-def _onset_rate(model, X):
-    return over_paths(model.crossing_rate)(X)
+def _onset_ends(model, X, smooth: bool):
+    """The onset positions and, for a smooth crossing variable, its rate at onset."""
+    position = over_paths(model.position)(X)
+    rate = over_paths(model.crossing_rate)(X) if smooth else jnp.zeros_like(position)
+    return position, rate
 
 
 @eqx.filter_jit
@@ -157,13 +160,6 @@ def _locate(model, solver, cfg, X_prev, X, k_stick, path, dt, z_key, u_key):
 def _finish(model, stick_state, next_onset):
     T_st = over_paths(model.stick_duration)(stick_state, next_onset)
     return T_st, over_paths(model.position)(stick_state)
-
-
-@eqx.filter_jit
-def _cycle_ends(model, X0, stick_state, next_onset):
-    """`_finish` and the onset positions in one call (a run's outputs: one dispatch and one
-    padding of the states fewer than two `_finish` calls)."""
-    return _finish(model, stick_state, next_onset) + (over_paths(model.position)(X0),)
 
 
 _ARRAYS = (np.ndarray, np.generic, jax.Array)
@@ -380,7 +376,7 @@ def _simulate_block(model, dt, t_max, seed, opts, start, stop, bar=None) -> dict
     # them as they are), read through a view.
     next_dev = run._onset_states(paths, counter=1)
     next_onset = np.asarray(next_dev)[:, : paths.size]
-    out = run.cycle_outputs(X0, stick_state, t_stick, next_dev)
+    out = run.cycle_outputs(stick_state, t_stick, next_dev)
     upcrossings = None
     if opts["record_upcrossings"]:
         upcrossings = run.upcrossings(
@@ -506,6 +502,7 @@ class _Run:
         if detect == "bridge":
             self.stats.update(candidates=0, refined_nodes=0, unresolved=0)
         self.miss = None  # per-path miss bounds of the stepping of the last `first_passages`
+        self.onset_positions = None  # and the positions at onset
         self.refined_miss = 0.0  # the summed miss bounds of every exact refinement
         self._refiner = None  # the exact refinement (compiled), made on first use
 
@@ -542,9 +539,10 @@ class _Run:
         self.refined_miss = 0.0
         parts = [self._chunk(paths[i : i + chunk_size]) for i in range(0, paths.size, chunk_size)]
         if len(parts) == 1:  # as they are (the onset states: a read-only view; callers copy)
-            self.miss = parts[0][4]
+            self.miss, self.onset_positions = parts[0][4:]
             return parts[0][:4]
         self.miss = np.concatenate([p[4] for p in parts])
+        self.onset_positions = np.concatenate([p[5] for p in parts])
         return tuple(np.concatenate([p[i] for p in parts], axis=-1) for i in range(4))
 
     def miss_sum(self) -> float:
@@ -563,14 +561,12 @@ class _Run:
         )  # fmt: skip
         return tuple(np.asarray(a)[..., :n] for a in out)
 
-    def cycle_outputs(self, X0, stick_state, t_stick, next_onset):
-        """The per-path outputs of an `Ensemble` from the raw first-passage results (each
-        state `(d, n)`, or already padded to the size the helper calls run on)."""
-        n = stick_state.shape[-1]
-        size = _padded_size(n)
-        states = (_pad_paths(x, size) for x in (X0, stick_state, next_onset))
-        out = self.call(_cycle_ends, self.model, *states, paths=size)
-        T_st, x_sl, x_start = (np.asarray(a)[:n] for a in out)
+    def cycle_outputs(self, stick_state, t_stick, next_onset):
+        """The per-path outputs of an `Ensemble` from the raw first-passage results of the
+        last `first_passages` (the next onsets `(d, n)`, or already padded to the size the
+        helper calls run on)."""
+        T_st, x_sl = self.finish(stick_state, next_onset)
+        x_start = self.onset_positions
         stuck = np.isfinite(t_stick) & (t_stick <= self.t_max)
         nan = np.where(stuck, 1.0, np.nan)
         stick_state *= nan  # no stick state for the paths that never stuck
@@ -642,9 +638,11 @@ class _Run:
         k_stick = np.full(size, INACTIVE)
         k_stick[:count] = SLIPPING
         immediate = np.zeros(size, dtype=bool)
+        x_start, rate = (
+            np.asarray(a) for a in self.call(_onset_ends, model, X0_dev, cfg.smooth, paths=size)
+        )
         if cfg.smooth:
             # A crossing variable already rising at onset ends the slip at once (T_sl = 0).
-            rate = np.asarray(self.call(_onset_rate, model, X0_dev, paths=size))
             immediate[:count] = rate[:count] >= 0.0
             k_stick[immediate] = INACTIVE
         if self.bar is not None:
@@ -756,7 +754,7 @@ class _Run:
             self._locate_chunk(X_end, X_prev_end, k_end, path, count, t_stick, stick_state, located)
         imm = immediate[:count]
         t_stick[imm] = 0.0
-        return X0[:, :count], stick_state, t_stick, located, miss_end[:count]
+        return X0[:, :count], stick_state, t_stick, located, miss_end[:count], x_start[:count]
 
     def _settle(self, pending, t_stick, stick_state, miss_end):
         """Refine the candidate steps that `_chunk` stepped past (`pending`: per stepping
