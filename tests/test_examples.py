@@ -1,5 +1,6 @@
 """Every example runs (in a reduced form)."""
 
+import json
 import pathlib
 import subprocess
 import sys
@@ -143,6 +144,23 @@ def test_accuracy_cost_quick_mode(tmp_path):
     )
     assert run.returncode == 0, run.stderr
     assert (tmp_path / "accuracy_cost.csv").exists() and (tmp_path / "accuracy_cost.png").exists()
+
+
+@pytest.mark.slow
+def test_row_over_time_benchmark_runs(tmp_path):
+    """One sample of the table's public L1 0.02 row and the paper's method (the table's own
+    timing code), written as a JSON line and summed up against the 0.15 s criterion."""
+    out = tmp_path / "samples.jsonl"
+    run = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "row_over_time.py"), "--samples", "1",
+         "--out", str(out)],
+        capture_output=True, text=True,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    sample = json.loads(out.read_text())
+    for key in ("exact_dt0.8", "euler_dt0.002"):
+        assert len(sample[key]["runs"]) == 3 and 0.0 < sample[key]["l1"] < 0.1
+    assert "by the criterion fixed in advance" in run.stdout
 
 
 @pytest.mark.slow
