@@ -8,8 +8,11 @@ from importlib import import_module as _import_module
 from importlib.metadata import PackageNotFoundError as _PNF
 from importlib.metadata import version as _version
 
+from ._errors import DataError as DataError
+from ._errors import OutputError as OutputError
 from ._errors import ParameterError as ParameterError
 from ._errors import PluginError as PluginError
+from ._errors import ResourceError as ResourceError
 from ._errors import StickSlipError as StickSlipError
 from ._registry import get_model as get_model
 from ._registry import list_models as list_models
@@ -61,7 +64,10 @@ _LAZY = {
 }
 
 __all__ = [
+    "DataError",
+    "OutputError",
     "ParameterError",
+    "ResourceError",
     "PluginError",
     "StickSlipError",
     "get_model",

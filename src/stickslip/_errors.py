@@ -30,6 +30,23 @@ class PluginError(StickSlipError, LookupError):
     """A model name that no installed plugin provides, or a plugin that is not a model."""
 
 
+class DataError(StickSlipError, ValueError):
+    """Data that cannot be used as given: a trace without stick-slip structure, per-cycle
+    values that are degenerate (constant, too few distinct values, 2-D), non-finite rows.
+    The message is one line and states the evidence (counts, levels), never the data."""
+
+
+class ResourceError(StickSlipError, MemoryError):
+    """A request whose memory or size is past what can be done (too many paths, a grid
+    too fine for the model's time scales), refused before anything is allocated; the
+    message names the figure (bytes, points) and the limit."""
+
+
+class OutputError(StickSlipError, OSError):
+    """An output location that would touch the inputs or a folder of the user's own
+    files, or that cannot be written; found before any work is done."""
+
+
 def check_real(owner: str, name: str, value: Any, *, allow_none: bool = False) -> float | None:
     """Return `value` as a finite float, or raise a `ParameterError` naming `name`."""
     if value is None:
