@@ -103,8 +103,9 @@ def test_overrides_and_force(tmp_path):
     out = tmp_path / "r"
     out.mkdir()
     (out / "old.txt").write_text("old")
+    (out / ".stickslip-results").write_text('{"written_by": "stickslip"}')  # earlier results
     study = small_study(outputs=["slip_time"], analytic=[])
-    with pytest.raises(ss.StudyError, match="use --force"):
+    with pytest.raises(ss.OutputError, match="use --force"):
         ss.run_study(study, out, progress=False)
     assert (out / "old.txt").read_text() == "old"
     ds = ss.run_study(study, out, overrides=["simulation.n_paths=500"], force=True,
@@ -121,6 +122,7 @@ def test_failure_while_writing_leaves_nothing(tmp_path, monkeypatch):
     out = tmp_path / "r"
     out.mkdir()
     (out / "old.txt").write_text("old")
+    (out / ".stickslip-results").write_text('{"written_by": "stickslip"}')  # earlier results
 
     def broken(*args, **kwargs):
         raise RuntimeError("disk full")
@@ -130,7 +132,7 @@ def test_failure_while_writing_leaves_nothing(tmp_path, monkeypatch):
     study["simulation"]["n_paths"] = 200
     with pytest.raises(RuntimeError, match="disk full"):
         ss.run_study(study, out, force=True, progress=False)
-    assert sorted(p.name for p in out.iterdir()) == ["old.txt"]
+    assert sorted(p.name for p in out.iterdir()) == [".stickslip-results", "old.txt"]
     assert not list(tmp_path.glob(".r.*"))
 
 

@@ -11,18 +11,37 @@ import click
 EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
 
 
+MAX_MESSAGE = 300  # characters of an error line: enough to name the field and the reason
+
+
+def one_line(text: str, limit: int = MAX_MESSAGE) -> str:
+    """`text` as one printable line of at most `limit` characters: line breaks become
+    spaces, other control characters are escaped, and a longer text ends in '...'."""
+    text = " ".join(str(text).split())
+    text = "".join(c if c.isprintable() else ascii(c)[1:-1] for c in text)
+    return text if len(text) <= limit else text[: limit - 3].rstrip() + "..."
+
+
+def _bad_input() -> tuple[type[BaseException], ...]:
+    """The errors that mean bad input (exit 2): the study, a value, the data, a size past a
+    limit, an output location."""
+    from .._errors import DataError, OutputError, ParameterError, ResourceError
+    from ..study import StudyError
+
+    return (StudyError, ParameterError, DataError, ResourceError, OutputError)
+
+
 def handle_errors(func):
-    """Run a command body: a `StudyError` (bad input) is one line on stderr and exit 2; any
-    other error is one line and exit 1, with the traceback under `--debug`."""
+    """Run a command body: bad input (a `StudyError`, `ParameterError`, `DataError`,
+    `ResourceError` or `OutputError`) is one line on stderr and exit 2; any other error is
+    one line and exit 1, with the traceback under `--debug`."""
 
     @functools.wraps(func)
     def wrapper(*args, debug: bool = False, **kwargs):
-        from ..study import StudyError
-
         try:
             return func(*args, **kwargs)
-        except StudyError as err:
-            click.echo(f"error: {err}", err=True)
+        except _bad_input() as err:
+            click.echo(f"error: {one_line(err)}", err=True)
             sys.exit(EXIT_BAD_INPUT)
         except KeyboardInterrupt:
             click.echo("interrupted: nothing was written under the output name", err=True)
@@ -30,11 +49,8 @@ def handle_errors(func):
         except Exception as err:  # a failure during the run
             if debug:
                 raise
-            text = str(err).splitlines()[0] if str(err) else ""
-            click.echo(
-                f"error: run failed: {type(err).__name__}: {text} (--debug shows the traceback)",
-                err=True,
-            )
+            text = one_line(f"{type(err).__name__}: {err}".rstrip(": "))
+            click.echo(f"error: run failed: {text} (--debug shows the traceback)", err=True)
             sys.exit(EXIT_FAILURE)
 
     return click.option("--debug", is_flag=True, help="Show the full traceback of a failure.")(
@@ -56,7 +72,9 @@ def output_options(func):
     """`--out`, `--force` and `--quiet`, shared by the commands that write results."""
     func = click.option("--quiet", "-q", is_flag=True, help="No progress messages or bars.")(func)
     func = click.option(
-        "--force", is_flag=True, help="Replace an existing, non-empty output directory."
+        "--force",
+        is_flag=True,
+        help="Replace the results of an earlier run in --out (never a folder of other files).",
     )(func)
     return click.option(
         "--out",

@@ -23,10 +23,12 @@ from ._common import (
 @handle_errors
 def run(study, out, overrides, force, no_figures, quiet, dask):
     """Run the study in STUDY (a YAML file) and write the results to --out."""
+    from .._output import check_output_dir
     from ..study import load_study, run_study
 
-    if dask is not None:
-        load_study(study, list(overrides))  # a bad study is reported before any cluster starts
+    if dask is not None:  # a bad study or --out is reported before any cluster starts
+        load_study(study, list(overrides))
+        check_output_dir(out, inputs=[study], force=force)
     with dask_client(dask) as client:
         run_study(
             study,

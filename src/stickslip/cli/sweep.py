@@ -39,28 +39,31 @@ def sweep(study, params, zipped, out, overrides, force, quiet, dask):
     """Run STUDY at each value of the --param settings (this replaces any sweep block)."""
     import yaml
 
+    from .._output import check_output_dir
     from ..study import StudyError, load_study, run_study
     from ..study.load import parse_value
+    from ..study.schema import short
 
     values = {}
     for item in params:
         key, sep, text = item.partition("=")
         key = key.strip()
         if not sep or not key or not text.strip():
-            raise StudyError("--param", None, f"expected KEY=V1,V2,... (got {item!r})")
+            raise StudyError("--param", None, f"expected KEY=V1,V2,... (got {short(item)})")
         if key in values:
             raise StudyError("--param", key, "is given twice (list its values once: V1,V2,...)")
         try:
             values[key] = [parse_value(v) for v in text.split(",")]
         except yaml.YAMLError as err:
-            reason = f"values {text!r} are not valid YAML ({str(err).splitlines()[0]})"
+            reason = f"values {short(text)} are not valid YAML ({str(err).splitlines()[0]})"
             raise StudyError("--param", key, reason) from None
     block = {"parameters": values, "mode": "zip" if zipped else "product"}
     from ..study.load import _sweep_override
 
     overrides = [*overrides, _sweep_override(block)]
-    if dask is not None:
-        load_study(study, overrides)  # a bad study is reported before any cluster starts
+    if dask is not None:  # a bad study or --out is reported before any cluster starts
+        load_study(study, overrides)
+        check_output_dir(out, inputs=[study], force=force)
     with dask_client(dask) as client:
         run_study(
             study,

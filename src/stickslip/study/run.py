@@ -50,7 +50,9 @@ def run_study(
 
     - `study`: a `Study`, a path to a YAML study, or the study as a dict.
     - `out`: directory to write `results.nc`, the figures (PNG) and `summary.md` to; None
-      writes nothing. An existing non-empty directory is replaced only with `force=True`,
+      writes nothing. It may not be, or hold, the study file, nor be the current directory
+      or one above it. An existing non-empty directory is replaced only with `force=True`,
+      only if it is an earlier results folder (it holds the marker `.stickslip-results`),
       and only once everything is written: the files are made in a temporary directory
       beside it and moved into place at the end, so a run stopped midway leaves no
       half-written file under a final name.
@@ -61,12 +63,14 @@ def run_study(
       `"local"`): the points of a sweep run as tasks, a single point's simulations as blocks
       of paths. The Dataset is the one a local run writes (docs/distributed.md).
 
-    **Raises:** `StudyError` for an invalid study or output directory (before any work).
+    **Raises:** `StudyError` for an invalid study, `OutputError` for an output directory
+    that may not be written (both before any work).
     """
     import sys
 
+    inputs = [study] if isinstance(study, (str, os.PathLike)) else []
     study = load_study(study, overrides)
-    out_dir = None if out is None else _check_out(pathlib.Path(out), force)
+    out_dir = None if out is None else _check_out(out, force, inputs)
     if progress is None:
         progress = sys.stderr.isatty()
     say = _Progress(progress)
@@ -158,19 +162,11 @@ def _common_run(mc, tolerance) -> dict:
     return max(mc, key=lambda c: c.chosen.seconds).settings
 
 
-def _check_out(out: pathlib.Path, force: bool) -> pathlib.Path:
-    if out.exists() and not out.is_dir():
-        raise StudyError("--out", None, f"{out} exists and is not a directory")
-    if out.is_dir() and any(out.iterdir()) and not force:
-        raise StudyError(
-            "--out", None, f"{out} exists and is not empty (use --force to replace it)"
-        )
-    parent = out.resolve().parent
-    if not parent.is_dir():
-        raise StudyError("--out", None, f"parent directory {parent} does not exist")
-    if not os.access(parent, os.W_OK):
-        raise StudyError("--out", None, f"parent directory {parent} is not writable")
-    return out
+def _check_out(out, force: bool, inputs=()) -> pathlib.Path:
+    """The output folder, checked before any work (`stickslip._output.check_output_dir`)."""
+    from .._output import check_output_dir
+
+    return check_output_dir(out, inputs=inputs, force=force, what="--out")
 
 
 # -- simulation and estimators -----------------------------------------------------------

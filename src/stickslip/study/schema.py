@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import difflib
 import itertools
+import math
 from typing import Annotated, Any, Literal
 
 from pydantic import (
@@ -48,6 +49,28 @@ class Base(BaseModel):
     model_config = ConfigDict(
         extra="forbid", strict=True, validate_assignment=True, validate_default=True
     )
+
+
+# Limits stated up front, checked at validation (before anything is built or allocated):
+MAX_SWEEP_POINTS = 10_000  # points of a sweep; each is a full run
+MAX_STEPS = 2**30  # time steps per path, t_max / dt: the simulator's own bound
+
+
+def short(value: Any, limit: int = 60) -> str:
+    """`repr(value)` for a message, cut to `limit` characters (a value may be huge)."""
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _check_steps(loc: str, t_max: float, dt: float):
+    steps = t_max / dt
+    if steps >= MAX_STEPS:
+        count = f"{steps:.3g}" if math.isfinite(steps) else "more than 1e308"
+        raise fail(
+            loc,
+            f"t_max / dt = {count} time steps is past the limit of 2**30 "
+            f"(t_max = {t_max:g}, dt = {dt:g}): raise dt or lower t_max",
+        )
 
 
 PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
@@ -95,17 +118,33 @@ class ModelSpec(Base):
         kwargs = {k: getattr(values, k) for k in values.model_fields_set}
         try:
             self._instance = cls(**kwargs)
+            from .._model import ChainModel
+
+            if not isinstance(self._instance, ChainModel):
+                self._instance.linear_gaussian()  # its formulas, evaluated once here
         except ParameterError as err:
-            got = "" if err.value is None else f" (got {err.value!r})"
+            got = "" if err.value is None else f" (got {short(err.value)})"
             raise fail(f"params.{err.parameter}", f"{err.reason}{got}") from None
+        except ArithmeticError as err:  # OverflowError, ZeroDivisionError in the formulas
+            raise fail("params", _overflow_reason(self.name, kwargs, err)) from None
         except (TypeError, ValueError) as err:
-            raise fail("params", str(err).splitlines()[0]) from None
+            raise fail("params", str(err).splitlines()[0] if str(err) else repr(err)) from None
         return self
 
     @property
     def instance(self):
         """The model object these settings make."""
         return self._instance
+
+
+def _overflow_reason(name: str, params: dict, err: ArithmeticError) -> str:
+    """Why a model's formulas failed (`OverflowError` ...), naming its largest value."""
+    numbers = {k: v for k, v in params.items() if isinstance(v, int | float) and v == v}
+    why = f"the values overflow {name}'s formulas ({type(err).__name__})"
+    if numbers:
+        k = max(numbers, key=lambda k: abs(numbers[k]))
+        why += f"; the largest is {k} = {numbers[k]:g}"
+    return why
 
 
 class Cycles(Base):
@@ -152,6 +191,8 @@ class Simulation(Base):
     def _steps(self):
         if self.t_max < self.dt:
             raise fail("t_max", f"must be >= dt = {self.dt:g} (got {self.t_max:g})")
+        _check_steps("t_max", self.t_max, self.dt)
+        _check_steps("cycles.t_max", self.cycles.t_max, self.cycles.dt or self.dt)
         return self
 
 
@@ -270,7 +311,21 @@ class Sweep(Base):
         lengths = {len(v) for v in self.parameters.values()}
         if self.mode == "zip" and len(lengths) > 1:
             raise fail("parameters", f"mode 'zip' needs lists of one length (got {lengths})")
+        n = self.size()
+        if n > MAX_SWEEP_POINTS:
+            counts = " x ".join(str(len(v)) for v in self.parameters.values())
+            how = f"{counts} values" if self.mode == "product" else "values side by side"
+            raise fail(
+                "parameters",
+                f"{n} points ({how}) is past the limit of {MAX_SWEEP_POINTS} points of a "
+                "sweep: split it into several studies",
+            )
         return self
+
+    def size(self) -> int:
+        """The number of points, counted without making them."""
+        lengths = [len(v) for v in self.parameters.values()]
+        return math.prod(lengths) if self.mode == "product" else min(lengths, default=0)
 
     def points(self) -> list[dict[str, Any]]:
         """The settings of each point: `[{path: value, ...}, ...]`."""
@@ -306,7 +361,9 @@ class Fit(Base):
     sampling: PositiveFloat | None = Field(
         None, description="With trace: the trace's sampling interval (required there)."
     )
-    n_sim: int = Field(100_000, ge=1000, description="Simulated cycles per evaluated point.")
+    n_sim: int = Field(
+        100_000, ge=1000, le=2**32 - 1, description="Simulated cycles per evaluated point."
+    )
     seed: int = Field(0, ge=0, description="Seed of the simulations (common to every point).")
     dt: PositiveFloat | None = Field(
         None, description="Simulation step (default: a fifth of the model's slowest time scale)."
@@ -317,6 +374,8 @@ class Fit(Base):
 
     @model_validator(mode="after")
     def _boxes(self):
+        if self.t_max is not None and self.dt is not None:
+            _check_steps("t_max", self.t_max, self.dt)
         for name, (low, high) in self.free.items():
             if not low < high:
                 raise fail(
@@ -498,7 +557,7 @@ class Study(Base):
                     Study.model_validate(data)
                 except ValidationError as err:
                     loc, reason = locate(first_error(err))
-                    raise fail(f"{where}.{j}", f"value {value!r}: {loc}: {reason}") from None
+                    raise fail(f"{where}.{j}", f"value {short(value)}: {loc}: {reason}") from None
 
     def points(self) -> list[tuple[dict[str, Any], Study]]:
         """The studies to run: `[(swept values, study without sweep), ...]`."""
@@ -604,7 +663,7 @@ def describe_error(e: dict) -> str:
     elif "input" in e:
         value = e["input"]
         if not isinstance(value, dict | list):
-            msg += f" (got {'null' if value is None else repr(value)})"
+            msg += f" (got {'null' if value is None else short(value)})"
     return msg
 
 

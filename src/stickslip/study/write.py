@@ -1,6 +1,7 @@
 """Writing a study's results: `results.nc`, figures and `summary.md`, atomically.
 
-Everything is written into a temporary directory beside the target (`.NAME.partial-PID`)
+Everything is written into a temporary directory beside the target (`.NAME.partial-PID`),
+with the marker file `.stickslip-results` that lets `--force` recognise the folder later,
 and moved into place when complete. A run stopped midway leaves that temporary directory and
 nothing under the final name; an existing target (replaced only with `--force`) is moved
 aside and deleted only after the new results are in place.
@@ -42,19 +43,25 @@ def write_results(ds: xr.Dataset, study: Study, out: pathlib.Path, *, force, fig
         timings["netcdf"] = time.perf_counter() - t0
         (tmp / "summary.md").write_text(summary(ds, study, timings), encoding="utf-8")
         (tmp / "study.yaml").write_text(ds.attrs["study"], encoding="utf-8")
-        _replace(tmp, out, force)
+        _replace(tmp, out, force, "run")
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     say(f"wrote {out}/: {', '.join(sorted(p.name for p in out.iterdir()))}")
 
 
-def _replace(tmp: pathlib.Path, out: pathlib.Path, force: bool):
+def _replace(tmp: pathlib.Path, out: pathlib.Path, force: bool, contents: str | None = None):
+    """Move the finished results `tmp` to `out`, with the marker that makes `out` a results
+    folder (`contents`: 'run' or 'fit'; by default read from the files)."""
+    from .._output import check_replace_dir, write_marker
+
+    if contents is None:
+        contents = "fit" if (tmp / "fit.json").exists() else "run"
+    write_marker(tmp, contents)
     old = None
     if out.exists():
         if any(out.iterdir()):
-            if not force:  # checked before the run too; the directory may have filled since
-                raise FileExistsError(f"{out} exists and is not empty (use --force)")
+            check_replace_dir(out, force)  # checked before the run too; it may have changed
             old = out.parent / f".{out.name}.old-{os.getpid()}"
             out.rename(old)
         else:
@@ -121,7 +128,8 @@ def summary(ds: xr.Dataset, study: Study, timings: dict) -> str:
         lines += [f"- {w}" for w in ds.attrs["warnings"].splitlines()]
         lines.append("")
     lines += ["## Files", "", "- `results.nc`: every number above and the curves (xarray/netCDF)"]
-    lines += ["- `study.yaml`: the study as run", "- `*.png`: figures", ""]
+    lines += ["- `study.yaml`: the study as run", "- `*.png`: figures"]
+    lines += ["- `.stickslip-results`: marks the folder as results (`--force` replaces it)", ""]
     return "\n".join(lines)
 
 

@@ -1,0 +1,353 @@
+"""Outputs never touch inputs: `run`, `sweep` and `fit` refuse an `--out` that is, or holds,
+the study or its data, the current directory or one above it, or a folder of the user's
+own files (even with `--force`), before any work, with one line and exit 2; the user's
+files stay intact byte for byte. `--force` replaces only an earlier results folder, known
+by the marker file the project writes into each one.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pathlib
+import tempfile
+
+import pytest
+import yaml
+from click.testing import CliRunner
+
+import stickslip as ss
+from stickslip._output import MARKER, check_output_dir, check_output_file, is_results_folder
+from stickslip.cli import main
+
+STUDY = {
+    "title": "output safety",
+    "model": {
+        "name": "langevin",
+        "params": {"omega0": 1.0, "zeta": 0.1, "D": 0.4, "v_b": 1.0, "x0": 1.0, "tau": 0.1},
+    },
+    "simulation": {"n_paths": 200, "dt": 0.01, "t_max": 30},
+    "outputs": ["slip_time"],
+}
+FIT = {"data": "cycles.csv", "free": {"D": [0.05, 2.0]}, "n_sim": 1000}
+
+
+@pytest.fixture
+def no_work(monkeypatch):
+    """Every refusal must come before any work: a simulation or a fit started fails."""
+    import stickslip._fit
+    import stickslip.study.run as run_module
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("work was started")
+
+    monkeypatch.setattr(run_module, "_compute", refuse)
+    monkeypatch.setattr(run_module, "_compute_chain", refuse)
+    monkeypatch.setattr(stickslip._fit, "fit", refuse)
+
+
+@pytest.fixture
+def mystudy(tmp_path):
+    """A user's study folder: the study, its data, notes; and a sibling folder."""
+    home = tmp_path / "mystudy"
+    home.mkdir()
+    (home / "study.yaml").write_text(yaml.safe_dump({**STUDY, "fit": FIT}))
+    (home / "cycles.csv").write_text(
+        "slip_time\n" + "\n".join(f"{0.5 + i / 100}" for i in range(50))
+    )
+    (home / "notes.txt").write_text("my notes\n")
+    (tmp_path / "elsewhere").mkdir()
+    return home
+
+
+def snapshot(root: pathlib.Path) -> dict[str, bytes]:
+    return {
+        str(p.relative_to(root)): p.read_bytes() if p.is_file() else b"<dir>"
+        for p in sorted(root.rglob("*"))
+    }
+
+
+def one_error_line(result) -> str:
+    assert "Traceback" not in result.stderr, result.stderr
+    assert isinstance(result.exception, SystemExit | None), repr(result.exception)
+    assert result.exit_code == 2, (result.exit_code, result.stderr)
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    line = lines[0]
+    assert line.startswith("error: ") and line.isprintable() and len(line) <= 310, line
+    return line
+
+
+def invoke(argv):
+    return CliRunner().invoke(main, [str(a) for a in argv])
+
+
+# -- the issue's data-loss cases -------------------------------------------------------------
+@pytest.mark.parametrize("command", ["run", "sweep", "fit"])
+@pytest.mark.parametrize("force", [False, True])
+@pytest.mark.parametrize(
+    "out, expect",
+    [
+        ("../mystudy", "is the current directory"),
+        (".", "is the current directory"),
+        ("..", "holds the current directory"),
+        ("/", "holds the current directory"),
+    ],
+)
+def test_out_is_the_working_folder_or_above(
+    tmp_path, mystudy, monkeypatch, no_work, command, force, out, expect
+):
+    """`cd mystudy && stickslip run study.yaml --out ../mystudy --force` deleted the study
+    and the notes; `--out .` failed with a raw OSError."""
+    monkeypatch.chdir(mystudy)
+    before = snapshot(tmp_path)
+    argv = [command, "study.yaml", "--out", out, "-q"]
+    if command == "sweep":
+        argv += ["-p", "model.params.v_b=1,2"]
+    line = one_error_line(invoke(argv + (["--force"] if force else [])))
+    assert line.startswith(f"error: --out: {out} "), line
+    assert expect in line, line
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("command", ["run", "sweep", "fit"])
+def test_out_holds_the_study(tmp_path, mystudy, monkeypatch, no_work, command):
+    """From another folder: `--out` naming the study's folder (absolute, relative, through
+    a link) is refused with or without --force."""
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    link = tmp_path / "link"
+    link.symlink_to(mystudy, target_is_directory=True)
+    before = snapshot(mystudy)
+    for out in (mystudy, "../mystudy", link):
+        for force in ([], ["--force"]):
+            argv = [command, mystudy / "study.yaml", "--out", out, "-q", *force]
+            if command == "sweep":
+                argv += ["-p", "model.params.v_b=1,2"]
+            line = one_error_line(invoke(argv))
+            assert "holds the input" in line and "study.yaml" in line, line
+    assert snapshot(mystudy) == before
+
+
+def test_fit_out_holds_its_data(tmp_path, mystudy, no_work):
+    """`fit`'s data file counts as an input: an --out holding it is refused."""
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "trace_cycles.csv").write_text((mystudy / "cycles.csv").read_text())
+    (data / "other.txt").write_text("other\n")
+    study = tmp_path / "fit.yaml"
+    study.write_text(yaml.safe_dump({**STUDY, "fit": {**FIT, "data": "data/trace_cycles.csv"}}))
+    before = snapshot(tmp_path)
+    line = one_error_line(invoke(["fit", study, "--out", data, "--force", "-q"]))
+    assert line == (
+        f"error: --out: {data} holds the input {data / 'trace_cycles.csv'}: refusing to write "
+        "results there"
+    ), line
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("command", ["run", "sweep", "fit"])
+def test_force_does_not_replace_a_folder_of_other_files(tmp_path, mystudy, no_work, command):
+    """A non-empty folder without the marker is never replaced, with or without --force."""
+    other = tmp_path / "elsewhere"
+    (other / "thesis.tex").write_text("\\documentclass{article}\n")
+    before = snapshot(tmp_path)
+    for force in ([], ["--force"]):
+        argv = [command, mystudy / "study.yaml", "--out", other, "-q", *force]
+        if command == "sweep":
+            argv += ["-p", "model.params.v_b=1,2"]
+        line = one_error_line(invoke(argv))
+        assert line.startswith(f"error: --out: {other} exists and is not empty"), line
+        assert "not a stickslip results folder" in line, line
+    assert snapshot(tmp_path) == before
+
+
+def test_a_marker_that_is_not_ours_is_not_recognised(tmp_path):
+    folder = tmp_path / "f"
+    folder.mkdir()
+    (folder / "data.txt").write_text("x")
+    assert not is_results_folder(folder)
+    (folder / MARKER).write_text("not json")
+    assert not is_results_folder(folder)
+    (folder / MARKER).write_text(json.dumps({"written_by": "someone else"}))
+    assert not is_results_folder(folder)
+    (folder / MARKER).unlink()
+    (folder / MARKER).symlink_to(folder / "data.txt")
+    assert not is_results_folder(folder)
+    with pytest.raises(ss.OutputError, match="not a stickslip results folder"):
+        check_output_dir(folder, force=True)
+
+
+def test_an_empty_folder_is_fine(tmp_path):
+    (tmp_path / "empty").mkdir()
+    assert check_output_dir(tmp_path / "empty") == (tmp_path / "empty").resolve()
+    assert check_output_dir(tmp_path / "new") == (tmp_path / "new").resolve()
+
+
+# -- locations that cannot be written: found before the run ------------------------------------
+@pytest.mark.parametrize("command", ["run", "fit"])
+def test_missing_parent_is_found_before_the_run(tmp_path, mystudy, no_work, command):
+    out = tmp_path / "no" / "such" / "out"
+    line = one_error_line(invoke([command, mystudy / "study.yaml", "--out", out, "-q"]))
+    assert line == f"error: --out: parent directory {out.parent} does not exist", line
+    assert not (tmp_path / "no").exists()
+
+
+def test_out_under_a_file_is_refused(tmp_path, mystudy, no_work):
+    out = mystudy / "notes.txt" / "out"
+    line = one_error_line(invoke(["run", mystudy / "study.yaml", "--out", out, "-q"]))
+    assert "parent directory" in line and "does not exist" in line, line
+
+
+@pytest.mark.skipif(
+    not hasattr(os, "geteuid") or os.geteuid() == 0, reason="root may write anywhere"
+)
+def test_unwritable_parent_is_found_before_the_run(tmp_path, mystudy, no_work):
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(0o500)
+    try:
+        line = one_error_line(
+            invoke(["run", mystudy / "study.yaml", "--out", locked / "out", "-q"])
+        )
+    finally:
+        locked.chmod(0o700)
+    assert line.startswith(f"error: --out: parent directory {locked} is not writable"), line
+
+
+@pytest.mark.skipif(not os.path.isdir("/sys/kernel"), reason="needs Linux's sysfs")
+def test_a_read_only_file_system_is_found_before_the_run(mystudy, no_work):
+    """sysfs refuses new folders even to root, where permission bits say nothing."""
+    try:
+        os.rmdir(tempfile.mkdtemp(dir="/sys"))
+        pytest.skip("/sys is writable here")
+    except OSError:
+        pass
+    line = one_error_line(invoke(["run", mystudy / "study.yaml", "--out", "/sys/results", "-q"]))
+    assert line.startswith("error: --out: parent directory /sys is not writable"), line
+
+
+# -- a real (tiny) run: the marker, --force on results ------------------------------------------
+def test_force_replaces_an_earlier_results_folder(tmp_path, mystudy, monkeypatch):
+    monkeypatch.chdir(mystudy)
+    out = tmp_path / "results"
+    first = invoke(["run", "study.yaml", "--out", out, "-q", "--no-figures"])
+    assert first.exit_code == 0, first.output
+    marker = json.loads((out / MARKER).read_text())
+    assert marker["written_by"] == "stickslip" and marker["contents"] == "run"
+    assert is_results_folder(out)
+    line = one_error_line(invoke(["run", "study.yaml", "--out", out, "-q", "--no-figures"]))
+    assert line.startswith(f"error: --out: {out} exists and is not empty"), line
+    assert "use --force" in line, line
+    (out / "results.nc").write_bytes(b"stale")
+    again = invoke(["run", "study.yaml", "--out", out, "-q", "--no-figures", "--force"])
+    assert again.exit_code == 0, again.output
+    assert (out / "results.nc").read_bytes() != b"stale"
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        [MARKER, "results.nc", "study.yaml", "summary.md"]
+    )
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["elsewhere", "mystudy", "results"]
+    assert (mystudy / "notes.txt").read_text() == "my notes\n"
+
+
+# -- the Python API ------------------------------------------------------------------------------
+def test_api_raises_output_error(tmp_path, mystudy, no_work):
+    from stickslip.study import run_fit
+
+    with pytest.raises(ss.OutputError, match="holds the input") as err:
+        ss.run_study(mystudy / "study.yaml", tmp_path, force=True)
+    assert isinstance(err.value, ss.StickSlipError)
+    with pytest.raises(ss.OutputError, match="holds the input"):
+        run_fit(str(mystudy / "study.yaml"), mystudy, force=True)
+
+
+def test_output_file_is_never_an_input(tmp_path):
+    """The file variant (for `cycles --out`): never the input, by any path; replacing an
+    existing file needs force."""
+    trace = tmp_path / "trace.csv"
+    trace.write_text("t,x\n0,1\n")
+    (tmp_path / "sym.csv").symlink_to(trace)
+    os.link(trace, tmp_path / "hard.csv")
+    sub = tmp_path / "sub"
+    sub.mkdir()
+    for out in (trace, tmp_path / "sym.csv", tmp_path / "hard.csv", sub / ".." / "trace.csv"):
+        for force in (False, True):
+            with pytest.raises(ss.OutputError, match="is the input"):
+                check_output_file(out, inputs=[trace], force=force)
+    with pytest.raises(ss.OutputError, match="is the input"):
+        check_output_file(trace, inputs=[tmp_path / "sym.csv"], force=True)
+    other = tmp_path / "cycles.csv"
+    other.write_text("old\n")
+    with pytest.raises(ss.OutputError, match="exists \\(use --force"):
+        check_output_file(other, inputs=[trace])
+    assert check_output_file(other, inputs=[trace], force=True) == other.resolve()
+    new = check_output_file(tmp_path / "new.csv", inputs=[trace])
+    assert new == (tmp_path / "new.csv").resolve()
+    with pytest.raises(ss.OutputError, match="is a directory"):
+        check_output_file(sub, inputs=[trace], force=True)
+    with pytest.raises(ss.OutputError, match="does not exist"):
+        check_output_file(tmp_path / "no" / "x.csv", inputs=[trace])
+    assert trace.read_text() == "t,x\n0,1\n" and other.read_text() == "old\n"
+
+
+# -- every bad-input error of the package is one line and exit 2 ---------------------------
+@pytest.mark.parametrize(
+    "error",
+    [
+        ss.ParameterError("simulate", "dt", "must be > 0", -1.0),
+        ss.DataError("no stick-slip structure"),
+        ss.ResourceError("needs 309 GB; the limit is 8 GB"),
+        ss.OutputError("--out: cannot be written"),
+    ],
+    ids=lambda e: type(e).__name__,
+)
+def test_bad_input_errors_exit_2(tmp_path, mystudy, monkeypatch, error):
+    import stickslip.study.run as run_module
+
+    def fail(*args, **kwargs):
+        raise error
+
+    monkeypatch.setattr(run_module, "_compute", fail)
+    line = one_error_line(invoke(["run", mystudy / "study.yaml", "--out", tmp_path / "o", "-q"]))
+    assert line == f"error: {error}", line
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_long_message_is_cut_to_one_printable_line(tmp_path, mystudy, monkeypatch):
+    import stickslip.study.run as run_module
+
+    def fail(*args, **kwargs):
+        raise ss.DataError("first\nsecond\x00\x1b[31m" + "x" * 5000)
+
+    monkeypatch.setattr(run_module, "_compute", fail)
+    line = one_error_line(invoke(["run", mystudy / "study.yaml", "--out", tmp_path / "o", "-q"]))
+    assert line.startswith("error: first second\\x00\\x1b[31mxxx") and line.endswith("..."), line
+
+
+def test_an_unexpected_error_exits_1(tmp_path, mystudy, monkeypatch):
+    import stickslip.study.run as run_module
+
+    def fail(*args, **kwargs):
+        raise RuntimeError("solver broke\nsecond line")
+
+    monkeypatch.setattr(run_module, "_compute", fail)
+    result = invoke(["run", mystudy / "study.yaml", "--out", tmp_path / "o", "-q"])
+    assert result.exit_code == 1
+    assert result.stderr.strip().splitlines() == [
+        "error: run failed: RuntimeError: solver broke second line (--debug shows the traceback)"
+    ]
+
+
+@pytest.mark.parametrize("command", ["run", "sweep"])
+def test_out_is_checked_before_a_cluster_starts(mystudy, monkeypatch, no_work, command):
+    from stickslip import _distributed
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a cluster was contacted")
+
+    monkeypatch.setattr(_distributed, "connect", refuse)
+    monkeypatch.chdir(mystudy)
+    argv = [command, "study.yaml", "--out", ".", "--force", "--dask", "tcp://127.0.0.1:9", "-q"]
+    if command == "sweep":
+        argv += ["-p", "model.params.v_b=1,2"]
+    line = one_error_line(invoke(argv))
+    assert line == "error: --out: . is the current directory: refusing to write results there"
