@@ -3,6 +3,7 @@ and friction noise per block; every block sticks and slips on its own."""
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import equinox as eqx
@@ -38,6 +39,10 @@ class BurridgeKnopoff(ChainModel):
     factor on each block's static limit, drawn afresh at each stick), `event_level`
     (mean sliding velocity below which the chain is quiet: the crossing variable's level for
     the crossing statistics; default 0, the ends of events).
+
+    **Admissible scales** (as for `langevin`): $\sqrt{k_p + 4 k_c}$ and $1/\tau$ at most
+    1e12 per time unit, $D = 0$ or a noise level $D / (k_p^{3/2} (F_s/k_p)^2)$ between
+    1e-100 and 1e12, and a threshold law within 30 decades of its median.
 
     With N = 1 and `LinearViscous(static=F_s, viscosity=mu, kinetic=F_k)` it is the
     `langevin` model with $\omega_0^2 = k_p$, $\zeta = \mu$ and
@@ -99,6 +104,27 @@ class BurridgeKnopoff(ChainModel):
         check_positive(_NAME, "tau", self.tau, allow_none=True)
         check_choice(_NAME, "boundary", self.boundary, ("free", "periodic"))
         check_nonnegative(_NAME, "event_level", self.event_level)
+        # The scales of `langevin` (stickslip_langevin._scales): the highest normal mode
+        # sqrt(k_p + 4 k_c) and 1/tau as rates; the noise level with omega0 = sqrt(k_p) and
+        # the loading spring's stretch at release, F_s / k_p, as the length.
+        from stickslip_langevin import check_noise, check_rate
+
+        check_rate(
+            _NAME, "k_c", math.sqrt(self.k_p + 4.0 * self.k_c), "sqrt(k_p + 4 k_c)", self.k_c
+        )
+        if self.tau is not None:
+            check_rate(_NAME, "tau", 1.0 / self.tau, "1/tau", self.tau)
+        static = float(self.friction.static_limit)
+        if not (math.isfinite(static) and static > 0):
+            raise ParameterError(_NAME, "friction", "needs a finite static_limit > 0", static)
+        check_noise(_NAME, self.D, math.sqrt(self.k_p), static / self.k_p, "k_p^1.5 (F_s/k_p)^2")
+        if self.threshold is not None:
+            from stickslip_random_threshold import check_spread
+
+            try:
+                check_spread(self.threshold)
+            except ParameterError as err:
+                raise ParameterError(_NAME, err.parameter, err.reason, err.value) from None
 
     def params(self):
         out = {

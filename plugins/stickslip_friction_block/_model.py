@@ -4,7 +4,10 @@ friction noise."""
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
+
+from stickslip_langevin import check_noise, check_rate
 
 from stickslip import FrictionModel, ParameterError
 from stickslip.friction import FRICTION_LAWS, FrictionLaw, get_friction_law
@@ -41,6 +44,10 @@ class FrictionBlock(FrictionModel):
     `stickslip.friction.FrictionLaw`, or a law's name: `"coulomb"`, `"viscous"`,
     `"velocity-weakening"`, `"stribeck"`), `friction_params` (a dict of the named law's
     parameters).
+
+    **Admissible scales** (as for `langevin`, with $\omega_0 = \sqrt k$ and the length
+    $F_s/k$): $\sqrt k$ and $1/\tau$ at most 1e12 per time unit, and $D = 0$ or a noise
+    level $D / (k^{3/2} (F_s/k)^2)$ between 1e-100 and 1e12.
     """
 
     k: float
@@ -70,6 +77,12 @@ class FrictionBlock(FrictionModel):
             raise ParameterError(
                 _NAME, "friction", f"force(0+) = {kinetic:g} exceeds static_limit = {static:g}"
             )
+        # The scales of `langevin` (stickslip_langevin._scales), with omega0 = sqrt(k) and the
+        # onset stretch F_s / k as the length.
+        omega0 = math.sqrt(self.k)
+        check_rate(_NAME, "k", omega0, "sqrt(k)", self.k)
+        check_rate(_NAME, "tau", 1.0 / self.tau, "1/tau", self.tau)
+        check_noise(_NAME, self.D, omega0, static / self.k, "k^1.5 (F_s/k)^2")
 
     # -- slip-phase SDE ------------------------------------------------------------------
     @property

@@ -7,6 +7,8 @@ import equinox as eqx
 from stickslip import FrictionModel, LinearGaussian, ParameterError
 from stickslip.plugin import check_choice, check_nonnegative, check_positive, jax, jnp
 
+from ._scales import check_noise, check_rate
+
 _NAME = "langevin"
 
 
@@ -31,6 +33,19 @@ class LangevinSlip(FrictionModel):
             raise ParameterError(
                 name, "eta0", "'stationary' needs Ornstein-Uhlenbeck noise (set tau > 0)"
             )
+
+    def _check_scales(self, name):
+        # The model's scales (see `_scales`): rates up to 1e12, a noise level D/(omega0^3 x0^2)
+        # between 1e-100 and 1e12, with x0 the (typical) threshold.
+        check_rate(name, "omega0", self.omega0, "omega0", self.omega0)
+        check_rate(name, "zeta", self.zeta, "zeta", self.zeta)
+        if self.tau is not None:
+            check_rate(name, "tau", 1.0 / self.tau, "1/tau", self.tau)
+        check_noise(name, self.D, self.omega0, self._length_scale(), "omega0^3 x0^2")
+
+    def _length_scale(self) -> float:
+        """The slip's length scale: the (median) threshold x0."""
+        raise NotImplementedError
 
     def threshold_at(self, key):
         """The onset position x0 of one slip (`key`: the onset's JAX PRNG key, also used for
@@ -131,6 +146,12 @@ class Langevin(LangevinSlip):
     **Arguments:** `omega0` ($\omega_0 > 0$), `zeta` (damping $\zeta > 0$), `D` (noise
     intensity $D \ge 0$), `v_b` (driving speed $> 0$), `x0` (static threshold $> 0$; the
     paper does not state it), `tau` (None or $> 0$), `eta0` (`"zero"` or `"stationary"`).
+
+    **Admissible scales** (refused on construction, with the reason): the rates $\omega_0$,
+    $\zeta$ and $1/\tau$ at most 1e12 per time unit (faster rates overflow the exact
+    propagators: rescale time), and $D = 0$ or a noise level
+    $D / (\omega_0^3 x_0^2)$ between 1e-100 (the covariances underflow) and 1e12 (the
+    noise swamps the slip).
     """
 
     omega0: float
@@ -145,6 +166,10 @@ class Langevin(LangevinSlip):
         # Runs on construction only (not on the array-valued copies made for jitted code).
         self._check_slip(_NAME)
         check_positive(_NAME, "x0", self.x0)
+        self._check_scales(_NAME)
+
+    def _length_scale(self):
+        return self.x0
 
     def threshold_at(self, key):
         return self.x0

@@ -2,7 +2,8 @@
 
 from ._laws import THRESHOLD_LAWS as THRESHOLD_LAWS
 from ._laws import ThresholdLaw as ThresholdLaw
+from ._laws import check_spread as check_spread
 from ._laws import make_law as make_law
 from ._model import RandomThreshold as RandomThreshold
 
-__all__ = ["RandomThreshold", "ThresholdLaw", "THRESHOLD_LAWS", "make_law"]
+__all__ = ["RandomThreshold", "ThresholdLaw", "THRESHOLD_LAWS", "make_law", "check_spread"]

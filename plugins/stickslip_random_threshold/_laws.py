@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import abc
+import math
 
 import equinox as eqx
 import numpy as np
@@ -34,6 +35,20 @@ class ThresholdLaw(eqx.Module):
     @abc.abstractmethod
     def average(self):
         """The mean threshold (JAX-traceable)."""
+
+    def spread(self) -> tuple[float, float, float]:
+        """The thresholds' `SPREAD_TAIL` and 1 - `SPREAD_TAIL` quantiles and median (without
+        NumPy warnings: an extreme law gives 0 or inf here, which `check_spread` refuses)."""
+        if self.point is not None:
+            return (self.point,) * 3
+        import warnings
+
+        dist = self.frozen()
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            lo, med = (float(dist.ppf(p)) for p in (SPREAD_TAIL, 0.5))
+            hi = float(dist.isf(SPREAD_TAIL))
+        return lo, med, hi
 
     def quadrature(self, nodes: int):
         """Gauss-Hermite nodes in the normal score z = Phi^-1(F(x0)): `(values, weights)`,
@@ -177,12 +192,44 @@ class Weibull(ThresholdLaw):
         return None
 
 
+# The spread of a threshold law: its quantiles at SPREAD_TAIL and 1 - SPREAD_TAIL (|z| = 7 in
+# the normal score, as far as the estimator's quadrature nodes reach) must be positive, finite
+# and within SPREAD_DECADES decades of the median. Wider laws draw thresholds of 0 or inf
+# (lognormal sigma = 1e3: 24 % nan slip times, inf stick times). The limits allow, e.g.,
+# lognormal sigma <= 9.8 and Weibull shape >= 0.4.
+SPREAD_TAIL = 1e-12
+SPREAD_DECADES = 30.0
+
+
+def check_spread(law: ThresholdLaw) -> None:
+    """Refuse a law whose thresholds would be 0, negative or non-finite with any
+    appreciable probability (see `SPREAD_TAIL`), naming its parameters."""
+    lo, med, hi = law.spread()
+    ok = all(math.isfinite(q) and q > 0 for q in (lo, med, hi))
+    if ok:
+        ok = math.log10(hi) - math.log10(med) <= SPREAD_DECADES
+        ok = ok and math.log10(med) - math.log10(lo) <= SPREAD_DECADES
+    if not ok:
+        name = next(k for k, v in THRESHOLD_LAWS.items() if isinstance(law, v))
+        param = _SPREAD_PARAMETER[name]
+        raise ParameterError(
+            _NAME,
+            f"threshold_params.{param}",
+            f"makes the {name} law too wide: its {SPREAD_TAIL:g} and 1 - {SPREAD_TAIL:g} "
+            f"quantiles ({lo:.3g}, {hi:.3g}) are not within {SPREAD_DECADES:g} decades of its "
+            f"median ({med:.3g}), so thresholds of 0 or inf would be drawn",
+            getattr(law, param),
+        )
+
+
 THRESHOLD_LAWS = {
     "normal": TruncatedNormal,
     "lognormal": LogNormal,
     "uniform": Uniform,
     "weibull": Weibull,
 }
+
+_SPREAD_PARAMETER = {"normal": "sd", "lognormal": "sigma", "uniform": "high", "weibull": "shape"}
 
 
 def make_law(name, params) -> ThresholdLaw:

@@ -8,7 +8,7 @@ from stickslip_langevin import LangevinSlip
 
 from stickslip.plugin import check_real, jax
 
-from ._laws import ThresholdLaw, make_law
+from ._laws import ThresholdLaw, check_spread, make_law
 
 _NAME = "random-threshold"
 
@@ -29,6 +29,10 @@ class RandomThreshold(LangevinSlip):
     `threshold`, the law's name: `"normal"` (`mean`, `sd`; truncated to $x_0 > 0$),
     `"lognormal"` (`median`, `sigma`), `"uniform"` (`low`, `high` with $0 < $ low), or
     `"weibull"` (`shape`, `scale`); `threshold_params`, a dict of the law's parameters.
+
+    **Admissible scales**: those of `langevin` with the median threshold as $x_0$, and a law
+    whose 1e-12 and 1 - 1e-12 quantiles lie within 30 decades of its median (e.g. lognormal
+    sigma <= 9.8, Weibull shape >= 0.4): a wider law draws thresholds of 0 or inf.
     """
 
     omega0: float
@@ -52,6 +56,11 @@ class RandomThreshold(LangevinSlip):
 
     def __check_init__(self):
         self._check_slip(_NAME)
+        check_spread(self.threshold)
+        self._check_scales(_NAME)
+
+    def _length_scale(self):
+        return self.threshold.spread()[1]  # the median threshold
 
     def params(self):
         from ._laws import THRESHOLD_LAWS, describe

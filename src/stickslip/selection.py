@@ -53,6 +53,7 @@ import dataclasses
 import functools
 import json
 import math
+import os
 import pathlib
 import time
 import warnings
@@ -61,7 +62,7 @@ from importlib import resources
 import numpy as np
 
 from . import _histogram
-from ._errors import ParameterError, StickSlipError, check_positive
+from ._errors import ParameterError, StickSlipError, check_int, check_positive
 from ._model import FrictionModel, time_scales
 from .stability import ANALYTIC_METHODS as ANALYTIC
 from .stability import stability_report
@@ -247,6 +248,48 @@ def load_table(path: str | None = None) -> tuple[dict, ...]:
     return tuple(out)
 
 
+# The columns `select_method` reads from a table.
+_COLUMNS = (
+    "set", "output", "method", "family", "solver", "dt", "n_paths", "l1", "l1_sd",
+    "ref_floor", "run_seconds", "params",
+)  # fmt: skip
+
+
+def _read_table(owner: str, table) -> tuple[dict, ...]:
+    """`load_table(table)` with one-line errors naming `table` (never its contents)."""
+    if table is not None and not isinstance(table, (str, os.PathLike)):
+        raise ParameterError(owner, "table", "must be the path of a CSV file or None", None)
+    shown = str(table) if table is not None and len(str(table)) <= 200 else None
+    if table is not None and str(table) == "":
+        raise ParameterError(owner, "table", "must be the path of a CSV file, not ''", "")
+    try:
+        rows = load_table(None if table is None else str(table))
+    except FileNotFoundError:
+        raise ParameterError(owner, "table", "names no file", shown) from None
+    except IsADirectoryError:
+        raise ParameterError(owner, "table", "is a folder, not a CSV file", shown) from None
+    except UnicodeDecodeError:
+        raise ParameterError(owner, "table", "is not a UTF-8 text (CSV) file", shown) from None
+    except OSError as err:
+        why = err.strerror or type(err).__name__
+        raise ParameterError(owner, "table", f"cannot be read ({why})", shown) from None
+    except (KeyError, ValueError, TypeError, AttributeError, csv.Error):
+        raise ParameterError(
+            owner, "table", "is not an accuracy-cost table (benchmarks/accuracy_cost.py "
+            "output): a column is missing or holds a value of the wrong kind", shown,
+        ) from None  # fmt: skip
+    if not rows:
+        raise ParameterError(owner, "table", "holds no rows", shown)
+    missing = [c for c in _COLUMNS if c not in rows[0]]
+    if missing or not all(isinstance(r["params"], dict) for r in rows):
+        what = f"lacks the column(s) {', '.join(missing)}" if missing else "has params not a dict"
+        raise ParameterError(
+            owner, "table", f"is not an accuracy-cost table (benchmarks/accuracy_cost.py "
+            f"output): it {what}", shown,
+        )  # fmt: skip
+    return rows
+
+
 def _workload(x: np.ndarray) -> float:
     y = np.exp(-0.5 * x * x) * np.cos(x)
     s = np.sort(y)
@@ -348,9 +391,13 @@ def select_method(
     if output not in OUTPUTS:
         raise ParameterError(owner, "output", f"must be one of {', '.join(OUTPUTS)}", output)
     t_max = check_positive(owner, "t_max", t_max)
+    seed = check_int(owner, "seed", seed, minimum=0)
+    if seed >= 2**64:
+        raise ParameterError(owner, "seed", "must be < 2**64", seed)
+    table_rows = _read_table(owner, table)
     _check_white_noise(model)
-    rows = [r for r in load_table(table) if r["output"] == output]
-    speed = _speed(load_table(table))
+    rows = [r for r in table_rows if r["output"] == output]
+    speed = _speed(table_rows)
     sets = {r["set"]: r["params"] for r in rows}
     measured = next((name for name, p in sets.items() if _same_params(model, p)), None)
     pilot = None
@@ -690,7 +737,13 @@ def first_passage_density(
 
     **Returns:** a `DensityResult` whose `choice` says which method was used and why."""
     owner = "first_passage_density"
-    t = np.asarray(t, dtype=float)
+    try:
+        t = np.asarray(t)
+    except (TypeError, ValueError):  # ragged nestings
+        t = np.asarray(None)
+    if t.dtype.kind not in "iuf":
+        raise ParameterError(owner, "t", "must be a 1-d array of at least two finite times")
+    t = t.astype(float)
     if t.ndim != 1 or t.size < 2 or not np.all(np.isfinite(t)):
         raise ParameterError(owner, "t", "must be a 1-d array of at least two finite times")
     step = np.diff(t)

@@ -205,11 +205,36 @@ class CrossingEstimator:
         return self._source.n_components
 
     # -- upcrossing densities ------------------------------------------------------------------
-    def _times(self, t, name):
-        t = np.asarray(t, float)
+    def _times(self, t, name, parameter="t"):
+        t = _floats(name, parameter, t)
         if not np.all(np.isfinite(t)) or np.any(t < 0):
-            raise ParameterError(name, "t", "must be finite and >= 0")
+            raise ParameterError(name, parameter, "must be finite and >= 0")
         return t
+
+    def _check_grid(self, owner, t_end, n_points=0):
+        """Refuse, before it is allocated, a time grid (to `t_end` at the step `dt`, and the
+        position boxes of `n_points` grid times) past `memory_limit()`: the grid holds per
+        point the propagators (2 d^2 + d) and per component the moments, their midpoint
+        moments and n1 (about 3 (d^2 + d + 2)); a box array is `(K, x_points, n)`, about
+        eight of them at once."""
+        if not isinstance(self._source, GaussianSource):
+            return
+        from .._simulate.driver import check_memory
+
+        n = math.ceil(t_end / self.dt - 1e-9) + 1
+        n_grid = max(8192, 1 << (n - 1).bit_length())  # (`GaussianSource.grid`'s length)
+        d, K = len(self.model.state_names), self.n_components
+        nbytes = 8.0 * n_grid * (2 * d * d + d + 3 * K * (d * d + d + 2))
+        nbytes += 8.0 * 8 * K * self._settings["x_points"] * n_points
+        fast = time_scales(self.model)[0]
+        check_memory(
+            owner,
+            f"the time grid to t = {t_end:.4g} at dt = {self.dt:.3g} ({n_grid:.3g} points; "
+            f"the model's fastest time scale is {fast:.3g})",
+            nbytes,
+            "pass a larger dt (the default is a fifth of the fastest time scale), a shorter "
+            "horizon, or ask for shorter times",
+        )
 
     def n1(self, t):
         """Upcrossing density $n_1(t)$ of the crossing variable through the stick level
@@ -225,7 +250,8 @@ class CrossingEstimator:
     def n1_joint(self, x, t):
         """$n_1(x, t)$ (eq. 11): density of an upcrossing at time `t` and position `x`, shape
         `(len(x), len(t))`. Empirical: a histogram on cells centred at evenly spaced x, t."""
-        x, t = np.atleast_1d(np.asarray(x, float)), np.atleast_1d(self._times(t, "n1_joint"))
+        x = np.atleast_1d(_floats("n1_joint", "x", x))
+        t = np.atleast_1d(self._times(t, "n1_joint"))
         src = self._source
         if isinstance(src, EmpiricalSource):
             ex, et = _edges(x, "x"), _edges(t, "t")
@@ -272,6 +298,7 @@ class CrossingEstimator:
         key = ("series", method, order, normalized, t_end)
         if key in self._cache:
             return self._cache[key]
+        self._check_grid("CrossingEstimator", t_end)
         h, src = self.dt, self._source
         entry = src.grid(t_end, h)
         n = int(round(t_end / h)) + 1
@@ -387,7 +414,7 @@ class CrossingEstimator:
                 self.model, quadrature_nodes=2 * self.quadrature_nodes, **self._settings
             )
         args = (method, order, normalized)
-        x = np.asarray(x, float)
+        x = _floats("quadrature_error", "x", x)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ApproximationWarning)
             if kind == "slip_time":
@@ -416,7 +443,7 @@ class CrossingEstimator:
         `dt / 4` apart (the density rises from 0 to its peak within a few hundredths of a
         time unit after onset)."""
         self._check(method, order, normalized)
-        edges = self._times(edges, "first_passage_cells")
+        edges = self._times(edges, "first_passage_cells", "edges")
         if edges.ndim != 1 or edges.size < 2 or np.any(np.diff(edges) <= 0):
             raise ParameterError(
                 "first_passage_cells", "edges", "must be an increasing 1-d array of >= 2 times"
@@ -501,6 +528,7 @@ class CrossingEstimator:
         """Validity checks of one approximation on [0, t_max]: its mass, most negative
         value, lowest escape rate (decoupling) and the cut time t_n (normalised truncation)."""
         self._check(method, order, normalized)
+        t_max = check_positive("diagnostics", "t_max", t_max)
         grid, F, info = self._series(self._grid_end(t_max), method, order, normalized)
         return dict(
             mass=float(info["mass"][-1]),
@@ -547,6 +575,7 @@ class CrossingEstimator:
 
     def _masses(self, method, order, normalized, t_end, n):
         """`_points` over the first n grid times."""
+        self._check_grid("CrossingEstimator", t_end, n)
         h, src = self.dt, self._source
         coarse = self.joint_dt or max(h, t_end / 300)
         T, X, W, n1w, K2w, X0 = src.points(t_end, h, order, coarse, n)
@@ -645,7 +674,7 @@ class CrossingEstimator:
 
     def _histogram(self, points, kind, method, order, normalized):
         self._check(method, order, normalized)
-        points = np.asarray(points, float)
+        points = _floats(kind, kind, points)
         edges = _edges(np.atleast_1d(points), kind)
         # a period is at least the slip time: later grid times cannot reach the cells
         t_stop = edges[-1] if kind == "period" else None
@@ -871,8 +900,28 @@ def _within(edges, lo, hi, mass):
     return lo[keep], hi[keep], mass[keep]
 
 
+def _floats(owner, parameter, values):
+    """`values` (real numbers: not strings, booleans or objects) as a float array, or a
+    `ParameterError`."""
+    try:
+        arr = np.asarray(values)
+    except (TypeError, ValueError):  # ragged nestings
+        arr = np.asarray(None)
+    if arr.dtype.kind not in "iuf":
+        short = isinstance(values, (str, int, float)) and len(repr(values)) <= 40
+        raise ParameterError(
+            owner,
+            parameter,
+            f"must be a real number or an array of them, not {type(values).__name__}",
+            values if short else None,
+        )
+    return arr.astype(float)
+
+
 def _edges(points, name):
     """Cell edges around evenly spaced points."""
+    if not np.all(np.isfinite(points)):
+        raise ParameterError(name, name, "must be finite")
     if points.size < 2:
         raise ParameterError(name, name, "needs at least 2 evenly spaced values")
     step = points[1] - points[0]

@@ -49,6 +49,7 @@ from .. import _rng
 from .._errors import ParameterError, check_int, check_positive
 from .._jax import jax, jnp
 from .._model import ChainModel, _to_arrays
+from .driver import check_memory
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -322,6 +323,12 @@ def simulate_chain(
     t_max = check_positive(owner, "t_max", t_max)
     dt = check_positive(owner, "dt", dt)
     n_paths = check_int(owner, "n_paths", n_paths, minimum=1)
+    seed = check_int(owner, "seed", seed, minimum=0)
+    if seed >= 2**64:
+        raise ParameterError(owner, "seed", "must be < 2**64", seed)
+    for name, flag in (("record_blocks", record_blocks), ("record_releases", record_releases)):
+        if not isinstance(flag, (bool, np.bool_)):
+            raise ParameterError(owner, name, "must be True or False", flag)
     if model.tau is None and model.D > 0:
         raise ParameterError(
             owner, "tau", "is None (white friction noise) with D > 0: a released block would "
@@ -334,8 +341,23 @@ def simulate_chain(
         raise ParameterError(owner, "t_max", "/ dt must be below 2**31 steps", t_max)
     t_max = n_steps * dt
     record_dt = t_max / 1000 if record_dt is None else check_positive(owner, "record_dt", record_dt)
+    if not record_dt / dt < 2**62:  # (a spacing in steps that an integer holds)
+        raise ParameterError(
+            owner, "record_dt", f"must be below 2**62 steps of dt = {dt}", record_dt
+        )
     if max_events is not None:
         max_events = check_int(owner, "max_events", max_events, minimum=1)
+    check_memory(
+        owner,
+        f"{n_paths} chains of {model.n_blocks} blocks",
+        _chain_bytes(
+            model.n_blocks, n_paths, n_steps, dt, record_dt, record_blocks, record_releases
+        ),
+        "run fewer chains at once (a chain's numbers do not depend on how many run together), "
+        "or record less (record_dt, record_blocks, record_releases)",
+    )
+    if n_paths >= 2**32:  # the paths' counters
+        raise ParameterError(owner, "n_paths", "must be < 2**32", n_paths)
     opts = dict(
         n_steps=n_steps, record_dt=record_dt, record_blocks=record_blocks,
         max_events=max_events, record_releases=record_releases,
@@ -355,6 +377,20 @@ def simulate_chain(
             client, _chain_block, blocks, model, dt, seed, opts, progress=progress, label="chain"
         )
     return _join_chains(parts)
+
+
+def _chain_bytes(N, P, n_steps, dt, record_dt, record_blocks, record_releases) -> float:
+    """Peak memory of `_chain_block` (bytes, an estimate from above): per chain the state
+    (six arrays of N), a segment's buffers (events, quiet times, series samples, releases)
+    three times over (the initial state, the solve's carry and its result), and the time
+    series kept (the segments' parts, then joined)."""
+    stride = max(1, int(round(record_dt / dt)))
+    rec_cap = -(-SEGMENT // stride) + 1
+    width = 3 + (N if record_blocks else 0)
+    segment = 6 * N + 4 * (SEGMENT // 2 + 1) + SEGMENT + rec_cap * width
+    segment += 3 * RELEASES if record_releases else 0
+    kept = 2 * (n_steps // stride + 1) * width
+    return 8.0 * P * (3 * segment + kept)
 
 
 def _chain_block(model, dt, seed, opts, start, stop, progress=False) -> ChainRun:

@@ -15,7 +15,7 @@ from .. import _rng
 from .._errors import ParameterError, check_int
 from .._jax import jnp
 from .._model import FrictionModel
-from .driver import _Run, _validate
+from .driver import _Run, _validate, check_memory
 from .hybrid import INACTIVE, SLIPPING
 from .loop import solve
 
@@ -121,6 +121,18 @@ def simulate_cycles(
     if max_cycles > 2**_CYCLE_BITS - 1:
         raise ParameterError(
             "simulate_cycles", "max_cycles", f"must be < {2**_CYCLE_BITS}", max_cycles
+        )
+    if not isinstance(record, (bool, np.bool_)):
+        raise ParameterError("simulate_cycles", "record", "must be True or False", record)
+    if record:
+        # The time series hold one sample (time, state, flag) per step of slip: at most
+        # t_max / dt per path, kept twice (per cycle, then joined).
+        samples = n_paths * (t_max / dt + 1.0)
+        check_memory(
+            "simulate_cycles",
+            f"recording {n_paths} path(s) to t_max = {t_max:g} at dt = {dt:g}",
+            2.0 * 8.0 * (len(model.state_names) + 2) * samples,
+            "take a larger dt, a shorter t_max or fewer paths, or record=False",
         )
     wall0 = time.perf_counter()
     opts = dict(solver=solver, monitor=monitor, record=record, max_cycles=max_cycles)

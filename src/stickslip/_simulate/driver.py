@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import os
 import sys
 import time
 import warnings
@@ -14,7 +15,7 @@ import equinox as eqx
 import numpy as np
 
 from .. import _compile, _rng
-from .._errors import ParameterError, check_choice, check_int, check_positive
+from .._errors import ParameterError, ResourceError, check_choice, check_int, check_positive
 from .._jax import jax, jnp
 from .._model import FrictionModel, LinearGaussian, _to_arrays
 from .._solver import EulerMaruyama, ExactGaussian
@@ -40,6 +41,97 @@ DEFAULT_CHUNK = 2**20  # about 100 bytes of state per path: 100 MB
 _NODE_SCALE = 0.0125
 _MAX_NODES = 256
 _LOOP_NODES = 2  # the stepping loop's solver: it never interpolates (see `_Run`)
+
+
+# -- limits stated up front ------------------------------------------------------------------
+MEMORY_FRACTION = 0.5  # of this machine's physical memory: the default memory limit of a run
+MEMORY_FALLBACK = 8e9  # where the physical memory cannot be read (bytes)
+# Time scales: `rho` is the slip's fastest rate, max |eig(A)|. Past SCALE_REFUSE = pi 2**20
+# (dt rho), the finest level of the stick's location (dt / 2**MAX_DEPTH) is longer than the
+# slip's time scale pi/rho itself, and the step's propagators have lost their precision
+# (their error grows like (dt rho)^2 1e-16; measured at omega0 = 1e7, dt = 0.2, dt rho = 2e6:
+# det Phi off by 0.6 %): the run is refused. Past SCALE_WARN, a tenth of that, the stick is
+# located on intervals longer than a tenth of pi/rho, and the slip times are biased (measured,
+# omega0 = 1e6 .. 1e7 at dt = 0.2 against dt / 64: bias 1e-5 at 0.06 pi/rho, 3e-4 at 0.12,
+# 4e-3 at 0.3, -2.7e-2 at 0.6): a warning.
+SCALE_REFUSE = math.pi * 2.0**bridge.MAX_DEPTH
+SCALE_WARN = 0.1 * SCALE_REFUSE
+
+
+def memory_limit() -> float:
+    """Bytes a run may use: `STICKSLIP_MEMORY_LIMIT` (bytes) if set, else `MEMORY_FRACTION`
+    of the machine's physical memory."""
+    env = os.environ.get("STICKSLIP_MEMORY_LIMIT")
+    if env:
+        try:
+            value = float(env)
+        except ValueError:
+            value = math.nan
+        if not (math.isfinite(value) and value > 0):
+            raise ParameterError(
+                "environment", "STICKSLIP_MEMORY_LIMIT", "must be a number of bytes > 0", env
+            )
+        return value
+    try:
+        return MEMORY_FRACTION * os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):  # not a POSIX system
+        return MEMORY_FALLBACK
+
+
+def check_memory(owner: str, what: str, nbytes: float, advice: str) -> None:
+    """Refuse, before anything is allocated, a request estimated at `nbytes` past
+    `memory_limit()`, with the figure and the limit."""
+    limit = memory_limit()
+    if nbytes > limit:
+        source = (
+            "STICKSLIP_MEMORY_LIMIT"
+            if os.environ.get("STICKSLIP_MEMORY_LIMIT")
+            else f"{MEMORY_FRACTION:g} of this machine's memory; STICKSLIP_MEMORY_LIMIT sets it"
+        )
+        raise ResourceError(
+            f"{owner}: {what} needs about {nbytes / 1e9:.3g} GB, past the limit of "
+            f"{limit / 1e9:.3g} GB ({source}): {advice}"
+        )
+
+
+def _simulate_bytes(n_paths: int, d: int, upcrossings: int, chunk_size: int) -> float:
+    """Peak memory of `simulate` (bytes, an estimate from above): per path the outputs (seven
+    per-path arrays, three states, the upcrossing record) held twice (blocks, then the joined
+    result), the per-path work arrays and the onset and stick states; per chunk the stepping
+    buffer (states, previous states, modes, counters, offsets, miss bounds, the device's
+    copies)."""
+    per_path = 8 * (2 * (6 + 3 * d + 2 * upcrossings + 2) + 10 + 3 * d)
+    buffer = _buffer_size(min(n_paths, chunk_size)) * 8 * 4 * (2 * d + 6)
+    return float(n_paths) * per_path + buffer
+
+
+def _check_time_scales(owner: str, lg, dt: float, detect: str) -> None:
+    """Refuse a step that the exact solver cannot follow; warn where the bridge detector
+    locates the stick more coarsely than the slip's time scale (see `SCALE_REFUSE`)."""
+    A = np.asarray(lg.A, dtype=float)
+    rho = float(np.max(np.abs(np.linalg.eigvals(A)))) if A.size else 0.0
+    if not rho > 0:
+        return
+    ratio = dt * rho / math.pi  # steps of pi/rho (a half-period at the fastest rate) per dt
+    scale = math.pi / rho
+    where = f"dt = {dt:g} is {ratio:.2g} times the slip's time scale pi/rho(A) = {scale:.2g}"
+    if dt * rho > SCALE_REFUSE:
+        raise ParameterError(
+            owner,
+            "dt",
+            f"is too coarse: {where} (rho(A) its fastest rate); past {SCALE_REFUSE / math.pi:.2g}"
+            " times the stick cannot be located within that scale and the exact propagators "
+            f"lose their precision; take dt <= {SCALE_WARN / rho:.3g}",
+            dt,
+        )
+    if detect == "bridge" and dt * rho > SCALE_WARN:
+        located = dt / 2.0**bridge.MAX_DEPTH
+        warnings.warn(
+            f"{owner}: {where}: the stick is located only to within dt / 2**{bridge.MAX_DEPTH}"
+            f" = {located:.2g}, {located / scale:.2g} times that scale, and slip times are "
+            f"biased by up to that much; take dt <= {SCALE_WARN / rho:.3g}",
+            stacklevel=5,
+        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -335,6 +427,14 @@ def simulate(
     crossing_tol = check_positive("simulate", "crossing_tol", crossing_tol)
     if crossing_tol >= 1.0:
         raise ParameterError("simulate", "crossing_tol", "must be < 1", crossing_tol)
+    check_memory(
+        "simulate",
+        f"{n_paths} paths"
+        + (f" with {record_upcrossings} upcrossings each" if record_upcrossings else ""),
+        _simulate_bytes(n_paths, len(model.state_names), record_upcrossings, chunk_size),
+        "run fewer paths (results depend on (seed, path) alone: runs of consecutive blocks "
+        "of paths can be joined)",
+    )
     wall0 = time.perf_counter()
     if progress is None:
         progress = n_paths >= 20000 and sys.stderr.isatty()
@@ -416,7 +516,21 @@ def _join_blocks(parts, model, wall0, tasks) -> Ensemble:
         for k, v in p["stats"].items():
             stats[k] = stats.get(k, 0) + v
     n_paths = out["slip_time"].size
-    stats["miss_bound"] = stats.pop("miss_sum") / n_paths
+    # The miss bound is Boole's bound: the sum, over a path's certified (sub-)intervals, of
+    # Rice's bound on the chance of a crossing inside each (each at most `crossing_tol`), plus
+    # up to 1 for each interval still undecided at the finest level. Where the step is too
+    # coarse for the finest level to certify (dt rho / 2**MAX_DEPTH > CERTIFY_SCALE) a path can
+    # hold many of those, and the sum reaches 1: it then bounds nothing ("unbounded").
+    bound = stats.pop("miss_sum") / n_paths
+    if bound >= 1.0:
+        warnings.warn(
+            f"simulate: the chance that a path's stick was missed is unbounded: the summed "
+            f"bounds of the certified steps are {bound:.3g} per path, 1 or more (the step is too "
+            "coarse for the detector to certify; take a smaller dt); stats['miss_bound'] is 1",
+            stacklevel=3,
+        )
+        bound = 1.0
+    stats["miss_bound"] = bound
     stats["wall_seconds"] = time.perf_counter() - wall0
     if tasks:
         stats["tasks"] = tasks  # compile_seconds: summed over the tasks
@@ -463,6 +577,8 @@ class _Run:
         # Interpolation nodes of the in-step location (`_locate`; the exact solver's only
         # dt-dependent static). The stepping loop never interpolates: its solver has a fixed
         # count, so one compiled loop serves every dt.
+        if solver == "exact":
+            _check_time_scales(owner, lg, dt, detect)
         self.nodes = _nodes_for(lg.A, dt, detect == "cubic") if solver == "exact" else 1
         self.depths = None  # (location, certification) levels of the bridge detector
         # The crossing functional and level on the host (`_chunk`'s speculative stepping).

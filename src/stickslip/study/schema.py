@@ -461,6 +461,8 @@ class Study(Base):
                         f"{', '.join(names)})" + suggest(name, names),
                     )
         lg = None if chain else model.linear_gaussian()
+        if lg is not None and self.simulation is not None and self.simulation.solver != "euler":
+            self._check_step(lg)
         keys = [a.key for a in self.analytic]
         for i, key in enumerate(keys):
             if key in keys[:i]:
@@ -494,6 +496,21 @@ class Study(Base):
                     )
             self._check_sweep()
         return self
+
+    def _check_step(self, lg):
+        """A step the exact solver cannot follow (dt far past the slip's time scale, e.g.
+        omega0 = 1e8 at dt = 0.2) is refused here, not after the run has started."""
+        from .._errors import ParameterError
+        from .._simulate.driver import _check_time_scales
+
+        sim = self.simulation
+        for loc, dt in (("simulation.dt", sim.dt), ("simulation.cycles.dt", sim.cycles.dt)):
+            if dt is None:
+                continue
+            try:
+                _check_time_scales("simulate", lg, dt, detect="none")  # refusal only
+            except ParameterError as err:
+                raise fail(loc, err.reason) from None
 
     def _check_auto(self, chain: bool):
         if self.method == "compare":
