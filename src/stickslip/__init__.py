@@ -60,6 +60,7 @@ _LAZY = {
     "clear_caches": "._compile",
     "cache_info": "._compile",
     "extract_cycles": ".extract",
+    "read_cycles": ".extract",
     "Cycles": ".extract",
 }
 

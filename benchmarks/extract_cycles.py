@@ -1,0 +1,76 @@
+"""Time of `extract_cycles` against trace length (issue 42: linear; issue 39: the measured
+751 281-sample force trace in <= 2 s on 2 cores).
+
+    python benchmarks/extract_cycles.py [--json out.json]
+
+Velocity traces of 1e5, 1e6, 1e7 samples (a sine-shaped slip every 4.6 time units) given
+as v and as x, and, where ../shared/data/slider_paper_on_paper/ is present, the measured
+force trace. Ratios are per sample against the 1e5 trace of the same run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+import time
+import warnings
+
+import numpy as np
+
+import stickslip as ss
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+REAL = ROOT.parent / "shared" / "data" / "slider_paper_on_paper" / "k168Nm_v42.mat"
+
+
+def _best(fn, repeat):
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    return out, min(times)
+
+
+def main():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--json", default=None)
+    parser.add_argument("--max", type=float, default=1e7, help="longest velocity trace")
+    args = parser.parse_args()
+    rows = []
+    for n in (10**5, 10**6, 10**7):
+        if n > args.max:
+            continue
+        t = np.arange(n) * 0.01
+        v = 1.0 - np.maximum(0.0, np.sin(np.pi * t / 2.3))
+        x = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * 0.01)])
+        for name, kw in (("v", dict(v=v)), ("x", dict(x=x))):
+            found, sec = _best(
+                lambda kw=kw, t=t: ss.extract_cycles(t, v_b=1.0, **kw), 1 + (n < 10**7)
+            )
+            rows.append(dict(trace=f"{name}, {n:.0e} samples", n=n, cycles=len(found), seconds=sec))
+    if REAL.exists():
+        from scipy.io import loadmat
+
+        raw = loadmat(REAL)
+        t, force = raw["t"].ravel(), raw["Fnorm"].ravel() * 0.0307 * 9.81
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            found, sec = _best(
+                lambda: ss.extract_cycles(t, force=force, stiffness=168.0, v_b=42e-6), 2
+            )
+        rows.append(dict(trace="measured force, k168Nm_v42", n=t.size, cycles=len(found),
+                         seconds=sec))  # fmt: skip
+    base = {r["trace"].split(",")[0]: r["seconds"] / r["n"] for r in rows if r["n"] == 10**5}
+    for r in rows:
+        key = r["trace"].split(",")[0]
+        ratio = r["seconds"] / r["n"] / base[key] if key in base else float("nan")
+        print(f"{r['trace']:32s} {r['cycles']:7d} cycles {r['seconds']:8.3f} s  "
+              f"per-sample time / 1e5's: {ratio:.2f}")  # fmt: skip
+    if args.json:
+        pathlib.Path(args.json).write_text(json.dumps(rows, indent=1))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,101 @@
+"""The entry point: `extract_cycles` picks the reader for the kind of trace given."""
+
+from __future__ import annotations
+
+from .._errors import ParameterError
+from ._cycles import Cycles
+from ._input import OWNER
+
+
+def extract_cycles(
+    t,
+    x=None,
+    v=None,
+    *,
+    force=None,
+    stiffness: float | None = None,
+    v_b: float | None = None,
+    tol: float | None = None,
+    min_stick: int | None = None,
+    window: int | None = None,
+) -> Cycles:
+    r"""Find the stick-slip cycles in a measured trace and time each one.
+
+    **Arguments:**
+
+    - `t`: sample times, 1-D, strictly increasing (the spacing may vary for `x`/`v`; a
+      force trace must be evenly sampled, within 1%). Negative times are fine.
+    - `x`, `v`: position and/or velocity at those times, in model units. With `v` the stick
+      phases are found from `v`; with only `x`, from the mean velocity of each sampling
+      interval, $(x_{k+1} - x_k)/(t_{k+1} - t_k)$, which is exactly $v_b$ on an interval
+      inside a stick. With only `v`, the position is its cumulative trapezoid integral.
+    - `force`, `stiffness`: instead of `x`/`v`, the spring force $F$ (N) and the spring's
+      stiffness $k$ (N/m); the extension $F/k$ plays the part of $x$. Robust to spikes,
+      white noise, offset drift and creep; see "Force traces" below.
+    - `v_b`: the driving speed ($> 0$). Required with `x`/`v`; with `force` it may be
+      `None`: it is then estimated from the sticks' loading slope, $g / k$. Either way the
+      speed the sticks actually move at is measured, used, and recorded in `info`; a given
+      `v_b` that disagrees by more than 2% gives a one-line warning (by more than a factor
+      2, with force, a `DataError`: units).
+    - `tol` (`x`/`v`): a velocity value is *stuck* when $|v - v_{st}| \le$ `tol`, with
+      $v_{st}$ the sticks' speed (the robust centre of the values near `v_b`). Default: 5
+      robust sd of the stuck values' noise, $5 \times 1.4826\,\mathrm{MAD}$, and at least
+      $10^{-9}$ times the spread (rounding of differenced positions).
+    - `min_stick` (`x`/`v`): the fewest consecutive stuck values that make a stick
+      (default 2). Shorter runs are part of a slip.
+    - `window` (`force`): the samples of the Savitzky-Golay force rate (odd, >= 5). Default:
+      half the median slip's length from a first pass with 11, between 5 and 101.
+
+    **Locating the transitions (`x`/`v`).** The stick lies between the last slipping value
+    before a stuck run and the run; within that bracket it is placed by the slip's trend
+    ($v_b - v$ linear in time near the stick), so the error is at most one sampling
+    interval, and $O(h^2)$ for a smooth velocity. A release is located the same way in
+    reversed time. Within a stick $x - v_b t$ is constant; its median over the stick gives
+    the positions at the stick and the release, and $d = x(t_0) - x(t_{sl})$.
+
+    **Force traces.** Spikes are replaced by a running median, the noise sd $\sigma$ is
+    measured from the despiked differences, slips are the stretches where the force rate
+    falls 5 of its noise sd below the loading rate, kept where the force drops across them
+    by more than 5 sd of that drop's estimate, and each slip is timed by fitting the
+    model's damped half-oscillation from the loading line to the stick (which locates both
+    ends to about a sample; `info["release_sd_median"]`, `info["stick_sd_median"]` give
+    the fit's standard errors). The table gains `peak_force` (the force at the release) and
+    `force_drop` (release less stick, N); `slip_distance` is `force_drop / k`. A slip that
+    re-slips at once is a row with `stick_time = 0`. Every threshold is in `info`.
+
+    **Cycles that a trace cannot show (`x`/`v`).** A stick holding fewer than `min_stick`
+    values runs on into the next slip: the trace shows one longer slip. An immediate
+    re-stick ($T_{sl} = 0$) is invisible: the stick continues.
+
+    **Returns:** a `Cycles`, one row per complete cycle. The incomplete first and last
+    cycles are dropped. `Cycles.to_csv` writes `info` into a `#` header;
+    `Cycles.from_csv` reads it back.
+
+    **Raises:** `ParameterError` for non-numeric, non-finite or mismatched inputs, `t` not
+    strictly increasing, no trace given, `v_b <= 0`, a trace without a complete cycle, and
+    sampling too coarse to time the slips (a median slip shorter than 3 intervals);
+    `DataError` for a trace without stick-slip structure (noise, continuous sliding, a
+    constant), with the evidence in one line.
+    """
+    if force is not None or stiffness is not None:
+        if x is not None or v is not None:
+            raise ParameterError(OWNER, "force", "goes alone: give force or x/v, not both")
+        if force is None:
+            raise ParameterError(OWNER, "force", "is required with stiffness")
+        if stiffness is None:
+            raise ParameterError(OWNER, "stiffness", "is required with force (N/m)")
+        if tol is not None or min_stick is not None:
+            raise ParameterError(
+                OWNER, "tol" if tol is not None else "min_stick", "applies to x/v only: a "
+                "force trace's thresholds come from its noise (see window)",
+            )  # fmt: skip
+        from ._force import extract_force
+
+        return extract_force(t, force, stiffness, v_b, window)
+    if window is not None:
+        raise ParameterError(OWNER, "window", "applies to force traces only")
+    if v_b is None:
+        raise ParameterError(OWNER, "v_b", "is required with x/v (the driving speed, > 0)")
+    from ._velocity import extract_velocity
+
+    return extract_velocity(t, x, v, v_b, tol, min_stick)

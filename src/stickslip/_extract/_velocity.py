@@ -1,0 +1,264 @@
+r"""Cycles from a position and/or velocity trace (`x=`, `v=`): the flat stretches of
+$x - v_b t$ are the sticks (docs/simulator.md, "Semantics of one cycle")."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from .._errors import DataError, ParameterError, check_int, check_positive
+from ._cycles import Cycles
+from ._input import OWNER, as_series, check_length, check_times, power_of_two, runs
+
+_NOISE_SIGMAS = 5.0  # a stuck value is noise beyond 5 sd with probability 6e-7
+_ROUNDING = 1e-9  # relative floor of tol: differenced positions carry rounding error
+_FIRST_BAND = 0.05  # the first noise estimate looks within 5% of the velocity spread of v_b
+_MIN_SLIP_SAMPLES = 3  # fewer sampling intervals per slip cannot time it
+_VB_WARN = 0.02  # a given v_b further than 2% from the sticks' own speed is worth a warning
+# Stuck values that cluster no more than chance are noise: independent flags with a
+# fraction p stuck make runs whose sample-weighted mean length is (1 + p)/(1 - p); a real
+# stick holds its values for its whole length, far beyond that. 3x leaves room for short
+# sticks of a coarsely sampled trace; 20 runs are enough to judge.
+_CLUSTER_FACTOR, _CLUSTER_MIN_RUNS = 3.0, 20
+
+
+def extract_velocity(t, x, v, v_b, tol, min_stick) -> Cycles:
+    v_b = check_positive(OWNER, "v_b", v_b)
+    min_stick = check_int(OWNER, "min_stick", 2 if min_stick is None else min_stick, minimum=1)
+    if tol is not None:
+        tol = check_positive(OWNER, "tol", tol)
+    if x is None and v is None:
+        raise ParameterError(OWNER, "x", "or 'v' is required: give a position or a velocity")
+    t = as_series("t", t, required=True)
+    x, v = as_series("x", x), as_series("v", v)
+    check_times(t)
+    check_length("x", x, t.size)
+    check_length("v", v, t.size)
+    # work in units where t spans ~1 and v_b ~ 1 (powers of 2: exact), so that a trace
+    # scaled by 1e307 neither overflows nor finds other cycles
+    t0, s_t, s_v = t[0], power_of_two(t[-1] - t[0]), power_of_two(v_b)
+    with np.errstate(all="ignore"):  # overflow is checked below, with its reason
+        tt = (t - t0) / s_t
+        xx = None if x is None else x / s_v / s_t  # in two steps: s_v * s_t may overflow
+        vv = None if v is None else v / s_v
+        vb = v_b / s_v
+        if vv is not None:
+            r, kind = vv - vb, "point"
+        else:
+            r, kind = np.diff(xx) / np.diff(tt) - vb, "mean"
+    for name, a in (("t", tt), ("x", xx), ("v", vv), ("x" if v is None else "v", r)):
+        if a is not None and not np.all(np.isfinite(a)):
+            raise ParameterError(
+                OWNER, name, f"overflows in units of v_b={v_b:.3g} and the trace's duration: "
+                "the values and v_b differ by more than the float range; rescale them",
+            )  # fmt: skip
+    with np.errstate(over="ignore", invalid="ignore"):  # a huge v's integral: not used then
+        if x is None:
+            xx = np.concatenate([[0.0], np.cumsum(0.5 * (vv[1:] + vv[:-1]) * np.diff(tt))])
+        center, sigma, floor = _noise_band(r)
+    tol_u = max(_NOISE_SIGMAS * sigma, floor) if tol is None else tol / s_v
+    h = float(np.median(np.diff(tt)))
+    # the band's centre leans towards the slips' values that fall in it (all below v_b):
+    # it is taken as the sticks' speed only where it stands out of the noise (a clean trace
+    # with v_b 0.1% off); within the noise, tol covers the offset
+    if abs(center) <= sigma:
+        center = 0.0
+    stuck = np.abs(r - center) <= tol_u
+    first, last = runs(stuck)
+    r = r - center
+    vb_used = vb + center
+    _check_clustering(stuck, first, last, tol_u * s_v, v_b)
+    # the sticks' own speed: v_b as given is off by `center` (a few % at most is expected)
+    if abs(center) > _VB_WARN * vb:
+        warnings.warn(
+            f"extract_cycles: the sticks move at {(vb + center) * s_v:.6g}, "
+            f"{100 * center / vb:+.2g}% from the given v_b = {v_b:.6g}; using the sticks' speed",
+            stacklevel=3,
+        )
+    if kind == "point":
+        weight = np.gradient(tt)  # the time each sample stands for
+        limit = tol_u * h * np.sqrt(np.arange(r.size + 1))  # independent noise adds up
+    else:
+        weight = np.diff(tt)
+        limit = np.full(r.size + 1, tol_u * h)  # the sum telescopes to a change of x - v_b t
+    step = r * weight
+    drift = np.concatenate([[0.0], np.cumsum(step)])
+    long_enough = last - first + 1 >= min_stick
+    found = []
+    for s, e in zip(first[long_enough].tolist(), last[long_enough].tolist(), strict=True):
+        run = _flat_run(drift, step, s, e, limit, min_stick)
+        if run is not None:
+            found.append(run)
+    if not found:
+        if stuck.any():
+            raise ParameterError(
+                OWNER, "t", f"samples too coarse: no stick holds min_stick={min_stick} "
+                f"consecutive values with |v - v_b| <= tol={tol_u * s_v:.3g} (sampling "
+                f"interval {h * s_t:.3g}); sample at least {min_stick + 1} times per stick phase",
+            )  # fmt: skip
+        raise ParameterError(
+            OWNER, "v_b", f"no stick-slip: no sample moves with the belt (|v - v_b| <= "
+            f"tol={tol_u * s_v:.3g}); check v_b and tol", v_b,
+        )  # fmt: skip
+    locate = _locate_point if kind == "point" else _locate_mean
+    n = r.size
+
+    def offset(s, e):  # x - v_b t over a stick (a stuck interval e spans samples e, e + 1)
+        end = e if kind == "point" else e + 1
+        return float(np.median(xx[s : end + 1] - vb_used * tt[s : end + 1]))
+
+    # a slip moves x - v_b t down by the integral of v_b - v > 0; two sticks that a "slip"
+    # joins without moving it beyond 5 sd of the position noise are one stick split by
+    # noise (position noise: sigma h / sqrt(2) for interval velocities, sigma h for v)
+    pos_sd = sigma * h / (np.sqrt(2.0) if kind == "mean" else 1.0)
+    joined = []
+    for s, e in found:
+        if joined and offset(*joined[-1]) - offset(s, e) <= _NOISE_SIGMAS * pos_sd:
+            joined[-1] = (joined[-1][0], e)
+        else:
+            joined.append((s, e))
+    n_split = len(found) - len(joined)
+    found = joined
+    sticks, releases, offsets = [], [], []
+    rev_t, rev_r = -tt[::-1], r[::-1]
+    for s, e in found:
+        sticks.append(locate(tt, r, s - 1) if s > 0 else np.nan)
+        # a release is a stick in reversed time
+        releases.append(-locate(rev_t, rev_r, n - 2 - e) if e < n - 1 else np.nan)
+        offsets.append(offset(s, e))
+    sticks, releases, offsets = map(np.asarray, (sticks, releases, offsets))
+    release = releases[:-1]
+    stick, next_release = sticks[1:], releases[1:]
+    keep = np.isfinite(release) & np.isfinite(stick) & np.isfinite(next_release)
+    if not keep.any():
+        raise ParameterError(
+            OWNER, "v_b", f"no complete stick-slip cycle in the trace ({len(found)} stick "
+            f"phase(s) found with tol={tol_u * s_v:.3g}); check v_b and tol, or record a "
+            "longer trace", v_b,
+        )  # fmt: skip
+    slip_time = (stick - release)[keep]
+    distance = ((offsets[:-1] + vb_used * release) - (offsets[1:] + vb_used * stick))[keep]
+    stick_time = (next_release - stick)[keep]
+    if np.median(slip_time) < _MIN_SLIP_SAMPLES * h:
+        med = float(np.median(slip_time))
+        raise ParameterError(
+            OWNER, "t", f"samples too coarse: the median slip lasts {med * s_t:.3g}, "
+            f"{med / h:.2g} sampling intervals of {h * s_t:.3g}; need an interval below "
+            f"{med * s_t / _MIN_SLIP_SAMPLES:.3g}",
+        )  # fmt: skip
+    table = dict(
+        release_time=release[keep] * s_t + t0,
+        slip_time=slip_time * s_t,
+        slip_distance=distance * s_t * s_v,
+        stick_time=stick_time * s_t,
+        period=(slip_time + stick_time) * s_t,
+    )
+    info = dict(
+        input="x and v" if x is not None and v is not None else ("x" if x is not None else "v"),
+        velocity="v" if kind == "point" else "x differences",
+        v_b=v_b, v_b_sticks=float(vb_used * s_v), tol=float(tol_u * s_v),
+        tol_rule="given" if tol is not None else "5 robust sd of |v - v_b| near v_b",
+        noise_sd=float(sigma * s_v), min_stick=min_stick,
+        sampling_interval=float(h * s_t), n_sticks=len(found), n_joined=n_split,
+    )  # fmt: skip
+    return Cycles(table, info)
+
+
+def _noise_band(r: np.ndarray) -> tuple[float, float, float]:
+    """(center, sd, floor) of the stuck values: the robust centre and sd of the values
+    near 0, first within 5% of the spread, then within 5 sd of the centre, until the band
+    stops shrinking; the floor is the rounding of differenced positions."""
+    spread = float(np.percentile(r, 99) - np.percentile(r, 1))
+    floor = _ROUNDING * max(spread, float(np.max(np.abs(r))), 1e-300)
+    band, center, sigma = _FIRST_BAND * spread, 0.0, 0.0
+    for _ in range(100):
+        near = r[np.abs(r - center) <= band]
+        if near.size == 0:
+            break
+        center = float(np.median(near))
+        sigma = 1.4826 * float(np.median(np.abs(near - center)))
+        narrower = max(_NOISE_SIGMAS * sigma, floor)
+        if narrower >= 0.99 * band:
+            break
+        band = narrower
+    return center, sigma, floor
+
+
+def _check_clustering(stuck, first, last, tol, v_b) -> None:
+    """Refuse a trace whose stuck values are scattered like noise (see _CLUSTER_FACTOR)."""
+    if first.size < _CLUSTER_MIN_RUNS:
+        return
+    length = (last - first + 1).astype(float)
+    p = float(stuck.mean())
+    weighted = float((length**2).sum() / length.sum())
+    chance = (1.0 + p) / (1.0 - p) if p < 1 else np.inf
+    if weighted < _CLUSTER_FACTOR * chance:
+        raise DataError(
+            f"extract_cycles: no stick phases: the {int(stuck.sum())} values within tol="
+            f"{tol:.3g} of v_b={v_b:.6g} ({100 * p:.3g}% of the trace) form {first.size} runs "
+            f"of sample-weighted mean length {weighted:.3g}, as scattered noise would "
+            f"({chance:.3g}); a stick holds its values for its whole length"
+        )
+
+
+def _flat_run(drift, step, s, e, limit, min_stick):
+    """The run s..e, shortened until x - v_b t changes over it by at most `limit` (5 sd of
+    the noise): a slip that passes within tol of v_b for a while (a near-miss) drifts; the
+    end values of a real stick may hold part of the adjacent slip, so they are shed first
+    (the more negative end). None if fewer than `min_stick` values remain. `drift` is the
+    cumulative sum of `step`, so each test is O(1)."""
+    while e - s + 1 >= min_stick:
+        if abs(drift[e + 1] - drift[s]) <= limit[e - s + 1]:
+            return s, e
+        if step[s] < step[e]:
+            s += 1
+        else:
+            e -= 1
+    return None
+
+
+def _last_below(r: np.ndarray, p: int) -> int:
+    """The last index <= p with r < 0: an overshoot above v_b moves the bracket back to the
+    sign change."""
+    while p > 0 and r[p] >= 0:
+        p -= 1
+    return p
+
+
+def _locate_point(t, r, p) -> float:
+    """Stick time after the slipping sample p (point values of v - v_b)."""
+    p = _last_below(r, p)
+    lo = t[p]
+    # the crossing is before the first sample at or above v_b, and at most one sample into
+    # a stuck run whose first value still lies (within tol) below v_b
+    hi = t[p + 1] if r[p + 1] >= 0 or p + 2 >= t.size else t[p + 2]
+    if p >= 1 and r[p - 1] < r[p] < 0:
+        guess = t[p] - r[p] * (t[p] - t[p - 1]) / (r[p] - r[p - 1])
+    elif r[p + 1] > r[p]:
+        guess = t[p] - r[p] * (t[p + 1] - t[p]) / (r[p + 1] - r[p])
+    else:
+        guess = t[p + 1]
+    return float(np.clip(guess, lo, hi))
+
+
+def _locate_mean(t, r, p) -> float:
+    """Stick time after the slipping interval p (r[k]: mean of v - v_b over [t_k, t_k+1])."""
+    p = _last_below(r, p)
+    h1 = t[p + 1] - t[p]
+    if p < 1 or not r[p - 1] < r[p] < 0:
+        return float(t[p] + 0.5 * h1)
+    h2 = t[p] - t[p - 1]
+    rho = r[p] / r[p - 1]
+    if rho <= 0.5 * h1 / (h1 + 0.5 * h2):  # the stick lies inside interval p
+        delta = h1 * rho + np.sqrt((h1 * rho) ** 2 + h1 * h2 * rho)
+        return float(t[p] + min(delta, h1))
+    # interval p slipped throughout: the stick lies in the next one, whose deficit (within
+    # tol) bounds how far in, by the same relation one interval later
+    delta = (rho * (h1 + 0.5 * h2) - 0.5 * h1) / (1.0 - rho)
+    if p + 2 >= t.size or r[p + 1] >= 0:
+        return float(t[p + 1])
+    h3 = t[p + 2] - t[p + 1]
+    rho3 = r[p + 1] / r[p]
+    cap = h3 * rho3 + np.sqrt((h3 * rho3) ** 2 + h3 * h1 * rho3)
+    return float(t[p + 1] + min(delta, cap, h3))
