@@ -38,13 +38,22 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
+import os
 import time
 import warnings
 from typing import Any
 
 import numpy as np
 
-from ._errors import ParameterError, check_int, check_positive
+from ._errors import (
+    DataError,
+    ParameterError,
+    ResourceError,
+    StickSlipError,
+    check_int,
+    check_positive,
+)
 
 KINDS = ("slip_time", "slip_distance", "stick_time", "period")
 LOG_KINDS = ("slip_time", "stick_time", "period")  # positive: estimated on a log scale
@@ -57,6 +66,17 @@ GRID_POINTS = 5  # per free parameter, for the coarse start (p <= 2; 8 p points 
 # a relative error above 20 % and are left out.
 TRACE_STICK = 2.5
 TRACE_CUT = 5.0
+# A column's density is a kernel estimate whose bandwidth comes from the data's spread, and
+# the intervals from per-cycle scores: below 10 cycles, or 10 distinct values (a constant or
+# a few repeated levels), there is no density to fit.
+MIN_CYCLES = 10
+DISTINCT_DIGITS = 1e-9  # values closer than this (relative, on the fitting scale) are one
+MAX_LINEAR = 1e150  # a slip distance's spread is a sum of squares: it must stay finite
+# Peak memory of one evaluation, per simulated cycle and state component: measured 475 B a
+# cycle for langevin (3 components) at 2e6 cycles, plain and as a trace (peak RSS).
+SIM_BYTES_PER_STATE = 160
+MAX_SIM_PATHS = 2**32 - 1  # the simulator numbers its paths with 32 bits
+MAX_STEPS = 2**30  # the simulator's limit on t_max / dt
 
 
 @dataclasses.dataclass(frozen=True)
@@ -158,8 +178,10 @@ def fit(
     - `model`: a model name (`"langevin"`) or class with a linear-Gaussian slip or not
       (any model `simulate` runs; exact stepping where it applies).
     - `data`: a dict of per-cycle arrays, any of `slip_time`, `slip_distance`, `stick_time`,
-      `period`, one row per cycle (e.g. `extract_cycles`' table or its `Cycles`); rows
-      with a `nan` in any column are dropped.
+      `period`, one row per cycle (e.g. `extract_cycles`' table or its `Cycles`). Data
+      that cannot be fitted raise a `DataError` with the evidence: a `nan` or `inf` (the
+      rows named: drop them yourself, knowing why they are there), fewer than 10 cycles or
+      10 distinct values in a column (a constant), a column that is not 1-D or not numbers.
     - `free`: `{name: (low, high)}`: the parameters to estimate and the box searched; a
       parameter with `low > 0` is searched on a log scale.
     - `fixed`: the model's other parameters.
@@ -181,15 +203,20 @@ def fit(
       model restarts a slip from the threshold across a joined stick, a jump no trace
       shows). Without `trace` the data are per-cycle values of the model, as `simulate`
       gives them (slips of positive length).
-    - `sampling`: the trace's sampling interval (with `trace`; default: the `Cycles`'
+    - `sampling`: the trace's sampling interval (with `trace` only; default: the `Cycles`'
       own).
+
+    A `ParameterError` names a bad argument (a box the model refuses at its ends: the
+    `free` entry), a `ResourceError` an `n_sim` past half this machine's memory (an estimate
+    of 160 B per cycle and state component), both before anything is simulated.
 
     **Returns:** a `FitResult`.
     """
     wall0 = time.perf_counter()
     owner = "fit"
     Model = _model_class(model)
-    fixed = dict(fixed or {})
+    if trace is not None and not isinstance(trace, (bool, np.bool_)):
+        raise ParameterError(owner, "trace", "must be True or False", trace)
     from .extract import Cycles
 
     if isinstance(data, Cycles):
@@ -197,7 +224,16 @@ def fit(
             trace = True
         if sampling is None:
             sampling = data.info["sampling_interval"]
-        data = data.table
+        # a trace's slip distances cannot be fitted (below): the Cycles' table has them
+        data = {k: v for k, v in data.table.items() if not (trace and k == "slip_distance")}
+    elif sampling is not None and not trace:
+        raise ParameterError(
+            owner,
+            "sampling",
+            "is only used with trace=True (the data are the cycles of a sampled trace); drop "
+            "it or set trace",
+            sampling,
+        )
     trace = bool(trace)
     observe = None
     if trace:
@@ -208,18 +244,20 @@ def fit(
         observe = dict(
             min_slip=sampling, min_stick=TRACE_STICK * sampling, cut=TRACE_CUT * sampling
         )
-    data = _check_data(data, observe)
-    if observe is not None:
-        observe["cut_kinds"] = [k for k in ("slip_time", "stick_time", "period") if k in data]
-    if trace and "slip_distance" in data:
+    if trace and hasattr(data, "keys") and "slip_distance" in data.keys():
         raise ParameterError(
             owner, "data['slip_distance']", "cannot be fitted from a trace (trace=True): the "
             "model restarts a slip from the threshold across a stick of zero length, a jump "
             "no trace shows; fit slip_time, stick_time or period",
         )  # fmt: skip
-    free = _check_free(free, fixed)
+    fixed = _check_fixed(fixed, Model)
+    free = _check_free(free, fixed, Model)
     seed = check_int(owner, "seed", seed, minimum=0)
+    if seed >= 2**64:
+        raise ParameterError(owner, "seed", "must be < 2**64", seed)
     n_sim = check_int(owner, "n_sim", n_sim, minimum=1000)
+    dt = check_positive(owner, "dt", dt, allow_none=True)
+    t_max = check_positive(owner, "t_max", t_max, allow_none=True)
     names = list(free)
     scales = {k: "log" if free[k][0] > 0 else "linear" for k in names}
     lo = np.array([_to_fit(scales[k], free[k][0]) for k in names])
@@ -228,18 +266,41 @@ def fit(
     def params(u):
         return {k: _from_fit(scales[k], float(x)) for k, x in zip(names, u, strict=True)}
 
-    # Build the model once at the box's centre: its errors are the user's (one line).
-    try:
-        centre = Model(**fixed, **params(0.5 * (lo + hi)))
-    except TypeError as err:  # a parameter neither fixed nor free, or an unknown one
-        raise ParameterError(owner, "fixed", f"with free does not make a {Model.__name__}: "
-                             f"{str(err).splitlines()[0]}") from None  # fmt: skip
+    # The model at the box's centre and at each end of each axis: a value the model refuses
+    # is the box's fault, said here in one line rather than as points that quietly fail.
+    centre = _check_box(Model, fixed, free, params(0.5 * (lo + hi)))
+    _check_memory(n_sim, centre)
+    data = _check_data(data, observe, sampling)
+    if observe is not None:
+        observe["cut_kinds"] = [k for k in ("slip_time", "stick_time", "period") if k in data]
+    given_dt, given_t_max = dt is not None, t_max is not None
     if dt is None:
         dt = 0.2 * _slow_scale(centre)
     if t_max is None:
-        longest = max(float(np.max(data[k])) for k in data if k in ("slip_time", "period")) \
-            if any(k in data for k in ("slip_time", "period")) else 0.0  # fmt: skip
+        timed = [k for k in ("slip_time", "period") if k in data]
+        longest = max(float(np.max(data[k])) for k in timed) if timed else 0.0
         t_max = max(3.0 * longest, 50.0 * _slow_scale(centre))
+        origin = (
+            f"3 x the data's longest {' or '.join(timed)}"
+            if 3.0 * longest >= 50.0 * _slow_scale(centre)
+            else "50 of the model's slowest time scales"
+        )
+    if t_max < dt:
+        if given_t_max:
+            raise ParameterError(owner, "t_max", f"must be >= dt = {dt:.4g}", t_max)
+        raise ParameterError(owner, "dt", f"must be <= t_max = {t_max:.4g} ({origin})", dt)
+    steps = t_max / dt
+    if steps >= MAX_STEPS:
+        if given_t_max:
+            raise ParameterError(
+                owner, "t_max", f"/ dt = {steps:.3g} steps: must be below 2**30 (dt = {dt:.4g})",
+                t_max,
+            )  # fmt: skip
+        raise ParameterError(
+            owner, "t_max", f"(by default {origin}, {t_max:.3g}) is {steps:.3g} steps of dt = "
+            f"{dt:.3g}, past 2**30: "
+            + ("check dt, or give t_max" if given_dt else "check the data's time unit"),
+        )  # fmt: skip
     n_data = max(x.size for x in data.values())
     bandwidth = {k: _bandwidth(_transform(k, data[k]), n_sim) for k in data}
     points: list = []
@@ -248,9 +309,13 @@ def fit(
     def per_cycle(u):
         try:
             m = Model(**fixed, **params(u))
-        except (ValueError, ParameterError):
+        except (ValueError, ArithmeticError):  # inside the box, a joint constraint
             return None
-        sim = _simulate(m, n_sim, dt, t_max, seed, observe)
+        try:
+            sim = _simulate(m, n_sim, dt, t_max, seed, observe)
+        except ParameterError as err:  # simulate's names are fit's arguments
+            name = {"n_paths": "n_sim"}.get(err.parameter, err.parameter)
+            raise ParameterError(owner, name, err.reason, err.value) from None
         return {k: _log_density(k, data[k], sim[k], bandwidth[k]) for k in data}
 
     def loglik(u):
@@ -268,6 +333,13 @@ def fit(
     # 1. a coarse grid over the box, 2. Nelder-Mead from its best point
     start = _design(lo, hi)
     values = [loglik(u)[0] for u in start]
+    if not np.any(np.isfinite(values)):
+        raise ParameterError(
+            owner,
+            "free",
+            f"the model could not be built at any of the {len(start)} starting points of the box",
+            free,
+        )
     best = start[int(np.argmax(values))]
     from scipy.optimize import minimize
 
@@ -340,25 +412,84 @@ def fit(
 
 # -- pieces -----------------------------------------------------------------------------
 def _model_class(model):
-    from ._model import FrictionModel
+    from ._model import ChainModel, FrictionModel
     from ._registry import get_model
 
     if isinstance(model, str):
-        return get_model(model)
-    if isinstance(model, type) and issubclass(model, FrictionModel):
-        return model
-    raise ParameterError("fit", "model", "must be a model name or a FrictionModel class", model)
+        Model = get_model(model)
+    elif isinstance(model, type) and issubclass(model, FrictionModel):
+        Model = model
+    else:
+        raise ParameterError("fit", "model", "must be a model name or a FrictionModel class", model)
+    if issubclass(Model, ChainModel):
+        raise ParameterError(
+            "fit", "model", f"{Model.__name__} is a chain of blocks: fit needs a single-block model"
+        )
+    return Model
 
 
-def _check_data(data, observe=None) -> dict[str, np.ndarray]:
-    """The known columns of a per-cycle table, as float arrays of one length, without the
-    rows (cycles) that have a non-finite value (nor, for a trace, those with a duration
-    below the cut)."""
+def _refuse(cls, parameter: str, reason: str, value: Any = None) -> StickSlipError:
+    """A `DataError` or `ResourceError` about one of fit's arguments, worded as a
+    `ParameterError` is; its `parameter`, `reason` and `value` are kept on it, as a
+    `ParameterError` keeps them, for callers that re-phrase it (a study's fit)."""
+    got = "" if value is None else f" (got {value!r})"
+    err = cls(f"fit: parameter '{parameter}' {reason}{got}")
+    err.owner, err.parameter, err.reason, err.value = "fit", parameter, reason, value
+    return err
+
+
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
+def _rows(index: np.ndarray) -> str:
+    """The first few of some row numbers (0-based), for a message."""
+    shown = ", ".join(str(int(i)) for i in index[:5])
+    more = f" and {index.size - 5} more" if index.size > 5 else ""
+    return f"row{'s' if index.size > 1 else ''} {shown}{more}"
+
+
+def _column(name: str, value) -> np.ndarray:
+    """One column of per-cycle values as a 1-D float array, or a `DataError` that says what
+    it is instead (strings, objects, a table of several columns)."""
+    where = f"data['{name}']"
+    try:
+        x = np.asarray(value)
+    except (ValueError, TypeError):  # ragged nested lists
+        raise _refuse(
+            DataError,
+            where,
+            f"must be a 1-D array of numbers, one per cycle (got a ragged {type(value).__name__})",
+        ) from None
+    if x.dtype.kind == "O" and all(
+        isinstance(v, numbers.Real) and not isinstance(v, bool) for v in x.ravel()
+    ):
+        x = x.astype(float)
+    if x.dtype.kind not in "iuf":
+        what = {"U": "strings", "S": "bytes", "b": "booleans", "c": "complex numbers"}
+        got = what.get(x.dtype.kind, type(value).__name__ if x.ndim == 0 else "other objects")
+        raise _refuse(
+            DataError, where, f"must hold real numbers, one per cycle (got {got}, shape {x.shape})"
+        )
+    if x.ndim != 1:
+        raise _refuse(
+            DataError,
+            where,
+            f"must be 1-D, one value per cycle (got shape {x.shape}"
+            f"{', ' + str(x.size) + ' values' if x.ndim > 1 else ''})",
+        )
+    return x.astype(float)
+
+
+def _check_data(data, observe=None, sampling=None) -> dict[str, np.ndarray]:
+    """The known columns of a per-cycle table, as float arrays of one length (for a trace,
+    without the rows whose durations fall below the cut). Unusable data are refused with the
+    evidence (counts, shapes, rows), never silently dropped."""
     if not hasattr(data, "keys") or not len(data):
         raise ParameterError(
             "fit", "data", f"must be a dict of per-cycle arrays ({', '.join(KINDS)})"
         )
-    cols = {k: np.asarray(data[k], dtype=float).ravel() for k in data if k in KINDS}
+    cols = {k: _column(k, data[k]) for k in data.keys() if k in KINDS}
     if not cols:
         raise ParameterError(
             "fit", "data", f"has none of the columns {', '.join(KINDS)}", sorted(map(str, data))
@@ -366,27 +497,103 @@ def _check_data(data, observe=None) -> dict[str, np.ndarray]:
     sizes = {k: x.size for k, x in cols.items()}
     if len(set(sizes.values())) > 1:
         raise ParameterError("fit", "data", "columns must have one length (a row per cycle)", sizes)
-    keep = np.all([np.isfinite(x) for x in cols.values()], axis=0)
-    if observe is not None:
-        for k in ("slip_time", "stick_time", "period"):
-            if k in cols:
-                keep &= cols[k] > observe["cut"]
-    out = {k: x[keep] for k, x in cols.items()}
-    for k, x in out.items():
-        if x.size < 10:
-            raise ParameterError("fit", f"data['{k}']", "needs at least 10 finite values", x.size)
+    for k, x in cols.items():
+        bad = np.flatnonzero(~np.isfinite(x))
+        if bad.size:
+            raise _refuse(
+                DataError,
+                f"data['{k}']",
+                f"has {_count(bad.size, 'non-finite value')} (nan or inf) among "
+                f"{_count(x.size, 'cycle')}, at {_rows(bad)}: remove or fix those cycles",
+            )
         if k in ("slip_time", "period") and np.any(x <= 0):
             raise ParameterError("fit", f"data['{k}']", "must be > 0 (slips of positive length)")
         if k == "stick_time" and np.any(x < 0):
             raise ParameterError("fit", f"data['{k}']", "must be >= 0")
+        if k not in LOG_KINDS and np.max(np.abs(x), initial=0.0) > MAX_LINEAR:
+            raise _refuse(
+                DataError,
+                f"data['{k}']",
+                f"reaches {np.max(np.abs(x)):.3g}, past {MAX_LINEAR:.0e}: its spread would "
+                "overflow",
+            )
+        _check_spread(k, x)
+    if observe is None:
+        return cols
+    keep = np.ones(next(iter(sizes.values())), bool)
+    for k in ("slip_time", "stick_time", "period"):
+        if k in cols:
+            keep &= cols[k] > observe["cut"]
+    out = {k: x[keep] for k, x in cols.items()}
+    for k, x in out.items():
+        _check_spread(k, x, sampling)
     return out
 
 
-def _check_free(free, fixed) -> dict[str, tuple[float, float]]:
+def _check_spread(kind: str, x: np.ndarray, sampling=None) -> None:
+    """At least `MIN_CYCLES` values whose density is fitted (the positive ones, on a log
+    scale, for durations) and as many distinct ones (to `DISTINCT_DIGITS`, on that scale).
+    With `sampling`, `x` is what a trace's cut left: then the cut is at fault."""
+    y = _transform(kind, x)
+    scale = max(float(np.max(np.abs(y), initial=0.0)), 1.0 if kind in LOG_KINDS else 0.0)
+    distinct = np.unique(np.round(y / (DISTINCT_DIGITS * scale))).size if scale > 0 else 1
+    distinct = min(distinct, y.size)
+    if y.size >= MIN_CYCLES and distinct >= MIN_CYCLES:
+        return
+    evidence = _count(x.size, "cycle")
+    if y.size < x.size:
+        evidence += f", {y.size} of them positive (a log scale is fitted)"
+    evidence += f", {_count(distinct, 'distinct value')}"
+    if sampling is not None:
+        raise ParameterError(
+            "fit",
+            "sampling",
+            f"leaves {evidence} of {kind} above the trace's cut, {TRACE_CUT:g} x sampling = "
+            f"{TRACE_CUT * sampling:.4g}; {MIN_CYCLES} are needed: check the sampling interval",
+            sampling,
+        )
+    if x.size < MIN_CYCLES:
+        what = "has too few cycles"
+    elif y.size < MIN_CYCLES:
+        what = "has too few positive values"
+    else:
+        what = "is constant" if distinct == 1 else "has too few distinct values"
+    raise _refuse(
+        DataError,
+        f"data['{kind}']",
+        f"{what}: {evidence}; a density needs at least {MIN_CYCLES} of each (its kernel's "
+        "bandwidth comes from the data's spread)",
+    )
+
+
+def _check_fixed(fixed, Model) -> dict[str, Any]:
+    if fixed is None:
+        return {}
+    if not hasattr(fixed, "items"):
+        raise ParameterError("fit", "fixed", "must be a dict {name: value}", fixed)
+    known = Model.parameters()
+    for k in fixed:
+        if k not in known:
+            raise ParameterError(
+                "fit",
+                f"fixed['{k}']",
+                f"is not a parameter of {Model.__name__} (parameters: {', '.join(known)})",
+            )
+    return dict(fixed)
+
+
+def _check_free(free, fixed, Model) -> dict[str, tuple[float, float]]:
     if not hasattr(free, "items") or not free:
         raise ParameterError("fit", "free", "must be a non-empty dict {name: (low, high)}", free)
+    known = Model.parameters()
     out = {}
     for k, box in free.items():
+        if k not in known:
+            raise ParameterError(
+                "fit",
+                f"free['{k}']",
+                f"is not a parameter of {Model.__name__} (parameters: {', '.join(known)})",
+            )
         try:
             low, high = (float(b) for b in box)
         except (TypeError, ValueError):
@@ -397,6 +604,70 @@ def _check_free(free, fixed) -> dict[str, tuple[float, float]]:
             raise ParameterError("fit", f"free['{k}']", "is also fixed")
         out[k] = (low, high)
     return out
+
+
+def _check_box(Model, fixed, free, centre: dict):
+    """The model at the box's centre, after building it there and at both ends of each
+    axis: a value it refuses is a `ParameterError` naming the free parameter's box."""
+    trials = [(None, centre)] + [(k, {**centre, k: b}) for k in free for b in free[k]]
+    for name, values in trials:
+        try:
+            model = Model(**fixed, **values)
+        except TypeError as err:  # a required parameter neither fixed nor free
+            raise ParameterError(
+                "fit",
+                "fixed",
+                f"with free does not make a {Model.__name__}: {str(err).splitlines()[0]}",
+            ) from None
+        except (ValueError, ArithmeticError) as err:
+            culprit = name or (err.parameter if isinstance(err, ParameterError) else None)
+            if isinstance(err, ParameterError):
+                reason = f"{err.owner} says {err.parameter} {err.reason}"
+            else:
+                reason = f"{type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''}"
+            if culprit in free:
+                raise ParameterError(
+                    "fit",
+                    f"free['{culprit}']",
+                    f"reaches {culprit} = {values[culprit]:.4g}, where {reason}: narrow the box",
+                    free[culprit],
+                ) from None
+            where = f"fixed['{culprit}']" if culprit in fixed else "fixed"
+            raise ParameterError(
+                "fit",
+                where,
+                f"with free at the box's centre does not make a {Model.__name__} ({reason})",
+            ) from None
+        if name is None:
+            built = model
+    return built
+
+
+def _memory_limit() -> int:
+    """Half this machine's memory (8 GiB where it cannot be read)."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") // 2
+    except (AttributeError, ValueError, OSError):
+        return 8 * 2**30
+
+
+def _check_memory(n_sim: int, model) -> None:
+    need = n_sim * SIM_BYTES_PER_STATE * model.state_dim
+    limit = _memory_limit()
+    if need > limit:
+        raise _refuse(
+            ResourceError,
+            "n_sim",
+            f"needs about {need / 2**30:.3g} GiB per evaluated point "
+            f"({SIM_BYTES_PER_STATE * model.state_dim} B a simulated cycle), past the limit of "
+            f"{limit / 2**30:.3g} GiB (half this machine's memory): take at most "
+            f"{limit // (need // n_sim):.3g}",
+            n_sim,
+        )
+    if n_sim > MAX_SIM_PATHS:
+        raise ParameterError(
+            "fit", "n_sim", "must be < 2**32 (the simulator numbers its paths with 32 bits)", n_sim
+        )
 
 
 def _to_fit(scale, x):

@@ -8,59 +8,192 @@ moved into place at the end, as `run` does.
 
 from __future__ import annotations
 
+import codecs
+import difflib
 import json
 import os
 import pathlib
+import re
 import shutil
+import stat
 import tempfile
 
 import numpy as np
 
 from .load import StudyError, load_study
 
+# A table of cycles is small (`stickslip cycles` writes about 60 B a row): the cap keeps a
+# path naming something else (a disk image, a log) from being read whole.
+MAX_DATA_BYTES = 256 * 2**20
+_SHOWN = 5  # rows named in a message
+
 
 def read_cycles_csv(path: pathlib.Path, columns=None, source: str | None = None) -> dict:
-    """Per-cycle columns of a CSV file with a header; bad files are one `StudyError`."""
+    """Per-cycle columns of a CSV file with a header (UTF-8, a byte-order mark allowed);
+    bad files are one `StudyError` at `fit.data`, which never quotes the file: a regular
+    file of at most `MAX_DATA_BYTES`, text, the columns asked for, a number in each of their
+    cells, no `nan` or `inf` (refused with the lines, not dropped: a table with holes is the
+    user's to mend, knowing why they are there), durations of the right sign."""
     from .._fit import KINDS
 
     name = source or str(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise StudyError(name, "fit.data", f"no such file: {path}") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise StudyError(name, "fit.data", f"{path} cannot be read ({err})") from None
-    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.startswith("#")]
+    text = _read_text(path, name)
+    lines = [
+        (number, ln)
+        for number, ln in enumerate(text.splitlines(), 1)
+        if ln.strip() and not ln.lstrip().startswith("#")
+    ]
     if not lines:
-        raise StudyError(name, "fit.data", f"{path} is empty")
-    header = [h.strip() for h in lines[0].split(",")]
-    known = [h for h in header if h in KINDS]
-    wanted = list(columns) if columns else known
+        raise _data_error(name, path, "is empty")
+    header = [h.strip().strip('"').strip() for h in lines[0][1].split(",")]
+    wanted = list(columns) if columns else [h for h in header if h in KINDS]
     missing = [c for c in wanted if c not in header]
     if not wanted or missing:
-        raise StudyError(
-            name, "fit.data", f"{path} has no column {', '.join(missing or KINDS)} (its header: "
-            f"{', '.join(header)})",
-        )  # fmt: skip
+        shown = ", ".join(missing) if missing else f"{' or '.join(KINDS)}"
+        raise _data_error(name, path, f"has no column {shown} ({_header_hint(header, KINDS)})")
+    for c in wanted:
+        if header.count(c) > 1:
+            raise _data_error(name, path, f"names column {c} {header.count(c)} times in its header")
     if len(lines) < 2:
-        raise StudyError(name, "fit.data", f"{path} has a header and no rows")
-    try:
-        rows = np.array([[float(v) for v in ln.split(",")] for ln in lines[1:]], dtype=float)
-    except ValueError as err:
-        raise StudyError(name, "fit.data", f"{path}: a value is not a number ({err})") from None
-    if rows.ndim != 2 or rows.shape[1] != len(header):
-        raise StudyError(name, "fit.data", f"{path}: rows must have {len(header)} values")
-    data = {c: rows[:, header.index(c)] for c in wanted}
+        raise _data_error(name, path, "has a header and no rows")
+    index = [header.index(c) for c in wanted]
+    values = []
+    for number, ln in lines[1:]:
+        cells = ln.split(",")
+        if len(cells) != len(header):
+            raise _data_error(
+                name,
+                path,
+                f"line {number} has {_count(len(cells), 'value')}, its header {len(header)}",
+            )
+        try:
+            values.append([float(cells[i]) for i in index])
+        except ValueError:
+            c = next(c for c, i in zip(wanted, index, strict=True) if not _is_number(cells[i]))
+            raise _data_error(
+                name, path, f"line {number}, column {c}: the value is not a number"
+            ) from None
+    rows = np.array(values, dtype=float).reshape(len(values), len(wanted))
+    numbers = np.array([number for number, _ in lines[1:]])
+    bad = ~np.all(np.isfinite(rows), axis=1)
+    if bad.any():
+        raise _data_error(
+            name, path, f"has {_count(bad.sum(), 'row')} with nan or inf in "
+            f"{', '.join(wanted)} ({_lines(numbers[bad])}): remove or fix them (rows are not "
+            "dropped silently)",
+        )  # fmt: skip
+    data = {c: rows[:, j] for j, c in enumerate(wanted)}
     for c, x in data.items():
-        if np.any(x[np.isfinite(x)] < 0) and c != "slip_distance":
-            raise StudyError(name, "fit.data", f"{path}: column {c} has negative values")
+        wrong = x < 0 if c == "stick_time" else x <= 0
+        if c != "slip_distance" and wrong.any():
+            sign = "< 0" if c == "stick_time" else "<= 0 (a slip has positive length)"
+            raise _data_error(
+                name, path, f"column {c} has {_count(wrong.sum(), 'value')} {sign}, at "
+                f"{_lines(numbers[wrong])}",
+            )  # fmt: skip
     return data
+
+
+def _read_text(path: pathlib.Path, name: str) -> str:
+    """The text of a regular file of at most `MAX_DATA_BYTES`, UTF-8 (a byte-order mark is
+    dropped); anything else is a `StudyError` that quotes none of it."""
+    try:
+        info = path.stat()
+    except FileNotFoundError:
+        raise _data_error(name, path, "does not exist") from None
+    except OSError as err:
+        raise _data_error(name, path, f"cannot be read ({err.strerror})") from None
+    if stat.S_ISDIR(info.st_mode):
+        raise _data_error(name, path, "is a folder, not a CSV file")
+    if not stat.S_ISREG(info.st_mode):
+        raise _data_error(name, path, "is not a regular file (a device, pipe or socket)")
+    cap = f"past the limit of {MAX_DATA_BYTES / 2**20:.3g} MiB for a table of cycles"
+    if info.st_size > MAX_DATA_BYTES:
+        raise _data_error(name, path, f"is {info.st_size / 2**20:.3g} MiB, {cap}")
+    try:
+        with open(path, "rb") as f:
+            raw = f.read(MAX_DATA_BYTES + 1)
+    except OSError as err:
+        raise _data_error(name, path, f"cannot be read ({err.strerror})") from None
+    if len(raw) > MAX_DATA_BYTES:  # it grew since
+        raise _data_error(name, path, f"is {cap}")
+    if raw.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
+        raise _data_error(name, path, "is UTF-16 text: save it as UTF-8")
+    if b"\0" in raw:
+        raise _data_error(name, path, "is a binary file, not CSV text")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as err:
+        raise _data_error(
+            name, path, f"is not UTF-8 text (a byte at offset {err.start} is not): save it as UTF-8"
+        ) from None
+
+
+def _data_error(name: str, path, reason: str) -> StudyError:
+    """A `StudyError` at `fit.data` about the file `path` (its name alone where the path is
+    long: the study names it, and the message must stay one short line)."""
+    shown = str(path) if len(str(path)) <= 60 else pathlib.Path(path).name
+    shown = shown if shown.isprintable() else ascii(shown)
+    return StudyError(name, "fit.data", f"{shown[:60]} {reason}")
+
+
+def _header_hint(header: list[str], kinds) -> str:
+    """What the first line holds, without quoting it: its number of fields, and a field
+    only where it is a plain name close to a column the fit knows."""
+    hint = f"its first line has {len(header)} field{'s' if len(header) != 1 else ''}"
+    if "t" in header and ("x" in header or "v" in header):
+        return hint + "; t, x, v are a trace's: run `stickslip cycles` on it first"
+    plain = [h for h in header if re.fullmatch(r"[A-Za-z_][A-Za-z0-9_ ]{0,39}", h)]
+    for kind in kinds:
+        close = difflib.get_close_matches(kind, plain, n=1, cutoff=0.75)
+        if close:
+            return hint + f"; did you mean {kind} for '{close[0]}'?"
+    return hint
+
+
+def _count(n, noun: str) -> str:
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
+def _is_number(cell: str) -> bool:
+    try:
+        float(cell)
+    except ValueError:
+        return False
+    return True
+
+
+def _lines(numbers: np.ndarray) -> str:
+    """The first few of some line numbers, for a message."""
+    shown = ", ".join(str(int(n)) for n in numbers[:_SHOWN])
+    more = f" and {numbers.size - _SHOWN} more" if numbers.size > _SHOWN else ""
+    return f"line{'s' if numbers.size > 1 else ''} {shown}{more}"
+
+
+def _fit_field(err, data_path) -> tuple[str, str]:
+    """Where an error of `fit` lies in the study, and why: its argument names, turned into
+    the study's fields (`free['tau']` -> `fit.free.tau`, `fixed['x0']` -> `model.params.x0`,
+    `data['slip_time']` -> the data file's column)."""
+    # DataError and ResourceError carry these only when `fit` raised them (`_fit._refuse`)
+    parameter = getattr(err, "parameter", None)
+    if getattr(err, "owner", None) != "fit" or parameter is None:
+        return "fit", str(err)
+    value = getattr(err, "value", None)
+    reason = err.reason + ("" if value is None else f" (got {value!r})")
+    match = re.fullmatch(r"(data|free|fixed)\['(.+)'\]", parameter)
+    if match:
+        kind, key = match.groups()
+        if kind == "data":
+            return "fit.data", f"{data_path.name}, column {key}: {reason}"
+        return (f"fit.free.{key}" if kind == "free" else f"model.params.{key}"), reason
+    field = {"fixed": "model.params", "model": "model.name", "data": "fit.data"}
+    return field.get(parameter, f"fit.{parameter}"), reason
 
 
 def run_fit(study, out=None, *, overrides=None, force: bool = False, progress: bool = False):
     """Run the `fit` block of `study` (a path to a YAML file, a dict or a `Study`); write
     the results to `out` if given. Returns the `FitResult`."""
-    from .._errors import ParameterError
+    from .._errors import DataError, ParameterError, ResourceError
     from .._fit import fit
     from .run import _check_out
 
@@ -69,10 +202,13 @@ def run_fit(study, out=None, *, overrides=None, force: bool = False, progress: b
     study = load_study(study, overrides)
     if study.fit is None:
         raise StudyError(source, "fit", "is missing: add a fit block (data, free) to the study")
-    out_dir = None if out is None else _check_out(pathlib.Path(out), force)
     spec = study.fit
     path = pathlib.Path(spec.data)
-    data = read_cycles_csv(path if path.is_absolute() else base / path, spec.columns, source)
+    # the results may not replace or hold the study or its data: checked before any work
+    inputs = [source, path if path.is_absolute() else base / path]
+    out_dir = None if out is None else _check_out(out, force, inputs)
+    data_path = path if path.is_absolute() else base / path
+    data = read_cycles_csv(data_path, spec.columns, source)
     free = {k: tuple(v) for k, v in spec.free.items()}
     fixed = {k: v for k, v in study.model.params.items() if k not in free}
     try:
@@ -80,9 +216,8 @@ def run_fit(study, out=None, *, overrides=None, force: bool = False, progress: b
             study.model.name, data, free, fixed, seed=spec.seed, n_sim=spec.n_sim, dt=spec.dt,
             t_max=spec.t_max, trace=spec.trace, sampling=spec.sampling, progress=progress,
         )  # fmt: skip
-    except ParameterError as err:
-        field = err.parameter if err.parameter.startswith("data") else f"fit.{err.parameter}"
-        raise StudyError(source, field.replace("data", "fit.data", 1), err.reason) from None
+    except (ParameterError, DataError, ResourceError) as err:
+        raise StudyError(source, *_fit_field(err, data_path)) from None
     if out_dir is not None:
         write_fit(result, study, out_dir, force)
     return result

@@ -374,6 +374,8 @@ class Fit(Base):
 
     @model_validator(mode="after")
     def _boxes(self):
+        if self.sampling is not None and not self.trace:
+            raise fail("sampling", "is used only with trace: true (the data are a trace's cycles)")
         if self.t_max is not None and self.dt is not None:
             _check_steps("t_max", self.t_max, self.dt)
         for name, (low, high) in self.free.items():
