@@ -62,6 +62,8 @@ _LAZY = {
     "extract_cycles": ".extract",
     "read_cycles": ".extract",
     "Cycles": ".extract",
+    "Slider": ".units",
+    "SliderCycles": ".units",
 }
 
 __all__ = [
