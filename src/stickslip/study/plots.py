@@ -1,7 +1,9 @@
 """Figures of a study, drawn from its Dataset (so they can be redrawn from `results.nc`).
 
 - `<q>.png` for each density: Monte Carlo histogram (markers with standard-error bars, as
-  in the paper's figs. 4-6) against each analytic method;
+  in the paper's figs. 4-6) against each analytic method, in the histogram's frame (a curve
+  that leaves it says so in the legend), with a detail panel where a narrow peak dwarfs the
+  rest;
 - `n1.png` (fig. 4), `n2.png`;
 - `time_series.png`: stick-slip motion of a path (fig. 2); `phase_portrait.png`: slips in
   the (x, v) plane, a fundamental orbit against multiple ones (fig. 7);
@@ -113,31 +115,149 @@ def _mc_label(study):
     return f"Monte Carlo ({sim.n_paths:,} paths, dt={sim.dt:g})"
 
 
+# Frames of the density figures. The Monte Carlo histogram sets them, not the approximations:
+# a truncation that diverges (the slip-distance F_n^(2) runs to -15 on the public set) would
+# otherwise squash the histogram into a line. Headroom above the histogram's largest bar:
+_HEADROOM = 1.15
+# A peak "dwarfs" the rest when the rest stays below this fraction of its height while carrying
+# at least _REST_MASS of the probability in the frame (the immediate re-sticks at T ~ 0 against
+# the hump at T ~ 4 on the public set: 0.11 of the height, about 3/4 of the mass). A single
+# broad hump leaves only its tails, with little mass, and gets one panel.
+_SPIKE_RATIO = 0.35
+_REST_MASS = 0.25
+# Height of the detail panel, over the largest bar away from the peak (error bar included).
+_DETAIL_HEADROOM = 1.3
+# An approximation "stays near" the histogram, and widens the frame to fit, when it rises at
+# most _NEAR times the histogram's top, dips at most _NEAR_BELOW of it below zero and is off
+# by at most _NEAR_L1 of the histogram's mass in the frame (the decoupling F_g^(1) of fig. 6C,
+# L1 0.1, stays near; the slip-distance F_n^(1) of the public set, L1 11, does not). One that
+# goes further is cut by the frame and says so.
+_NEAR = 1.5
+_NEAR_BELOW = 0.1
+_NEAR_L1 = 0.5
+
+
+def _spike(y: np.ndarray) -> slice | None:
+    """The bins of a narrow peak that dwarfs the rest of the histogram `y`, or None.
+
+    The peak runs from its highest bar down both sides while the bars keep falling."""
+    y = np.where(np.isfinite(y), y, 0.0)
+    if y.size < 4 or y.max() <= 0:
+        return None
+    top = int(np.argmax(y))
+    lo, hi = top, top
+    while lo > 0 and y[lo - 1] < y[lo]:
+        lo -= 1
+    while hi < y.size - 1 and y[hi + 1] < y[hi]:
+        hi += 1
+    rest = np.r_[y[:lo], y[hi + 1 :]]
+    if rest.size == 0 or rest.max() > _SPIKE_RATIO * y[top] or rest.sum() < _REST_MASS * y.sum():
+        return None
+    return slice(lo, hi + 1)
+
+
+def _frame(values: np.ndarray, headroom: float, curves=()) -> tuple[float, float]:
+    """The y-range for histogram bars up to `values`, widened to the `curves` near them."""
+    top = float(np.nanmax(values))
+    lo, hi = -0.06 * headroom * top, headroom * top
+    mass = float(np.nansum(values))
+    for y in curves:
+        ok = np.isfinite(y) & np.isfinite(values)
+        if not ok.any():
+            continue
+        off = float(np.sum(np.abs(y[ok] - values[ok])))
+        near = y[ok].max() <= _NEAR * top and y[ok].min() >= -_NEAR_BELOW * top
+        if near and off <= _NEAR_L1 * mass:
+            hi, lo = max(hi, 1.05 * y[ok].max()), min(lo, 1.05 * y[ok].min())
+    return lo, hi
+
+
+def _leaves(y: np.ndarray, frame: tuple[float, float], keep: np.ndarray | None = None) -> bool:
+    """Whether the curve `y` goes outside `frame` (only where `keep` is True, if given)."""
+    y = y if keep is None else y[keep]
+    y = y[np.isfinite(y)]
+    return bool(y.size) and bool((y.max() > frame[1]) or (y.min() < frame[0]))
+
+
 def _density(plt, ds, study, q, model):
-    fig, ax = plt.subplots(figsize=(7, 4.5), layout="constrained")
+    """One density: the Monte Carlo histogram against each approximation.
+
+    The frame is the histogram's; a curve that leaves it is clipped by the axes and says so in
+    its legend entry. Where a narrow peak (e.g. slips of almost zero length) dwarfs the rest,
+    a second panel shows the rest at its own height, the peak cut."""
     x = ds[q].values
-    if f"mc_{q}" in ds:
-        ax.errorbar(
-            x,
-            ds[f"mc_{q}"].values,
-            yerr=ds[f"mc_{q}_se"].values,
-            fmt="x",
-            color="k",
-            ms=4,
-            lw=0.8,
-            label=_mc_label(study),
-            zorder=3,
+    mc = ds[f"mc_{q}"].values if f"mc_{q}" in ds else None
+    has_mc = mc is not None and np.isfinite(mc).any() and np.nanmax(mc) > 0
+    se = ds[f"mc_{q}_se"].values if has_mc else None
+    spike = _spike(mc) if has_mc else None
+    if spike is not None:
+        fig, (ax, detail) = plt.subplots(
+            2,
+            1,
+            figsize=(7, 6.8),
+            sharex=True,
+            height_ratios=[1, 1.3],
+            layout="constrained",
         )
+        axes = [ax, detail]
+    else:
+        fig, ax = plt.subplots(figsize=(7, 4.5), layout="constrained")
+        axes, detail = [ax], None
+    frames = {}
+    if has_mc:
+        upper = mc + np.nan_to_num(se)
+        curves = (
+            [ds[f"theory_{q}"].values[i] for i in range(ds.sizes["method"])]
+            if f"theory_{q}" in ds
+            else []
+        )
+        frames[ax] = _frame(upper, _HEADROOM, curves)
+        if detail is not None:
+            away = np.ones(x.size, bool)
+            away[spike] = False
+            frames[detail] = _frame(upper[away], _DETAIL_HEADROOM, [y[away] for y in curves])
+        for a in axes:
+            a.errorbar(
+                x,
+                mc,
+                yerr=se,
+                fmt="x",
+                color="k",
+                ms=4,
+                lw=0.8,
+                label=_mc_label(study) if a is ax else None,
+                zorder=3,
+            )
     if f"theory_{q}" in ds:
         for i in range(ds.sizes["method"]):
+            y = ds[f"theory_{q}"].values[i]
             label = str(ds["method_label"].values[i])
+            notes = []
             if f"l1_{q}" in ds and np.isfinite(ds[f"l1_{q}"].values[i]):
-                label += f" (L1 {float(ds[f'l1_{q}'].values[i]):.3f})"
-            ax.plot(x, ds[f"theory_{q}"].values[i], color=COLORS[i % 6], lw=1.6, label=label)
-    ax.set_xlabel(_axis_label(ds, q, model))
-    ax.set_ylabel(_density_label(ds, q, model))
-    ax.axhline(0, color="0.7", lw=0.6)
-    ax.legend(fontsize=8)
+                notes.append(f"L1 {float(ds[f'l1_{q}'].values[i]):.3f}")
+            out = ax in frames and _leaves(y, frames[ax])
+            if detail is not None:
+                out = out or _leaves(y, frames[detail], away)
+            if out:
+                notes.append("leaves the range")
+            if notes:
+                label += f" ({'; '.join(notes)})"
+            for a in axes:
+                a.plot(x, y, color=COLORS[i % 6], lw=1.6, label=label if a is ax else None)
+    for a in axes:
+        if a in frames:
+            a.set_ylim(*frames[a])
+        a.set_ylabel(_density_label(ds, q, model))
+        a.axhline(0, color="0.7", lw=0.6)
+    axes[-1].set_xlabel(_axis_label(ds, q, model))
+    if detail is not None:
+        detail.set_title(
+            "detail: the rest of the histogram at its own height (the peak is cut)",
+            fontsize=8,
+            loc="right",
+            color="0.3",
+        )
+    ax.legend(fontsize=8, loc="upper right")
     _title(ax, ds, study)
     return fig
 
@@ -155,8 +275,17 @@ def _density_sweep(plt, ds, study, q, model):
             ax.plot(x, ds[f"mc_{q}"].values[i], "x", color=color, ms=3, label=f"MC {name}")
         if f"theory_{q}" in ds:
             ax.plot(x, ds[f"theory_{q}"].values[i, 0], color=color, lw=1.2)
-    if f"theory_{q}" in ds:
-        ax.plot([], [], color="k", lw=1.2, label=f"lines: {ds['method_label'].values[0]}")
+    label = f"lines: {ds['method_label'].values[0]}" if f"theory_{q}" in ds else None
+    if f"mc_{q}" in ds and np.isfinite(ds[f"mc_{q}"].values).any():
+        # the frame is the histograms' (see _density)
+        # all points at once: the lines, one per point, against the histograms
+        lines = [ds[f"theory_{q}"].values[:, 0].ravel()] if label else []
+        frame = _frame(ds[f"mc_{q}"].values.ravel(), _HEADROOM, lines)
+        ax.set_ylim(*frame)
+        if any(_leaves(y, frame) for y in lines):
+            label += " (some leave the range)"
+    if label:
+        ax.plot([], [], color="k", lw=1.2, label=label)
     ax.set_xlabel(_axis_label(ds, q, model))
     ax.set_ylabel(_density_label(ds, q, model))
     ax.legend(fontsize=7, ncol=2)
