@@ -1,7 +1,8 @@
 """Force traces with known cycles, made independently of `stickslip.extract`: a slider of
 mass m pulled at speed V through a spring k over a surface with a random static threshold
 per cycle and Coulomb kinetic friction plus viscous damping, integrated by RK4 on a step
-50 times finer than the sampling; then sensor noise, spikes, an offset drift and creep.
+50 times finer than the sampling; then sensor noise, spikes, an offset drift, creep and,
+optionally, a mains hum.
 
 Truth is what the simulation did: a slip starts when the spring force reaches the cycle's
 threshold (the slider at rest) and ends when the slider's velocity returns to 0; the next
@@ -35,6 +36,8 @@ class Rig:
     drift: float = 2e-3  # N, peak offset drift over the record
     creep: float = 3.0  # noise sd: the force falls behind the loading line before a slip
     creep_time: float = 0.05  # s
+    hum: float = 0.0  # noise sd: amplitude of a mains hum (the measured trace: ~0.7)
+    hum_frequency: float = 50.0  # Hz
 
 
 def make_trace(seed: int, duration: float = 60.0, rig: Rig | None = None):
@@ -87,6 +90,9 @@ def make_trace(seed: int, duration: float = 60.0, rig: Rig | None = None):
     clean = _render(t, ev, paths, rig)
     noisy = clean + rig.noise * rng.standard_normal(t.size)
     noisy += rig.drift * np.sin(np.pi * t / duration + rng.uniform(0, np.pi))
+    if rig.hum:
+        phase = rng.uniform(0.0, 2 * np.pi)
+        noisy += rig.hum * rig.noise * np.sin(2 * np.pi * rig.hum_frequency * t + phase)
     starts = np.flatnonzero(rng.random(t.size) < rig.spikes)
     for s in starts:
         width = rng.integers(1, 4)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 from .._errors import ParameterError
 from ._cycles import Cycles
 from ._input import OWNER
@@ -18,6 +20,7 @@ def extract_cycles(
     tol: float | None = None,
     min_stick: int | None = None,
     window: int | None = None,
+    thresholds: Mapping[str, float] | None = None,
 ) -> Cycles:
     r"""Find the stick-slip cycles in a measured trace and time each one.
 
@@ -45,6 +48,9 @@ def extract_cycles(
       (default 2). Shorter runs are part of a slip.
     - `window` (`force`): the samples of the Savitzky-Golay force rate (odd, >= 5). Default:
       half the median slip's length from a first pass with 11, between 5 and 101.
+    - `thresholds` (`force`): some of `spike`, `slip`, `extent`, `drop`, `split` (numbers
+      > 0) to replace their defaults 5, 5, 2, 5, 25 (in noise sd, `split` in chi^2); see
+      "Force traces". For a sensitivity check; the defaults are what the tests hold to.
 
     **Locating the transitions (`x`/`v`).** The stick lies between the last slipping value
     before a stuck run and the run; within that bracket it is placed by the slip's trend
@@ -53,15 +59,20 @@ def extract_cycles(
     reversed time. Within a stick $x - v_b t$ is constant; its median over the stick gives
     the positions at the stick and the release, and $d = x(t_0) - x(t_{sl})$.
 
-    **Force traces.** Spikes are replaced by a running median, the noise sd $\sigma$ is
-    measured from the despiked differences, slips are the stretches where the force rate
-    falls 5 of its noise sd below the loading rate, kept where the force drops across them
-    by more than 5 sd of that drop's estimate, and each slip is timed by fitting the
-    model's damped half-oscillation from the loading line to the stick (which locates both
-    ends to about a sample; `info["release_sd_median"]`, `info["stick_sd_median"]` give
-    the fit's standard errors). The table gains `peak_force` (the force at the release) and
-    `force_drop` (release less stick, N); `slip_distance` is `force_drop / k`. A slip that
-    re-slips at once is a row with `stick_time = 0`. Every threshold is in `info`.
+    **Force traces.** Spikes (samples 5 sd from a running median) are replaced by it,
+    spectral lines (a mains hum) are notched out (`info["lines_removed"]`), the noise sd
+    $\sigma$ is measured from the despiked differences, slips are the stretches where the
+    force rate lies 2 sd below the loading rate and reaches 5 sd below (the rate's sd
+    measured on the trace: coloured noise widens it), kept where the force drops across
+    them by more than 5 sd of that drop's estimate (also measured), and each slip is timed
+    by fitting the model's damped half-oscillation from the loading line to the stick
+    (which locates both ends to about a sample; `info["release_sd_median"]`,
+    `info["stick_sd_median"]` give the fit's standard errors for white noise). A trace
+    whose force rate scatters more than 5.5 times what its sample noise explains never
+    follows a loading line (continuous sliding) and is refused. The table gains
+    `peak_force` (the force at the release) and `force_drop` (release less stick, N);
+    `slip_distance` is `force_drop / k`. A slip that re-slips at once is a row with
+    `stick_time = 0`. Every threshold is in `info`.
 
     **Cycles that a trace cannot show (`x`/`v`).** A stick holding fewer than `min_stick`
     values runs on into the next slip: the trace shows one longer slip. An immediate
@@ -91,9 +102,10 @@ def extract_cycles(
             )  # fmt: skip
         from ._force import extract_force
 
-        return extract_force(t, force, stiffness, v_b, window)
-    if window is not None:
-        raise ParameterError(OWNER, "window", "applies to force traces only")
+        return extract_force(t, force, stiffness, v_b, window, thresholds)
+    if window is not None or thresholds is not None:
+        name = "window" if window is not None else "thresholds"
+        raise ParameterError(OWNER, name, "applies to force traces only")
     if v_b is None:
         raise ParameterError(OWNER, "v_b", "is required with x/v (the driving speed, > 0)")
     from ._velocity import extract_velocity

@@ -1,18 +1,21 @@
 r"""Cycles from a force trace: $F = k\,e$ with $e$ the spring's extension, so $e = F/k$
 plays the part of $x$. During a stick the force rises along the loading line at
-$g = k v_b$; during a slip it falls. Every threshold below is a multiple of the trace's own
-noise, measured on it, and recorded in `Cycles.info`.
+$g = k v_b$; during a slip it falls. Every threshold below is a multiple (`THRESHOLDS`,
+changeable through `extract_cycles(..., thresholds=...)`) of a noise level measured on the
+trace itself, and recorded in `Cycles.info`.
 
-1. Spikes: a sample further than 5 sd from the running median of 7 samples is replaced
-   by that median (the source of the measured traces sees spikes a few samples wide;
-   a running median leaves a monotone stretch, the loading line and a slip, unchanged).
+1. Spikes: a sample further than `spike` sd from the running median of 7 samples is
+   replaced by that median (the source of the measured traces sees spikes a few samples
+   wide; a running median leaves a monotone stretch, the loading line and a slip, unchanged).
 2. Noise: $\sigma$ = robust sd of the despiked force's first differences over $\sqrt 2$
    (the loading line moves the force by far less than $\sigma$ per sample).
-3. Slips: the force rate from a Savitzky-Golay derivative over `window` samples (SciPy);
-   its noise sd is $\sigma\sqrt{12 / (W(W^2-1))}$ per sample. A slip is a stretch where
-   the rate lies more than 2 sd below the loading rate $g$ (the median rate) and that
-   reaches 5 sd below somewhere; it counts if the force drops across it by more than 5 sd
-   of that drop's estimate (medians of `window` samples either side).
+3. Slips: the force rate from a Savitzky-Golay derivative over `window` samples (SciPy).
+   Its noise sd is measured as the rate's robust scatter about the loading rate $g$ (its
+   median); white noise would give $\sigma\sqrt{12 / (W(W^2-1))}$, coloured noise (the
+   measured trace's 50 Hz mains hum passes the derivative filter) more. A slip is a stretch
+   where the rate lies more than `extent` sd below $g$ and that reaches `slip` sd below
+   somewhere; it counts if the force drops across it by more than `drop` sd of that drop's
+   estimate (medians of `window` samples either side; that sd is also measured).
 4. Timing: each slip's despiked force, less the loading line, is fitted (robust least
    squares) by the model's damped half-oscillation from the loading line to the stick,
    $y = y_0 - A\,[1 - e^{-\kappa\varphi}(\cos\pi\varphi + \frac{\kappa}{\pi}\sin\pi\varphi)]$
@@ -20,12 +23,19 @@ noise, measured on it, and recorded in `Cycles.info`.
    both ends, as when the slider leaves and rejoins the loading line, and the slip ends
    when the velocity first returns, half a damped period after the release. Its
    parameters give the release $t_0$, the slip time $T_{sl}$ and the drop; their standard
-   errors (from the fit's Jacobian and $\sigma$) say how well they are timed.
+   errors (from the fit's Jacobian and $\sigma$) say how well they are timed. All slips are
+   fitted at once (a batched Levenberg-Marquardt, the soft-L1 loss by reweighting).
+5. Re-slips: a fit far longer than the median slip is tried as two slips (the second
+   starting at or after the first's stick); kept if chi^2 falls by more than `split`
+   times the noise's variance inflation at the rate's scale (1 for white noise) and
+   each part drops by more than `drop` sd.
 """
 
 from __future__ import annotations
 
+import math
 import warnings
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -33,33 +43,60 @@ from .._errors import DataError, ParameterError, check_positive
 from ._cycles import Cycles
 from ._input import OWNER, as_series, check_length, check_times, power_of_two, runs
 
-_SIGMAS = 5.0  # a noise excursion beyond 5 sd: probability 6e-7 per independent value
-_EXTENT_SIGMAS = 2.0  # a slip's stretch of the rate: where it is 2 sd below the loading rate
-# a stretch is a candidate if the rate reaches 5 sd below somewhere; the 5 sd test on its
-# drop then decides (lower, noise stretches crowd out the slips' own)
-_CORE_SIGMAS = 5.0
+# In noise sd. A noise excursion beyond 5 sd: probability 6e-7 per independent value.
+THRESHOLDS = {
+    "spike": 5.0,  # a sample this far from the running median is a spike
+    "slip": 5.0,  # a stretch is a slip candidate if the rate reaches this far below g
+    "extent": 2.0,  # ... and a slip's stretch is where the rate lies this far below g
+    "drop": 5.0,  # a slip counts if the force drops by more than this (of the drop's sd)
+    "split": 25.0,  # chi^2 gain (5 sd) that makes one long slip two
+}
 _DESPIKE = 7  # running median of 7 samples removes spikes up to 3 samples wide
 _FIRST_WINDOW = 11  # the first pass, that measures the slips' length to choose `window`
 _MIN_SAMPLES = 64  # fewer samples cannot show a stick, a slip and the next stick
 _MIN_SLIP_SAMPLES = 3  # fewer samples per slip cannot time it
 _VB_WARN = 0.02  # a given v_b this far from the loading slope's is worth a warning
 _VB_UNITS = 2.0  # a factor 2 off is no calibration error: wrong units
-# In a stick the force rises at the loading rate; a rate far above it (5 sd) on more
-# than this fraction of the time between slips means the slider never sticks
-_RISING_FRACTION = 0.1
-# ... and its rate scatters about the loading rate like the noise: 1.0 on simulated
-# traces, 2.4 on the measured 42 um/s trace (its noise is not white), 5.1 on the
-# 4300 um/s run (no sticks)
-_WOBBLE = 4.0
+# The force rate's scatter over what white noise of the samples' sd gives (the larger at
+# the first pass's 11 samples and at the chosen window), spectral lines removed: 1.0-1.1
+# on the simulated traces, 1.24 on the measured 42 um/s trace (2.6 with its 50 Hz hum
+# left in), 10.3 on the 4300 um/s run, where the force oscillates all the time and never
+# follows a loading line. Between 2.6 and 10.3, a factor 2 from either
+_SCATTER = 5.5
+# a spectral line: a Welch bin of the differences' spectrum (segments of up to 16384
+# samples: 0.12 Hz at 2 kHz) 10 times the median of the 65 bins about it; white noise's
+# bins scatter by 1/sqrt(segments) about it (10% on the measured trace, 25% on 20 000
+# samples): 10 times is far beyond noise
+_LINE, _LINE_SEGMENT, _LINE_BINS, _MAX_LINES = 10.0, 16384, 65, 3
+_NOTCH_Q = 30.0  # bandwidth f0 / 30: 1.7 Hz at 50 Hz, wider than the mains' wander
 _UNIFORM = 0.01  # the filters assume even sampling: steps may vary by 1%
 _MAD = 1.4826  # MAD to sd for Gaussian noise
+_LONG = 1.6  # a fit this many median slips long may be two slips
+_BATCH = 2_000_000  # samples per batch of the fit (memory: ~20 arrays of this many floats)
 
 
-def extract_force(t, force, stiffness, v_b, window) -> Cycles:
+def check_thresholds(thresholds) -> dict[str, float]:
+    """`THRESHOLDS` updated by a mapping of some of its keys to numbers > 0."""
+    out = dict(THRESHOLDS)
+    if thresholds is None:
+        return out
+    if not isinstance(thresholds, Mapping):
+        raise ParameterError(OWNER, "thresholds", f"must be a mapping of {', '.join(out)}")
+    for key, value in thresholds.items():
+        if key not in out:
+            raise ParameterError(
+                OWNER, "thresholds", f"unknown key {str(key)[:40]!r}: use {', '.join(out)}"
+            )
+        out[key] = check_positive(OWNER, f"thresholds[{key!r}]", value)
+    return out
+
+
+def extract_force(t, force, stiffness, v_b, window, thresholds=None) -> Cycles:
     from scipy.ndimage import median_filter
 
     k = check_positive(OWNER, "stiffness", stiffness)
     v_b = check_positive(OWNER, "v_b", v_b, allow_none=True)
+    thr = check_thresholds(thresholds)
     t = as_series("t", t, required=True)
     f = as_series("force", force, required=True)
     check_times(t, minimum=_MIN_SAMPLES)
@@ -80,14 +117,16 @@ def extract_force(t, force, stiffness, v_b, window) -> Cycles:
         raise DataError("extract_cycles: no stick-slip: the force is constant")
     med = median_filter(y_raw, size=_DESPIKE, mode="nearest")
     resid = y_raw - med
-    res_sd = _MAD * float(np.median(np.abs(resid - np.median(resid))))
-    spikes = np.abs(resid) > _SIGMAS * res_sd if res_sd > 0 else np.zeros(f.size, bool)
+    res_sd = _robust_sd(resid)
+    spikes = np.abs(resid) > thr["spike"] * res_sd if res_sd > 0 else np.zeros(f.size, bool)
     s = np.where(spikes, med, y_raw)
+    s, lines = _remove_lines(s, h)
     sigma = _noise_sd(s)
     idx = np.arange(s.size, dtype=float)
 
     first = window or _FIRST_WINDOW
-    rate, g, regions, rate_sd = _slip_stretches(s, first, sigma)
+    rate, g, regions, rate_sd, white_sd = _slip_stretches(s, first, sigma, thr)
+    scatter = rate_sd / white_sd
     if window is None:
         # the median length of the stretches weighted by the drop each carries: the big
         # slips set the scale, not the many short stretches of small noise bumps
@@ -101,7 +140,16 @@ def extract_force(t, force, stiffness, v_b, window) -> Cycles:
             guess = int(lengths[order][np.searchsorted(share, 0.5 * share[-1])]) // 2
         window = _odd_window(min(max(guess, 5), 101))
         if window != first:
-            rate, g, regions, rate_sd = _slip_stretches(s, window, sigma)
+            rate, g, regions, rate_sd, white_sd = _slip_stretches(s, window, sigma, thr)
+    # the larger of the two passes': coloured sensor noise peaks at one scale, a force that
+    # never sticks scatters at all
+    scatter = max(scatter, rate_sd / white_sd)
+    if scatter > _SCATTER:
+        raise DataError(
+            f"extract_cycles: no stick found: the force rate scatters {scatter:.3g} times as "
+            f"much as the samples' noise (sd {sigma * s_f:.3g}) explains, where a stick-slip "
+            "trace follows a loading line between rare drops: continuous sliding?"
+        )
     a, b = regions
     stick = np.ones(s.size, bool)
     for lo, hi in zip(a.tolist(), b.tolist(), strict=True):
@@ -112,19 +160,10 @@ def extract_force(t, force, stiffness, v_b, window) -> Cycles:
             f"{100 * (1 - stick.mean()):.3g}% of the trace"
         )
     g = _loading_slope(s, stick)  # per sample, from the sticks alone
-    rising = float(np.mean(rate[stick] - g > _SIGMAS * rate_sd))
-    wobble = _MAD * float(np.median(np.abs(rate[stick] - g))) / rate_sd
     if g <= 0:
         raise DataError(
             "extract_cycles: no stick found: between the force drops the force does not rise "
             f"(loading rate {g * s_f / h:.3g} per s): continuous sliding?"
-        )
-    if rising > _RISING_FRACTION or wobble > _WOBBLE:
-        raise DataError(
-            "extract_cycles: no stick found: between the force drops the force rate scatters "
-            f"{wobble:.2g} times its noise sd about the loading rate ({g * s_f / h:.3g} per "
-            f"s) and exceeds it by > {_SIGMAS:g} sd on {100 * rising:.3g}% of the samples, "
-            "where a stick follows the loading line: continuous sliding?"
         )
     v_b_est = g * s_f / h / k
     if v_b is not None:
@@ -142,40 +181,46 @@ def extract_force(t, force, stiffness, v_b, window) -> Cycles:
                 stacklevel=3,
             )
     y = s - g * idx  # flat in a stick
-    drop_sd = 1.2533 * sigma * np.sqrt(2.0 / window)  # sd of a difference of two medians
-    fits, largest = [], 0.0
+    drop_sd = _drop_sd(y, window, sigma)
+    # each stretch's drop: medians of up to `window` samples either side, not reaching
+    # into the neighbouring stretches
     n_regions = a.size
+    lo_lim = np.concatenate([[0], b[:-1] + 1])
+    hi_lim = np.concatenate([a[1:] - 1, [s.size - 1]])
+    drops = np.full(n_regions, -np.inf)
     for j in range(n_regions):
-        lo_lim = b[j - 1] + 1 if j > 0 else 0
-        hi_lim = a[j + 1] - 1 if j + 1 < n_regions else s.size - 1
-        before = y[max(a[j] - window, lo_lim) : a[j]]
-        after = y[b[j] + 1 : min(b[j] + 1 + window, hi_lim + 1)]
-        if before.size == 0 or after.size == 0:
-            continue
-        drop = float(np.median(before) - np.median(after))
-        largest = max(largest, drop / drop_sd)
-        if drop <= _SIGMAS * drop_sd:
-            continue
-        fits.append(_fit_slip(y, a[j], b[j], lo_lim, hi_lim, window, drop, sigma))
+        before = y[max(a[j] - window, lo_lim[j]) : a[j]]
+        after = y[b[j] + 1 : min(b[j] + 1 + window, hi_lim[j] + 1)]
+        if before.size and after.size:
+            drops[j] = np.median(before) - np.median(after)
+    largest = float(np.max(drops, initial=-np.inf) / drop_sd)
+    keep = drops > thr["drop"] * drop_sd
+    fits = _fit_slips(y, a[keep], b[keep], lo_lim[keep], hi_lim[keep], window, drops[keep], sigma)
+    # coloured noise inflates a chi^2 gain over a slip's few window lengths by the rate's
+    # variance ratio; white noise: 1
+    split_gain = thr["split"] * (rate_sd / white_sd) ** 2
     n_split = 0
-    if fits:
-        # a slip followed by an immediate re-slip (a zero-length stick) is one stretch of
-        # the rate: a fit far longer than the median slip is tried as two slips, kept if
-        # that lowers chi^2 by more than 25 (5 sd)
-        med = float(np.median([f[1] for f in fits]))
-        out = []
-        for fit in fits:
-            pair = _fit_double(y, fit, sigma) if fit[1] > 1.6 * med else None
-            out.extend(pair or [fit])
+    if len(fits):
+        long = np.flatnonzero(fits[:, 1] > _LONG * float(np.median(fits[:, 1])))
+        pairs = dict(
+            zip(
+                long.tolist(),
+                _fit_doubles(y, fits[long], sigma, split_gain, thr["drop"] * drop_sd),
+                strict=True,
+            )
+        )
+        rows = []
+        for j, fit in enumerate(fits):
+            pair = pairs.get(j)
+            rows.extend(pair or [fit])
             n_split += pair is not None
-        fits = out
+        fits = np.array(rows).reshape(-1, fits.shape[1])
     if len(fits) < 2:
         raise DataError(
-            f"extract_cycles: no stick-slip: {len(fits)} force drop(s) above {_SIGMAS:g} sd of "
-            f"their estimate (noise sd {sigma * s_f:.3g}; the largest drop is {largest:.3g} sd); "
-            "a complete cycle needs two slips"
+            f"extract_cycles: no stick-slip: {len(fits)} force drop(s) above {thr['drop']:g} "
+            f"sd of their estimate (noise sd {sigma * s_f:.3g}; the largest drop is "
+            f"{largest:.3g} sd); a complete cycle needs two slips"
         )
-    fits = np.array([f[:9] for f in fits])  # i0, T, y0, D, kappa, sd_i0, sd_end, ok, seen
     i0, T, y0, D = fits[:, 0], fits[:, 1], fits[:, 2], fits[:, 3]
     med_T = float(np.median(T))
     if med_T < _MIN_SLIP_SAMPLES:
@@ -203,24 +248,36 @@ def extract_force(t, force, stiffness, v_b, window) -> Cycles:
     info = dict(
         input="force", units="force in the units given (N), time in s, lengths in m",
         stiffness=k, v_b=v_b, v_b_estimated=float(v_b_est),
-        v_b_rule="loading slope of the sticks (median force rate between slips) / stiffness",
+        v_b_rule="loading slope of the sticks (pooled least squares between slips) / stiffness",
         sampling_interval=h, n_samples=int(s.size),
+        thresholds=thr,
+        lines_removed=lines,
+        line_rule=f"Welch bins of the despiked differences >= {_LINE:g} x their median, "
+        f"notched out (scipy iirnotch Q {_NOTCH_Q:g}, filtfilt), at most {_MAX_LINES}",
         despike=f"running median of {_DESPIKE} samples; a sample further than "
-        f"{_SIGMAS:g} sd of the residual from it is replaced by it",
-        spike_threshold=float(_SIGMAS * res_sd * s_f), n_spikes=int(spikes.sum()),
+        f"{thr['spike']:g} sd of the residual from it is replaced by it",
+        spike_threshold=float(thr["spike"] * res_sd * s_f), n_spikes=int(spikes.sum()),
         noise_sd=float(sigma * s_f),
         noise_rule="robust sd (1.4826 MAD) of the despiked force's differences / sqrt(2)",
         window=int(window),
         filter=f"scipy.signal.savgol_filter, {window} samples, polyorder 2, first derivative",
         rate_noise_sd=float(rate_sd * s_f / h),
-        slip_rate_threshold=float(_SIGMAS * rate_sd * s_f / h),
-        extent_rate_threshold=float(_EXTENT_SIGMAS * rate_sd * s_f / h),
-        drop_threshold=float(_SIGMAS * drop_sd * s_f),
-        timing="fit of a damped half-oscillation to each slip (scipy least_squares, soft_l1)",
+        rate_noise_rule="robust sd of the force rate about the loading rate (at least "
+        "white noise's)",
+        rate_noise_ratio=float(rate_sd / white_sd),
+        slip_rate_threshold=float(thr["slip"] * rate_sd * s_f / h),
+        extent_rate_threshold=float(thr["extent"] * rate_sd * s_f / h),
+        drop_noise_sd=float(drop_sd * s_f),
+        drop_threshold=float(thr["drop"] * drop_sd * s_f),
+        split_chi2=float(split_gain),
+        timing="fit of a damped half-oscillation to each slip (batched Levenberg-Marquardt, "
+        "soft-L1 loss at 2 noise sd)",
         release_sd_median=float(np.median(fits[:, 5]) * h),
         stick_sd_median=float(np.median(fits[:, 6]) * h),
+        timing_sd_rule="from the fit's Jacobian and the white noise sd; coloured noise widens "
+        "it, by up to rate_noise_ratio",
         n_slips=int(len(fits)), n_fit_failed=int((~ok).sum()), n_split=n_split,
-        tol=float(_SIGMAS * sigma * s_f),
+        tol=float(thr["drop"] * sigma * s_f),
     )  # fmt: skip
     return Cycles(table, info)
 
@@ -236,7 +293,6 @@ def _loading_slope(s, stick) -> float:
     """The sticks' pooled least-squares slope: each stick's own line, one common slope (an
     offset drift moves each stick's level, hardly its slope). Its sd is sigma over the root
     of the summed squared spreads of the sticks' sample indices: far below 1% here."""
-    first, last = runs(stick)
     idx = np.arange(s.size, dtype=float)
     label = np.cumsum(np.concatenate([[0], np.diff(stick.astype(np.int8)) == 1]))[stick]
     i, y = idx[stick], s[stick]
@@ -250,85 +306,235 @@ def _loading_slope(s, stick) -> float:
     return float(np.sum(di * dy) / var) if var > 0 else 0.0
 
 
-def _noise_sd(s: np.ndarray) -> float:
-    d = np.diff(s)
-    sd = _MAD * float(np.median(np.abs(d - np.median(d)))) / np.sqrt(2.0)
+def _drop_sd(y, window, sigma) -> float:
+    """The sd of a drop's estimate, the median of `window` samples of the flattened force
+    before a slip less that after: for white noise 1.2533 sigma sqrt(2 / window); measured
+    on the trace (consecutive blocks, robustly: slips are a few % of them) where the noise
+    is coloured; whichever is larger."""
+    white = 1.2533 * sigma * math.sqrt(2.0 / window)
+    n = y.size // window
+    if n < 8:
+        return white
+    d = np.diff(np.median(y[: n * window].reshape(n, window), axis=1))
+    return max(white, _MAD * float(np.median(np.abs(d - np.median(d)))))
+
+
+def _remove_lines(s, h):
+    """`s` less its spectral lines (a mains hum, say): a bin of the Welch spectrum of the
+    force's differences (white for white noise; the sawtooth's own spectrum is smooth)
+    `_LINE` times the level about it or more is notched out (scipy iirnotch, Q = 30,
+    zero-phase filtfilt), the strongest first, at most `_MAX_LINES`. Returns the
+    frequencies (Hz) removed."""
+    from scipy.ndimage import median_filter
+    from scipy.signal import filtfilt, iirnotch, welch
+
+    n = min(_LINE_SEGMENT, 1 << int(np.log2(max(s.size // 8, 1))))
+    if n < 256:
+        return s, []
+    fs = 1.0 / h
+    freq, power = welch(np.diff(s), fs=fs, nperseg=n)
+    # the level about each bin: the spectrum is smooth but not flat (differencing, slips)
+    base = median_filter(power, size=_LINE_BINS, mode="nearest")
+    usable = (freq > 4 * fs / n) & (freq < 0.45 * fs)  # not the drift, not near Nyquist
+    excess = np.where(usable & (base > 0), power / np.where(base > 0, base, 1.0), 0.0)
+    lines = []
+    for _ in range(_MAX_LINES):
+        j = int(np.argmax(excess))
+        if not excess[j] > _LINE:
+            break
+        near = slice(max(j - 2, 0), j + 3)
+        f0 = float(np.sum(freq[near] * power[near]) / np.sum(power[near]))
+        b, a = iirnotch(f0, _NOTCH_Q, fs=fs)
+        s = filtfilt(b, a, s)
+        lines.append(round(f0, 3))
+        excess[max(j - 4, 0) : j + 5] = 0.0
+    return s, lines
+
+
+def _robust_sd(d: np.ndarray) -> float:
+    """1.4826 MAD; where over half the values are equal (coarsely quantised, quiet), the
+    rms of the values within their 99th percentile of size (0 if they are all equal)."""
+    sd = _MAD * float(np.median(np.abs(d - np.median(d))))
     if sd > 0:
         return sd
-    # coarsely quantised and quiet: most differences are 0; use the rms of the rest
     small = d[np.abs(d) <= np.percentile(np.abs(d), 99)]
-    sd = float(np.sqrt(np.mean(small**2) / 2.0))
+    return float(np.sqrt(np.mean(small**2)))
+
+
+def _noise_sd(s: np.ndarray) -> float:
+    sd = _robust_sd(np.diff(s)) / np.sqrt(2.0)
     return sd if sd > 0 else 1e-12
 
 
-def _slip_stretches(s, window, sigma):
+def _slip_stretches(s, window, sigma, thr):
     """The force rate, the loading rate (median), the stretches (first, last) where the
-    rate lies 2 sd below it and reaches 5 sd below, and the rate's noise sd."""
+    rate lies `extent` sd below it and reaches `slip` sd below, the rate's noise sd
+    (measured) and white noise's."""
     from scipy.signal import savgol_filter
 
     if window >= s.size:
         raise ParameterError(OWNER, "window", f"must be shorter than the trace ({s.size})")
     rate = savgol_filter(s, window, 2, deriv=1, mode="interp")
-    rate_sd = sigma * np.sqrt(12.0 / (window * (window**2 - 1.0)))
+    white_sd = sigma * math.sqrt(12.0 / (window * (window**2 - 1.0)))
     g = float(np.median(rate))
     u = rate - g
-    first, last = runs(u < -_EXTENT_SIGMAS * rate_sd)
-    core = np.concatenate([[0], np.cumsum(u < -_CORE_SIGMAS * rate_sd)])
+    # slips are a few % of the samples: the MAD sees the noise only
+    rate_sd = max(white_sd, _MAD * float(np.median(np.abs(u))))
+    first, last = runs(u < -thr["extent"] * rate_sd)
+    core = np.concatenate([[0], np.cumsum(u < -thr["slip"] * rate_sd)])
     has_core = core[last + 1] - core[first] > 0
-    return rate, g, (first[has_core], last[has_core]), rate_sd
+    return rate, g, (first[has_core], last[has_core]), rate_sd, white_sd
 
 
 def _shape(phi, kappa):
     """The normalised drop 0 -> 1 of a damped half-oscillation (see the module doc)."""
+    return _shape_jac(phi, kappa)[0]
+
+
+def _shape_jac(phi, kappa):
+    """`_shape` and its derivatives in phi (0 outside [0, 1]) and in kappa."""
+    inside = (phi > 0.0) & (phi < 1.0)
     phi = np.clip(phi, 0.0, 1.0)
     decay = np.exp(-kappa * phi)
-    full = 1.0 + np.exp(-kappa)
-    return (1.0 - decay * (np.cos(np.pi * phi) + kappa / np.pi * np.sin(np.pi * phi))) / full
+    cos, sin = np.cos(np.pi * phi), np.sin(np.pi * phi)
+    tail = np.exp(-kappa)
+    full = 1.0 + tail
+    num = 1.0 - decay * (cos + kappa / np.pi * sin)
+    d_phi = np.where(inside, decay * sin * (np.pi + kappa**2 / np.pi), 0.0) / full
+    d_num_kappa = decay * (phi * (cos + kappa / np.pi * sin) - sin / np.pi)
+    d_kappa = d_num_kappa / full + num * tail / full**2
+    return num / full, d_phi, d_kappa
 
 
-def _fit_slip(y, a, b, lo_lim, hi_lim, window, drop, sigma):
-    """Fit one slip on samples around its stretch a..b; returns (i0, T, y0, D, kappa,
-    sd(i0), sd(i0 + T), ok, seen) in samples and scaled force."""
-    from scipy.optimize import least_squares
-
+def _fit_slips(y, a, b, lo_lim, hi_lim, window, drop, sigma) -> np.ndarray:
+    """Fit each slip on samples around its stretch a..b (all at once); rows of (i0, T, y0,
+    D, kappa, sd(i0), sd(i0 + T), ok, seen, lo, hi, cost) in samples and scaled force."""
     span = b - a + 1
-    margin = max(span, window)
-    lo, hi = max(a - margin, lo_lim), min(b + margin, hi_lim)
-    i = np.arange(lo, hi + 1, dtype=float)
-    yy = y[lo : hi + 1]
+    margin = np.maximum(span, window)
+    lo, hi = np.maximum(a - margin, lo_lim), np.minimum(b + margin, hi_lim)
     # the smoothed rate stretches a slip by half a window at each end
     i0 = a + 0.5 * (window // 2)
-    T = max(span - (window // 2), 2.0)
-    y0 = float(np.median(y[max(a - window, lo) : a])) if a > lo else float(y[a])
-    p0 = np.array([i0, T, y0, drop, 0.5])
-    lower = np.array([lo - 0.5 * span, 0.5, -np.inf, 0.0, 0.0])
-    upper = np.array([hi, hi - lo + span, np.inf, np.inf, 8.0])
+    T = np.maximum(span - (window // 2), 2.0)
+    y0 = np.array(
+        [np.median(y[max(aj - window, lj) : aj]) if aj > lj else y[aj]
+         for aj, lj in zip(a.tolist(), lo.tolist(), strict=True)]
+    )  # fmt: skip
+    p0 = np.column_stack([i0 - lo, T, y0, drop, np.full(a.size, 0.5)])
+    lower = np.column_stack([-0.5 * span, np.full(a.size, 0.5), np.full(a.size, -np.inf),
+                             np.zeros(a.size), np.zeros(a.size)])  # fmt: skip
+    upper = np.column_stack([hi - lo, hi - lo + span, np.full(a.size, np.inf),
+                             np.full(a.size, np.inf), np.full(a.size, 8.0)])  # fmt: skip
     p0 = np.clip(p0, lower + 1e-9, upper - 1e-9)
+    out = np.empty((a.size, 12))
+    length = hi - lo + 1
+    for sel in _batches(length):
+        x, yy, mask = _windows(y, lo[sel], length[sel])
+        p, ok, cost, cov = _lm(_single, x, yy, mask, p0[sel], lower[sel], upper[sel], sigma)
+        sd0 = np.sqrt(np.maximum(cov[:, 0, 0], 0.0))
+        sd1 = np.sqrt(np.maximum(cov[:, 0, 0] + cov[:, 1, 1] + 2 * cov[:, 0, 1], 0.0))
+        i0_fit = p[:, 0] + lo[sel]
+        seen = ((p[:, 0] >= 1.0) & (lo[sel] > 0)) | (i0_fit >= window)
+        out[sel] = np.column_stack([i0_fit, p[:, 1:], sd0, sd1, ok, seen, lo[sel], hi[sel],
+                                    cost])  # fmt: skip
+    return out
 
-    def residual(p):
-        return p[2] - p[3] * _shape((i - p[0]) / p[1], p[4]) - yy
 
-    ok = True
-    try:
-        sol = least_squares(
-            residual, p0, bounds=(lower, upper), loss="soft_l1", f_scale=2.0 * sigma,
-            x_scale=np.array([1.0, 1.0, sigma, sigma, 0.1]),
-        )  # fmt: skip
-        p, jac = sol.x, sol.jac
-        ok = bool(sol.success)
-    except (ValueError, np.linalg.LinAlgError):
-        p, jac, ok = p0, None, False
-    sd0 = sd1 = np.nan
-    if jac is not None:
+def _single(x, p):
+    """One slip on local sample indices x (broadcast): the model and its Jacobian (..., 5)
+    in (i0, T, y0, D, kappa)."""
+    i0, T, y0, D, kappa = (p[..., j, None] for j in range(5))
+    phi = (x - i0) / T
+    S, S_phi, S_kappa = _shape_jac(phi, kappa)
+    jac = np.stack([D * S_phi / T, D * S_phi * phi / T, np.ones_like(S), -S, -D * S_kappa], axis=-1)
+    return y0 - D * S, jac
+
+
+def _double(x, p):
+    """Two slips, the second `gap` after the first's stick: the model and its Jacobian
+    (..., 9) in (i0a, Ta, Da, kappa_a, gap, Tb, Db, kappa_b, y0)."""
+    i0a, ta, da, ka, gap, tb, db, kb, base = (p[..., j, None] for j in range(9))
+    pa, pb = (x - i0a) / ta, (x - i0a - ta - gap) / tb
+    sa, sa_phi, sa_k = _shape_jac(pa, ka)
+    sb, sb_phi, sb_k = _shape_jac(pb, kb)
+    ja, jb = da * sa_phi / ta, db * sb_phi / tb  # d model / d (start of a, of b)
+    jac = np.stack([ja + jb, ja * pa + jb, -sa, -da * sa_k, jb, jb * pb, -sb, -db * sb_k,
+                    np.ones_like(sa)], axis=-1)  # fmt: skip
+    return base - da * sa - db * sb, jac
+
+
+def _lm(model, x, yy, mask, p, lower, upper, sigma, max_iter=100):
+    """Levenberg-Marquardt on a batch of fits (rows of p) of `model`, the soft-L1 loss at
+    f_scale 2 sigma by iteratively reweighted least squares, a parameter on its bound
+    held there while the gradient pushes it out, steps clipped into the bounds. Returns
+    the parameters, whether each converged, its final cost (`_soft_l1` units) and the
+    covariance (J^T W J)^-1 sigma^2 (the robust loss's weights W: spikes the despiking
+    missed do not narrow the errors)."""
+    n, k = p.shape
+    p = p.copy()
+    m, jac = model(x, p)
+    r = np.where(mask, m - yy, 0.0)
+    cost = np.sum(_soft_l1(r, sigma), axis=1)
+    lam = np.full(n, 1e-3)
+    done = np.zeros(n, bool)
+    eye = np.eye(k)
+    for _ in range(max_iter):
+        act = np.flatnonzero(~done)
+        if act.size == 0:
+            break
+        w = mask[act] / np.sqrt(1.0 + (r[act] / (2.0 * sigma)) ** 2)
+        J = jac[act]
+        Jw = J * w[..., None]
+        A = np.einsum("nli,nlj->nij", Jw, J)
+        grad = np.einsum("nli,nl->ni", Jw, r[act])
+        pa = p[act]
+        fixed = ((pa <= lower[act]) & (grad > 0)) | ((pa >= upper[act]) & (grad < 0))
+        free = (~fixed).astype(float)
+        A = A * free[:, :, None] * free[:, None, :] + fixed[:, :, None] * eye
+        grad = grad * free
+        diag = np.maximum(np.einsum("nii->ni", A), 1e-12 * np.max(np.abs(A), axis=(1, 2))[:, None])
+        A_damped = A + lam[act, None, None] * diag[:, :, None] * eye
         try:
-            cov = np.linalg.pinv(jac.T @ jac) * sigma**2
-            sd0 = float(np.sqrt(max(cov[0, 0], 0.0)))
-            sd1 = float(np.sqrt(max(cov[0, 0] + cov[1, 1] + 2 * cov[0, 1], 0.0)))
+            step = -np.linalg.solve(A_damped, grad[..., None])[..., 0]
         except np.linalg.LinAlgError:
-            pass
-    seen = p[0] - lo >= 1.0 and lo > 0 or p[0] >= window
-    cost = float(np.sum(_soft_l1(residual(p), sigma)))
-    return (p[0], p[1], p[2], p[3], p[4], sd0, sd1, ok, seen, (lo, hi, cost))
+            step = -np.einsum("nij,nj->ni", np.linalg.pinv(A_damped), grad)
+        trial = np.clip(pa + step, lower[act], upper[act])
+        m_t, jac_t = model(x, trial)
+        r_t = np.where(mask[act], m_t - yy[act], 0.0)
+        cost_t = np.sum(_soft_l1(r_t, sigma), axis=1)
+        better = np.isfinite(cost_t) & (cost_t < cost[act])
+        gain = np.where(better, cost[act] - cost_t, 0.0)
+        good = act[better]
+        p[good], r[good], jac[good], cost[good] = trial[better], r_t[better], jac_t[better], \
+            cost_t[better]  # fmt: skip
+        lam[good] = np.maximum(lam[good] / 3.0, 1e-9)
+        lam[act[~better]] *= 4.0
+        # converged: a step that gains less than 1e-8 of the cost (in chi^2: nothing), or
+        # no step at any damping gains at all
+        done[act] = (better & (gain <= 1e-8 * np.maximum(cost[act], 1.0))) | (lam[act] > 1e10)
+    w = mask / np.sqrt(1.0 + (r / (2.0 * sigma)) ** 2)
+    A = np.einsum("nli,nlj->nij", jac * w[..., None], jac)
+    return p, done, cost, np.linalg.pinv(A) * sigma**2
+
+
+def _batches(length):
+    """Index arrays of fits of similar length, each batch within `_BATCH` samples."""
+    order = np.argsort(length, kind="stable")
+    start = 0
+    while start < order.size:
+        stop = start + 1
+        while stop < order.size and (stop - start + 1) * length[order[stop]] <= _BATCH:
+            stop += 1
+        yield order[start:stop]
+        start = stop
+
+
+def _windows(y, lo, length):
+    """Local sample indices, the samples of y from each lo (padded) and the mask."""
+    width = int(length.max())
+    x = np.arange(width, dtype=float)
+    mask = x[None, :] < length[:, None]
+    take = np.minimum(lo[:, None] + np.arange(width)[None, :], y.size - 1)
+    return x, np.where(mask, y[take], 0.0), mask
 
 
 def _soft_l1(r, sigma):
@@ -337,45 +543,37 @@ def _soft_l1(r, sigma):
     return 4.0 * 2.0 * (np.sqrt(1.0 + z) - 1.0)
 
 
-def _fit_double(y, fit, sigma):
-    """The stretch of `fit` as two slips, the second starting at or after the first's
-    stick; None unless that fits better by chi^2 > 25."""
-    from scipy.optimize import least_squares
-
-    i0, T, y0, D, kappa, *_, (lo, hi, cost) = fit
-    i = np.arange(lo, hi + 1, dtype=float)
-    yy = y[lo : hi + 1]
-
-    def model(p):
-        i0a, ta, da, ka, gap, tb, db, kb, base = p
-        i0b = i0a + ta + gap
-        return base - da * _shape((i - i0a) / ta, ka) - db * _shape((i - i0b) / tb, kb)
-
-    def residual(p):
-        return model(p) - yy
-
-    p0 = np.array([i0, 0.45 * T, 0.5 * D, kappa, 0.0, 0.45 * T, 0.5 * D, kappa, y0])
-    lower = np.array([lo - T, 0.5, 0.0, 0.0, 0.0, 0.5, 0.0, 0.0, -np.inf])
-    upper = np.array([hi, hi - lo + T, np.inf, 8.0, hi - lo, hi - lo + T, np.inf, 8.0, np.inf])
+def _fit_doubles(y, fits, sigma, min_gain, min_drop):
+    """Each fit (a row of `_fit_slips`) as two slips, the second starting at or after the
+    first's stick, all at once; a list with, per fit, its two rows or None unless two
+    lower chi^2 by more than `min_gain` and each part drops by more than `min_drop` (the
+    drop a slip found on its own needs)."""
+    i0, T, y0, D, kappa = fits[:, :5].T
+    lo, hi, cost = fits[:, 9].astype(int), fits[:, 10].astype(int), fits[:, 11]
+    n, span = fits.shape[0], (hi - lo).astype(float)
+    zeros, ones = np.zeros(n), np.ones(n)
+    p0 = np.column_stack([i0 - lo, 0.45 * T, 0.5 * D, kappa, zeros, 0.45 * T, 0.5 * D, kappa,
+                          y0])  # fmt: skip
+    lower = np.column_stack([-T, 0.5 * ones, zeros, zeros, zeros, 0.5 * ones, zeros, zeros,
+                             np.full(n, -np.inf)])  # fmt: skip
+    upper = np.column_stack([span, span + T, np.full(n, np.inf), 8.0 * ones, span, span + T,
+                             np.full(n, np.inf), 8.0 * ones, np.full(n, np.inf)])  # fmt: skip
     p0 = np.clip(p0, lower + 1e-9, upper - 1e-9)
-    try:
-        sol = least_squares(
-            residual, p0, bounds=(lower, upper), loss="soft_l1", f_scale=2.0 * sigma,
-            x_scale=np.array([1.0, 1.0, sigma, 0.1, 1.0, 1.0, sigma, 0.1, sigma]),
-        )  # fmt: skip
-    except (ValueError, np.linalg.LinAlgError):
-        return None
-    p = sol.x
-    cost2 = float(np.sum(_soft_l1(residual(p), sigma)))
-    if not sol.success or cost - cost2 <= 25.0:
-        return None
-    i0a, ta, da, ka, gap, tb, db, kb, base = p
-    try:
-        cov = np.linalg.pinv(sol.jac.T @ sol.jac) * sigma**2
-        sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    except np.linalg.LinAlgError:
-        sd = np.full(p.size, np.nan)
-    first = (i0a, ta, base, da, ka, sd[0], float(np.hypot(sd[0], sd[1])), True, fit[8], fit[9])
-    second = (i0a + ta + gap, tb, base - da, db, kb, float(np.hypot(sd[0], sd[4])),
-              float(np.hypot(sd[4], sd[5])), True, True, fit[9])  # fmt: skip
-    return [first, second]
+    length = hi - lo + 1
+    result = [None] * n
+    for sel in _batches(length):
+        x, yy, mask = _windows(y, lo[sel], length[sel])
+        p, ok, cost2, cov = _lm(_double, x, yy, mask, p0[sel], lower[sel], upper[sel], sigma)
+        sd = np.sqrt(np.maximum(np.einsum("nii->ni", cov), 0.0))
+        for row, j in enumerate(sel.tolist()):
+            i0a, ta, da, ka, gap, tb, db, kb, base = p[row]
+            if not ok[row] or cost[j] - cost2[row] <= min_gain or min(da, db) <= min_drop:
+                continue
+            e = sd[row]
+            rest = (lo[j], hi[j], cost2[row])
+            first = (i0a + lo[j], ta, base, da, ka, e[0], np.hypot(e[0], e[1]), True,
+                     fits[j, 8], *rest)  # fmt: skip
+            second = (i0a + ta + gap + lo[j], tb, base - da, db, kb, np.hypot(e[0], e[4]),
+                      np.hypot(e[4], e[5]), True, True, *rest)  # fmt: skip
+            result[j] = [first, second]
+    return result
