@@ -8,7 +8,9 @@ Layout (a sweep adds a leading `point` dimension, with one coordinate per swept 
 - `mc_<q>`, `mc_<q>_se`: Monte Carlo histogram and standard errors;
 - `theory_<q>` over `method` (keys such as `Fg1`, `Fn2_norm`; `method_label` names them):
   the level-crossing approximations on the same cells; `l1_<q>` their L1 distance to the
-  histogram and `l1_floor_<q>` the histogram's own noise level;
+  histogram and `l1_floor_<q>` the histogram's own noise level; `theory_<q>_se` (when a
+  method is empirical) the sampling error of the empirical ones (jackknife over the paths,
+  `nan` for the exact formulas; its attribute `band_factor` makes it a 95 % band);
 - `theory_n1`, `mc_n1`, `theory_n2`, `mc_n2`: upcrossing densities;
 - scalars: `fraction_stuck`, `fraction_immediate`, `mean_<q>` with `mean_<q>_se`;
 - `seconds_<part>` (and `seconds_theory` over `method`): wall time of each part;
@@ -29,6 +31,7 @@ from .measure import (
     EVENTS,
     THEORY_DENSITIES,
     cell_average_2d,
+    estimator_source,
     l1,
     l1_floor,
     mc_density,
@@ -191,6 +194,8 @@ def _one(study: Study, point, edges, bar) -> xr.Dataset:
                 secs.append(seconds)
                 errs.append(l1(values, mc, e) if mc is not None else np.nan)
             data[f"theory_{q}"] = (("method", q), np.array(rows))
+            if point.empirical is not None:
+                data[f"theory_{q}_se"] = _theory_se(point, q, e)
             data[f"l1_{q}"] = ("method", np.array(errs))
             data[f"seconds_theory_{q}"] = ("method", np.array(secs))
     if ens is not None:
@@ -238,6 +243,35 @@ def _one(study: Study, point, edges, bar) -> xr.Dataset:
     for part, seconds in point.timings.items():
         data[f"seconds_{part}"] = ((), seconds)
     return xr.Dataset(data, coords=coords)
+
+
+def _theory_se(point, q: str, edges):
+    """The sampling errors of the empirical approximations of `q` on its cells (`nan` rows
+    for the exact ones), as a Dataset variable with its 95 % band factor."""
+    from scipy import stats
+
+    est = point.empirical
+    centres = 0.5 * (edges[1:] + edges[:-1])
+    rows = []
+    for a in point.study.analytic:
+        if estimator_source(point.study, a) != "empirical":
+            rows.append(np.full(centres.size, np.nan))
+            continue
+        args = (a.method, a.order, a.normalized)
+        if q == "slip_time":
+            rows.append(est.first_passage_cells_se(edges, *args))
+        elif q == "period":
+            rows.append(est.period_density_se(centres, *args))
+        else:
+            rows.append(est.slip_distance_density_se(centres, *args))
+    groups = est.error_groups
+    attrs = dict(
+        long_name=f"standard error of the empirical theory_{q} (jackknife over the paths)",
+        error_groups=groups,
+        # t quantile: the standard error is estimated from groups - 1 degrees of freedom
+        band_factor=float(stats.t.ppf(0.975, groups - 1)),
+    )
+    return (("method", q), np.array(rows), attrs)
 
 
 SERIES_PATHS = 2  # paths whose time series are kept

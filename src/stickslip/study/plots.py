@@ -3,7 +3,7 @@
 - `<q>.png` for each density: Monte Carlo histogram (markers with standard-error bars, as
   in the paper's figs. 4-6) against each analytic method, in the histogram's frame (a curve
   that leaves it says so in the legend), with a detail panel where a narrow peak dwarfs the
-  rest;
+  rest; an empirical method (from simulated upcrossings) with its 95 % sampling band;
 - `n1.png` (fig. 4), `n2.png`;
 - `time_series.png`: stick-slip motion of a path (fig. 2); `phase_portrait.png`: slips in
   the (x, v) plane, a fundamental orbit against multiple ones (fig. 7);
@@ -240,10 +240,15 @@ def _density(plt, ds, study, q, model):
                 out = out or _leaves(y, frames[detail], away)
             if out:
                 notes.append("leaves the range")
+            band = _band(ds, q, i)
+            if band is not None:
+                notes.append("shaded: 95 % sampling band")
             if notes:
                 label += f" ({'; '.join(notes)})"
             for a in axes:
                 a.plot(x, y, color=COLORS[i % 6], lw=1.6, label=label if a is ax else None)
+                if band is not None:
+                    a.fill_between(x, y - band, y + band, color=COLORS[i % 6], alpha=0.25, lw=0)
     for a in axes:
         if a in frames:
             a.set_ylim(*frames[a])
@@ -262,6 +267,18 @@ def _density(plt, ds, study, q, model):
     return fig
 
 
+def _band(ds, q, i, point=None):
+    """Half-width of the 95 % sampling band of method `i` of `q` (empirical methods; None
+    for the exact ones, which have none)."""
+    name = f"theory_{q}_se"
+    if name not in ds:
+        return None
+    se = ds[name].values[i] if point is None else ds[name].values[point, i]
+    if not np.isfinite(se).any():
+        return None
+    return float(ds[name].attrs.get("band_factor", 1.96)) * np.nan_to_num(se)
+
+
 def _density_sweep(plt, ds, study, q, model):
     fig, ax = plt.subplots(figsize=(7, 4.5), layout="constrained")
     x = ds[q].values
@@ -274,8 +291,14 @@ def _density_sweep(plt, ds, study, q, model):
         if f"mc_{q}" in ds:
             ax.plot(x, ds[f"mc_{q}"].values[i], "x", color=color, ms=3, label=f"MC {name}")
         if f"theory_{q}" in ds:
-            ax.plot(x, ds[f"theory_{q}"].values[i, 0], color=color, lw=1.2)
+            y = ds[f"theory_{q}"].values[i, 0]
+            ax.plot(x, y, color=color, lw=1.2)
+            band = _band(ds, q, 0, point=i)
+            if band is not None:
+                ax.fill_between(x, y - band, y + band, color=color, alpha=0.2, lw=0)
     label = f"lines: {ds['method_label'].values[0]}" if f"theory_{q}" in ds else None
+    if label and _band(ds, q, 0, point=0) is not None:
+        label += " (shaded: 95 % sampling band)"
     if f"mc_{q}" in ds and np.isfinite(ds[f"mc_{q}"].values).any():
         # the frame is the histograms' (see _density)
         # all points at once: the lines, one per point, against the histograms
