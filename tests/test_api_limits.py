@@ -288,3 +288,12 @@ def test_wrong_signature_stays_type_error():
     with pytest.raises(TypeError) as info:
         ss.simulate_chain(_chain())
     assert not isinstance(info.value, StickSlipError)
+
+
+@pytest.mark.parametrize("v_b", [1e-300, 1e-13, 1e13])
+def test_driving_speed_out_of_the_slips_scale_is_refused(v_b):
+    """v_b / (omega0 x0) = 1e-300 gave stick times of inf (found by tests/test_fuzz.py)."""
+    Model = ss.get_model("langevin")
+    with pytest.raises(ss.ParameterError, match="v_b") as err:
+        Model(omega0=1.0, zeta=0.1, D=0.0, v_b=v_b, x0=1.0, tau=0.1)
+    assert "\n" not in str(err.value)

@@ -7,7 +7,7 @@ import dataclasses
 import math
 from collections.abc import Mapping
 
-from stickslip_langevin import check_noise, check_rate
+from stickslip_langevin import check_noise, check_rate, check_speed
 
 from stickslip import FrictionModel, ParameterError
 from stickslip.friction import FRICTION_LAWS, FrictionLaw, get_friction_law
@@ -83,6 +83,7 @@ class FrictionBlock(FrictionModel):
         check_rate(_NAME, "k", omega0, "sqrt(k)", self.k)
         check_rate(_NAME, "tau", 1.0 / self.tau, "1/tau", self.tau)
         check_noise(_NAME, self.D, omega0, static / self.k, "k^1.5 (F_s/k)^2")
+        check_speed(_NAME, self.v_b, omega0, static / self.k, "k^0.5 F_s/k")
 
     # -- slip-phase SDE ------------------------------------------------------------------
     @property

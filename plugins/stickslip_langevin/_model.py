@@ -7,7 +7,7 @@ import equinox as eqx
 from stickslip import FrictionModel, LinearGaussian, ParameterError
 from stickslip.plugin import check_choice, check_nonnegative, check_positive, jax, jnp
 
-from ._scales import check_noise, check_rate
+from ._scales import check_noise, check_rate, check_speed
 
 _NAME = "langevin"
 
@@ -42,6 +42,7 @@ class LangevinSlip(FrictionModel):
         if self.tau is not None:
             check_rate(name, "tau", 1.0 / self.tau, "1/tau", self.tau)
         check_noise(name, self.D, self.omega0, self._length_scale(), "omega0^3 x0^2")
+        check_speed(name, self.v_b, self.omega0, self._length_scale(), "omega0 x0")
 
     def _length_scale(self) -> float:
         """The slip's length scale: the (median) threshold x0."""

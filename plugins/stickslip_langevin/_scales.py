@@ -29,6 +29,11 @@ from stickslip import ParameterError
 RATE_MAX = 1e12
 NOISE_MIN = 1e-100
 NOISE_MAX = 1e12
+# The driving speed in the slip's own units, v_b / (omega0 l): a stick lasts about l / v_b, so
+# at 1e-12 one stick spans 1e12 slip time scales (and at 1e-300 it overflows to inf: found by
+# tests/test_fuzz.py); at 1e12 the belt outruns every slip (no stick-slip structure left).
+SPEED_MIN = 1e-12
+SPEED_MAX = 1e12
 
 
 def check_rate(owner: str, name: str, rate: float, label: str, value) -> None:
@@ -42,6 +47,27 @@ def check_rate(owner: str, name: str, rate: float, label: str, value) -> None:
             "propagators overflow float64 at such rates (rescale time)",
             value,
         )
+
+
+def check_speed(owner: str, v_b: float, omega0: float, length: float, label: str) -> None:
+    r"""Refuse a driving speed whose level `v_b / label` (`label` spells the velocity scale
+    $\omega_0 \ell$ in the model's own parameters) is outside [`SPEED_MIN`, `SPEED_MAX`]."""
+    log = math.log10(v_b) - math.log10(omega0) - math.log10(length)
+    if math.log10(SPEED_MIN) <= log <= math.log10(SPEED_MAX):
+        return
+    level = 10.0 ** max(min(log, 300.0), -300.0)
+    why = (
+        f"below {SPEED_MIN:g}: a stick would last {1 / level:.3g} slip time scales"
+        if level < SPEED_MIN
+        else f"above {SPEED_MAX:g}: the belt would outrun every slip"
+    )
+    raise ParameterError(
+        owner,
+        "v_b",
+        f"gives the speed level v_b/({label}) = {level:.3g}, {why}; admissible: "
+        f"{SPEED_MIN:g} <= v_b/({label}) <= {SPEED_MAX:g}",
+        v_b,
+    )
 
 
 def noise_level(D: float, omega0: float, length: float) -> float:
