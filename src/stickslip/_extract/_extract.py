@@ -43,7 +43,12 @@ def extract_cycles(
     - `tol` (`x`/`v`): a velocity value is *stuck* when $|v - v_{st}| \le$ `tol`, with
       $v_{st}$ the sticks' speed (the robust centre of the values near `v_b`). Default: 5
       robust sd of the stuck values' noise, $5 \times 1.4826\,\mathrm{MAD}$, and at least
-      $10^{-9}$ times the spread (rounding of differenced positions).
+      $10^{-9}$ times the spread (rounding of differenced positions). A noisy trace
+      (5 sd beyond 5% of the velocity spread) is flagged and timed on a Savitzky-Golay
+      smoothing of $v - v_b$ (quadratic, the smallest odd window from 5 that brings 5 sd
+      within that 5%), `tol` is 5 sd of the smoothed values, and a stick must hold at least
+      a window of samples (`info`: `filter`, `smoothing_window`, `noise_sd_smoothed`,
+      `tol_raw`).
     - `min_stick` (`x`/`v`): the fewest consecutive stuck values that make a stick
       (default 2). Shorter runs are part of a slip.
     - `window` (`force`): the samples of the Savitzky-Golay force rate (odd, >= 5). Default:

@@ -21,6 +21,11 @@ _VB_WARN = 0.02  # a given v_b further than 2% from the sticks' own speed is wor
 # stick holds its values for its whole length, far beyond that. 3x leaves room for short
 # sticks of a coarsely sampled trace; 20 runs are enough to judge.
 _CLUSTER_FACTOR, _CLUSTER_MIN_RUNS = 3.0, 20
+# Noisy traces: the stuck flags come from a Savitzky-Golay smoothing of v - v_b whose window
+# is the one that minimises the measured noise sd of the smoothed stuck values (a wider
+# window averages more noise until it blurs the slips into the band); 5 samples is the
+# smallest window a quadratic smooths over, 101 bounds the search's cost.
+_MIN_WINDOW, _MAX_WINDOW = 5, 101
 
 
 def extract_velocity(t, x, v, v_b, tol, min_stick) -> Cycles:
@@ -69,6 +74,19 @@ def extract_velocity(t, x, v, v_b, tol, min_stick) -> Cycles:
     r = r - center
     vb_used = vb + center
     _check_clustering(stuck, first, last, tol_u * s_v, v_b)
+    # a noisy trace (noise above the rounding floor, tol not given): flag and time the
+    # transitions on the smoothed velocity; the flat-run test below keeps the raw values,
+    # whose sum over a stick telescopes (x) or has independent terms (v)
+    r_s, window, sigma_s, tol_s = r, 0, sigma, tol_u
+    if tol is None and sigma > floor:
+        window, r_s, sigma_s = _smoothing(r, floor)
+        if window:
+            tol_s = max(_NOISE_SIGMAS * sigma_s, floor)
+            stuck = np.abs(r_s) <= tol_s
+            first, last = runs(stuck)
+            # the smoothed noise is correlated over the window: a stuck run shorter than
+            # it may be one fluctuation of a slip that passes near v_b, not a stick
+            min_stick = max(min_stick, window)
     # the sticks' own speed: v_b as given is off by `center` (a few % at most is expected)
     if abs(center) > _VB_WARN * vb:
         warnings.warn(
@@ -121,11 +139,11 @@ def extract_velocity(t, x, v, v_b, tol, min_stick) -> Cycles:
     n_split = len(found) - len(joined)
     found = joined
     sticks, releases, offsets = [], [], []
-    rev_t, rev_r = -tt[::-1], r[::-1]
+    rev_t, rev_s = -tt[::-1], r_s[::-1]
     for s, e in found:
-        sticks.append(locate(tt, r, s - 1) if s > 0 else np.nan)
+        sticks.append(locate(tt, r_s, s - 1) if s > 0 else np.nan)
         # a release is a stick in reversed time
-        releases.append(-locate(rev_t, rev_r, n - 2 - e) if e < n - 1 else np.nan)
+        releases.append(-locate(rev_t, rev_s, n - 2 - e) if e < n - 1 else np.nan)
         offsets.append(offset(s, e))
     sticks, releases, offsets = map(np.asarray, (sticks, releases, offsets))
     release = releases[:-1]
@@ -157,9 +175,14 @@ def extract_velocity(t, x, v, v_b, tol, min_stick) -> Cycles:
     info = dict(
         input="x and v" if x is not None and v is not None else ("x" if x is not None else "v"),
         velocity="v" if kind == "point" else "x differences",
-        v_b=v_b, v_b_sticks=float(vb_used * s_v), tol=float(tol_u * s_v),
-        tol_rule="given" if tol is not None else "5 robust sd of |v - v_b| near v_b",
-        noise_sd=float(sigma * s_v), min_stick=min_stick,
+        v_b=v_b, v_b_sticks=float(vb_used * s_v), tol=float(tol_s * s_v),
+        tol_rule="given" if tol is not None else (
+            "5 robust sd of the smoothed |v - v_b| near v_b" if window
+            else "5 robust sd of |v - v_b| near v_b"),
+        noise_sd=float(sigma * s_v), noise_sd_smoothed=float(sigma_s * s_v),
+        filter=f"scipy.signal.savgol_filter, {window} samples, polyorder 2" if window
+        else "none", smoothing_window=window, tol_raw=float(tol_u * s_v),
+        min_stick=min_stick,
         sampling_interval=float(h * s_t), n_sticks=len(found), n_joined=n_split,
     )  # fmt: skip
     return Cycles(table, info)
@@ -183,6 +206,27 @@ def _noise_band(r: np.ndarray) -> tuple[float, float, float]:
             break
         band = narrower
     return center, sigma, floor
+
+
+def _smoothing(r: np.ndarray, floor: float) -> tuple[int, np.ndarray, float]:
+    """(window, smoothed r, its noise sd): the smallest odd window from 5 whose smoothing
+    (Savitzky-Golay, quadratic) brings 5 robust sd of the stuck values within 5% of the
+    velocity spread (the band the noise estimate starts from), or failing that the window
+    where widening stops reducing that sd; (0, r, sd) where the raw values already fit."""
+    from scipy.signal import savgol_filter
+
+    spread = float(np.percentile(r, 99) - np.percentile(r, 1))
+    target = _FIRST_BAND * spread / _NOISE_SIGMAS
+    best = (0, r, _noise_band(r)[1])
+    for window in range(_MIN_WINDOW, min(_MAX_WINDOW, r.size - 1) + 1, 2):
+        if best[2] <= target:
+            break
+        smooth = savgol_filter(r, window, 2, mode="interp")
+        sd = _noise_band(smooth)[1]
+        if sd >= best[2] or sd <= floor:
+            break
+        best = (window, smooth, sd)
+    return best
 
 
 def _check_clustering(stuck, first, last, tol, v_b) -> None:
