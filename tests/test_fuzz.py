@@ -383,7 +383,18 @@ _OUTS = ["results", ".", "..", "../..", "study.yaml", "data", "data/sub", "notes
          "../other", "../results", "", "/", "results/../..", "../other/sub"]  # fmt: skip
 
 
-@FAST
-@given(st.sampled_from(_OUTS), st.booleans(), st.sampled_from(["run", "fit"]))
+_OUT_CASES = (st.sampled_from(_OUTS), st.booleans(), st.sampled_from(["run", "fit"]))
+
+
+# An allowed --out really runs (a small simulation or fit, about a second): fewer examples.
+@settings(max_examples=15, derandomize=True, **_COMMON)
+@given(*_OUT_CASES)
 def test_outputs_never_touch_inputs(tmp_path_factory, monkeypatch, out, force, command):
+    _out_property(tmp_path_factory, monkeypatch, out, force, command)
+
+
+@pytest.mark.slow
+@settings(max_examples=120, derandomize=True, **_COMMON)
+@given(*_OUT_CASES)
+def test_outputs_never_touch_inputs_long(tmp_path_factory, monkeypatch, out, force, command):
     _out_property(tmp_path_factory, monkeypatch, out, force, command)
