@@ -270,3 +270,24 @@ def test_a_huge_sweep_value_is_cut_in_the_message(tmp_path):
     text = STUDY + "sweep:\n  parameters:\n    model.params.v_b: [1, '" + "v" * 20_000 + "']\n"
     line = check_refused(tmp_path, text, field="sweep.parameters.model.params.v_b.1")
     assert "v" * 100 not in line, line
+
+
+RANDOM_THRESHOLD = {
+    "model": {
+        "name": "random-threshold",
+        "params": {"omega0": 1.0, "zeta": 0.1, "D": 0.4, "v_b": 1.0, "tau": 0.1,
+                   "threshold": "normal", "threshold_params": {"mean": 1.0, "sd": 0.3}},
+    },
+    "simulation": {"n_paths": 300, "dt": 0.2, "t_max": 10},
+}  # fmt: skip
+
+
+def test_a_nested_free_parameter_is_checked_against_the_model_params():
+    """`fit.free.threshold_params.sd` is a parameter of the threshold law (fit takes dotted
+    names); a misspelt entry is named with the entries there are."""
+    fit = {"data": "cycles.csv", "n_sim": 1000}
+    Study.model_validate(
+        RANDOM_THRESHOLD | {"fit": fit | {"free": {"threshold_params.sd": [0.05, 1]}}}
+    )
+    with pytest.raises(StudyError, match=r"fit\.free\.threshold_params\.sdx.*entries: mean, sd"):
+        load_study(RANDOM_THRESHOLD | {"fit": fit | {"free": {"threshold_params.sdx": [0.05, 1]}}})

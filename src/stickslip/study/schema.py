@@ -456,7 +456,16 @@ class Study(Base):
                 raise fail("fit", f"needs a single-block model; {self.model.name} is a chain")
             names = list(type(model).parameters())
             for name in self.fit.free:
-                if name not in names:
+                head, _, tail = name.partition(".")  # "threshold_params.sd": a nested entry
+                nested = self.model.params.get(head)
+                if tail and head in names and not (isinstance(nested, dict) and tail in nested):
+                    have = ", ".join(nested) if isinstance(nested, dict) else "none"
+                    raise fail(
+                        f"fit.free.{name}",
+                        f"is not an entry of model.params.{head} (its entries: {have})"
+                        + (suggest(tail, list(nested)) if isinstance(nested, dict) else ""),
+                    )
+                if head not in names:
                     raise fail(
                         f"fit.free.{name}",
                         f"is not a parameter of {self.model.name} (parameters: "
