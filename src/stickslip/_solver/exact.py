@@ -38,10 +38,16 @@ def psd_factor(Sigma, xp=jnp):
     """`L` with `L @ L.T == Sigma` for a covariance that may be singular or badly scaled
     (e.g. the position variance of a 3-state slip is ~h^5): factor the correlation matrix by
     its eigen-decomposition and scale back, which keeps small variances accurate. Works on
-    stacks `(..., d, d)`; `xp` is `jax.numpy` or `numpy`."""
+    stacks `(..., d, d)`; `xp` is `jax.numpy` or `numpy`.
+
+    The factor of the correlation matrix is its symmetric square root `V sqrt(W) V^T`: unique
+    and continuous in `Sigma`, unlike `V sqrt(W)`, whose columns' signs (and, for close
+    eigenvalues, rotation) are arbitrary and flipped under a 1e-12 change of the model, which
+    re-mapped the keyed normals and made results jump with the parameters."""
     s, R = _scaled(Sigma, xp)
     w, V = xp.linalg.eigh(R)
-    return s[..., :, None] * (V * xp.sqrt(xp.maximum(w, 0.0))[..., None, :])
+    root = (V * xp.sqrt(xp.maximum(w, 0.0))[..., None, :]) @ xp.swapaxes(V, -1, -2)
+    return s[..., :, None] * root
 
 
 def psd_pinv(Sigma, xp=jnp):
