@@ -57,6 +57,8 @@ _LAZY = {
     "SelectionWarning": ".selection",
     "fit": "._fit",
     "FitResult": "._fit",
+    "goodness_of_fit": "._goodness",
+    "GoodnessOfFit": "._goodness",
     "clear_caches": "._compile",
     "cache_info": "._compile",
     "extract_cycles": ".extract",

@@ -1,0 +1,157 @@
+"""`goodness_of_fit`: a simulation-calibrated p-value per observable (issue 40, item 5).
+Data are simulated with seeds the fit and the test do not use; seeds fixed in advance."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy import stats
+
+import stickslip as ss
+from stickslip._fit import _simulate
+from stickslip._goodness import _anderson_darling, _pit, goodness_of_fit
+
+BASE = dict(omega0=1.0, zeta=0.1, v_b=1.0, x0=1.0)
+TRUTH = dict(D=0.4, tau=0.1)
+FIXED = {**BASE, "tau": TRUTH["tau"]}
+
+
+def cycles(n, seed, **params):
+    """`n` per-cycle values (slips of positive length that ended) of the Langevin model."""
+    model = ss.get_model("langevin")(**{**BASE, **TRUTH, **params})
+    sim = _simulate(model, int(n * 1.3) + 100, 0.2, 200.0, seed)
+    assert sim["slip_time"].size >= n
+    return {k: v[:n] for k, v in sim.items()}
+
+
+def fit_d(data):
+    """D free, the rest known: 5000 simulated cycles per point (the fast tier's size)."""
+    return ss.fit("langevin", data, free={"D": (0.05, 2.0)}, fixed=FIXED, seed=7, n_sim=5000)
+
+
+def test_randomised_pit_is_uniform_with_an_atom_and_sees_a_wrong_atom():
+    """Stick times with a point mass at zero: the randomised transform of data from the
+    reference's own law is uniform (KS against uniform), a wrong zero share is not."""
+    rng = np.random.default_rng(41)
+
+    def sticks(n, zero_share):
+        return np.where(rng.random(n) < zero_share, 0.0, rng.exponential(1.0, n))
+
+    reference = np.sort(sticks(200_000, 0.38))
+    same = _pit(sticks(3000, 0.38), [reference], [1.0], rng)
+    assert stats.kstest(same, "uniform").pvalue > 1e-3  # fails 1 in 1000 under uniformity
+    fewer = _pit(sticks(3000, 0.30), [reference], [1.0], rng)
+    assert stats.kstest(fewer, "uniform").pvalue < 1e-6
+    # without the randomisation every zero would sit at one value, F(0) = 0.38
+    assert np.mean(same < 0.19) == pytest.approx(0.19, abs=4 * np.sqrt(0.19 * 0.81 / 3000))
+
+
+def test_anderson_darling_is_the_weighted_distance_of_its_definition():
+    """A^2 = n * integral of (F_n(t) - t)^2 / (t (1 - t)) dt, by quadrature on a fine grid."""
+    rng = np.random.default_rng(42)
+    u = rng.beta(1.3, 1.0, 200) * 0.98 + 0.01
+    t = np.linspace(0.0, 1.0, 2_000_001)[1:-1]
+    fn = np.searchsorted(np.sort(u), t, "right") / u.size
+    want = u.size * np.trapezoid((fn - t) ** 2 / (t * (1 - t)), t)
+    assert _anderson_darling(u) == pytest.approx(want, rel=1e-3)
+
+
+def test_exponential_slip_times_are_rejected_with_a_warning_and_a_figure(tmp_path):
+    """Exponential 'slip times' of the model's own mean slip time: no stick-slip model
+    makes them, and the fit alone gives an estimate and an interval without a word."""
+    mean = np.mean(cycles(20_000, seed=99)["slip_time"])
+    x = np.random.default_rng(5).exponential(mean, 1500)
+    r = fit_d({"slip_time": x})
+    with pytest.warns(UserWarning, match="the data reject the model: slip_time p = "):
+        g = goodness_of_fit(r, n_rep=200, seed=3)
+    assert g.p_values["slip_time"] < 0.01 and g.rejected
+    assert g.p_value == g.p_values["slip_time"]
+    assert all("\n" not in w for w in g.warnings)
+    g.plot(tmp_path / "gof.png")
+    assert (tmp_path / "gof.png").stat().st_size > 1000
+
+
+@pytest.mark.parametrize("seed", [11, 12, 13])
+def test_data_from_the_truth_are_not_rejected(seed):
+    """Three data sets at the truth (each rejected by chance with probability 0.01)."""
+    r = fit_d({"slip_time": cycles(1500, seed)["slip_time"]})
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        g = goodness_of_fit(r, n_rep=100, seed=3)
+    assert g.p_values["slip_time"] >= 0.01 and not g.rejected, g.summary()
+    assert not [w for w in caught if "reject" in str(w.message)]
+    assert g.replicates["slip_time"].shape == (100,)
+
+
+def test_two_observables_at_the_truth_pass_and_without_their_zero_sticks_fail():
+    """Slip and stick times of one set of cycles (stick times with their zero-length ones,
+    the atom) fitted jointly: not rejected; the same cycles with the zero-length sticks
+    dropped (as a user might, taking them for glitches) are, in both columns."""
+    data = {k: v for k, v in cycles(1500, seed=21).items() if k in ("slip_time", "stick_time")}
+    assert 0.2 < np.mean(data["stick_time"] == 0) < 0.6  # the atom is there to be tested
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        g = goodness_of_fit(fit_d(data), n_rep=200, seed=3)
+    assert min(g.p_values.values()) >= 0.01 and g.p_value >= 0.01, g.summary()
+    assert set(g.p_values) == {"slip_time", "stick_time"}
+    kept = data["stick_time"] > 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        r = fit_d({k: v[kept] for k, v in data.items()})
+    with pytest.warns(UserWarning, match="the data reject the model: slip_time p = .*stick_time"):
+        g = goodness_of_fit(r, n_rep=200, seed=3)
+    assert max(g.p_values.values()) < 0.01 and g.p_value < 0.01
+
+
+def test_bad_arguments_are_one_line_naming_the_field(monkeypatch):
+    with pytest.raises(ss.ParameterError, match="'result' must be a FitResult") as err:
+        goodness_of_fit({"slip_time": np.ones(10)})
+    assert "\n" not in str(err.value)
+    r = fit_d({"slip_time": cycles(300, seed=23)["slip_time"]})
+    with pytest.raises(ss.ParameterError, match="'n_rep' must be >= 1"):
+        goodness_of_fit(r, n_rep=0)
+    with pytest.warns(UserWarning, match="no p-value is below 0.0196: take n_rep >= 99"):
+        goodness_of_fit(r, n_rep=50, seed=3)
+    # 10^6 replicates of 300 cycles are 2.24 GiB of values: refused before any is simulated
+    monkeypatch.setattr("stickslip._fit._memory_limit", lambda: 2**30)
+    with pytest.raises(ss.ResourceError, match="'n_rep' needs about 2.24 GiB, past the limit"):
+        goodness_of_fit(r, n_rep=10**6)
+
+
+def test_refit_runs_every_replicate_through_fit():
+    r = fit_d({"slip_time": cycles(300, seed=24)["slip_time"]})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        g = goodness_of_fit(r, n_rep=2, seed=3, refit=True)
+    assert "refitted" in g.method and np.all(np.isfinite(g.replicates["slip_time"]))
+    assert g.p_values["slip_time"] in (1 / 3, 2 / 3, 1.0)
+
+
+@pytest.mark.slow
+def test_the_linearised_refit_matches_the_exact_one():
+    """The default's replicates (one Newton step) and refitted ones (`fit` on each) have
+    one distribution of the statistic: a two-sample KS test at 0.01 (40 refits)."""
+    r = fit_d({"slip_time": cycles(1500, seed=25)["slip_time"]})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        linear = goodness_of_fit(r, n_rep=200, seed=4).replicates["slip_time"]
+        exact = goodness_of_fit(r, n_rep=40, seed=5, refit=True).replicates["slip_time"]
+    assert stats.ks_2samp(linear, exact).pvalue > 0.01, (np.median(linear), np.median(exact))
+
+
+@pytest.mark.slow
+def test_p_values_at_the_truth_are_uniform_over_40_sets():
+    """Issue 40's acceptance: 40 data sets simulated at the truth (seeds 1000-1039), each
+    fitted (seeds 2000-2039) and tested (seeds 3000-3039: one seed for all would share one
+    simulation error among the sets, and their p-values would not be independent); the
+    p-values pass a KS test of uniformity at 0.01."""
+    ps = []
+    for s in range(40):
+        data = {"slip_time": cycles(1500, 1000 + s)["slip_time"]}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            r = ss.fit("langevin", data, {"D": (0.05, 2.0)}, FIXED, seed=2000 + s, n_sim=5000)
+            ps.append(goodness_of_fit(r, n_rep=200, seed=3000 + s).p_values["slip_time"])
+    assert stats.kstest(ps, "uniform").pvalue > 0.01, np.round(np.sort(ps), 3)
