@@ -23,7 +23,12 @@ SLOW = {"distributed.md"}
     [pytest.param(p, marks=pytest.mark.slow) if p.name in SLOW else p for p in FILES],
     ids=[p.name for p in FILES],
 )
-def test_code_blocks_run(path):
+def test_code_blocks_run(path, tmp_path, monkeypatch):
+    """Run in a scratch folder (a block may write, e.g. `cycles.to_csv("cycles.csv")`), with
+    the repository's folders linked in for the paths the docs use (`examples/data/...`)."""
+    for name in ("examples", "docs", "tests"):
+        (tmp_path / name).symlink_to(ROOT / name, target_is_directory=True)
+    monkeypatch.chdir(tmp_path)
     blocks = BLOCK.findall(path.read_text())
     namespace: dict = {}
     with warnings.catch_warnings():
