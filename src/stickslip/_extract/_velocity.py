@@ -218,10 +218,12 @@ def _smoothing(r: np.ndarray, floor: float) -> tuple[int, np.ndarray, float]:
     spread = float(np.percentile(r, 99) - np.percentile(r, 1))
     target = _FIRST_BAND * spread / _NOISE_SIGMAS
     best = (0, r, _noise_band(r)[1])
+    exponent = int(np.frexp(np.max(np.abs(r)))[1]) if r.size else 0
     for window in range(_MIN_WINDOW, min(_MAX_WINDOW, r.size - 1) + 1, 2):
         if best[2] <= target:
             break
-        smooth = savgol_filter(r, window, 2, mode="interp")
+        # scaled by a power of 2 (exact) so that the filter's least squares cannot overflow
+        smooth = np.ldexp(savgol_filter(np.ldexp(r, -exponent), window, 2, mode="interp"), exponent)
         sd = _noise_band(smooth)[1]
         if sd >= best[2] or sd <= floor:
             break
