@@ -109,6 +109,7 @@ def test_columns_of_different_lengths_are_a_data_error():
 RT_FIXED = dict(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, tau=0.1, threshold="normal")
 
 
+@pytest.mark.slow  # a model structure of its own: 7 s warm, more from a cold cache
 def test_the_sd_of_a_random_threshold_is_recovered():
     """A normal threshold (mean 1, sd 0.3), 1500 cycles simulated with seed 404; the sd
     free by its dotted name in a box whose log-centre is 0.22: the estimate within 3 of its

@@ -73,7 +73,10 @@ def test_exponential_slip_times_are_rejected_with_a_warning_and_a_figure(tmp_pat
     assert (tmp_path / "gof.png").stat().st_size > 1000
 
 
-@pytest.mark.parametrize("seed", [11, 12, 13])
+# one set in the default tier, the others in slow (each is a fit plus 200 replicates)
+@pytest.mark.parametrize(
+    "seed", [11, pytest.param(12, marks=pytest.mark.slow), pytest.param(13, marks=pytest.mark.slow)]
+)
 def test_data_from_the_truth_are_not_rejected(seed):
     """Three data sets at the truth (each rejected by chance with probability 0.01)."""
     r = fit_d({"slip_time": cycles(1500, seed)["slip_time"]})
@@ -85,6 +88,7 @@ def test_data_from_the_truth_are_not_rejected(seed):
     assert g.replicates["slip_time"].shape == (100,)
 
 
+@pytest.mark.slow  # 10 s: two columns, two fits
 def test_two_observables_at_the_truth_pass_and_without_their_zero_sticks_fail():
     """Slip and stick times of one set of cycles (stick times with their zero-length ones,
     the atom) fitted jointly: not rejected; the same cycles with the zero-length sticks
@@ -120,6 +124,7 @@ def test_bad_arguments_are_one_line_naming_the_field(monkeypatch):
         goodness_of_fit(r, n_rep=10**6)
 
 
+@pytest.mark.slow
 def test_refit_runs_every_replicate_through_fit():
     r = fit_d({"slip_time": cycles(300, seed=24)["slip_time"]})
     with warnings.catch_warnings():
