@@ -48,7 +48,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
-import os
 import time
 import warnings
 from typing import Any
@@ -765,11 +764,11 @@ def _check_box(Model, fixed, free, centre: dict):
 
 
 def _memory_limit() -> int:
-    """Half this machine's memory (8 GiB where it cannot be read)."""
-    try:
-        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") // 2
-    except (AttributeError, ValueError, OSError):
-        return 8 * 2**30
+    """The simulator's memory limit (`driver.memory_limit`: half this machine's memory, or
+    `STICKSLIP_MEMORY_LIMIT`), so that a fit and a plain simulation refuse alike."""
+    from ._simulate.driver import memory_limit
+
+    return int(memory_limit())
 
 
 def _check_memory(n_sim: int, model) -> None:
@@ -781,7 +780,8 @@ def _check_memory(n_sim: int, model) -> None:
             "n_sim",
             f"needs about {need / 2**30:.3g} GiB per evaluated point "
             f"({SIM_BYTES_PER_STATE * model.state_dim} B a simulated cycle), past the limit of "
-            f"{limit / 2**30:.3g} GiB (half this machine's memory): take at most "
+            f"{limit / 2**30:.3g} GiB (half this machine's memory, or STICKSLIP_MEMORY_LIMIT): "
+            f"take at most "
             f"{limit // (need // n_sim):.3g}",
             n_sim,
         )

@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 
 from ._errors import ParameterError, ResourceError, check_int
+from ._fit import _from_fit, _to_fit
 
 ALPHA = 0.01  # below this p-value the data reject the model (the verdict level)
 DIFF_STEP = 0.1  # the linearisation's step (fit coordinates): the fit's own design step
@@ -444,7 +445,8 @@ def _check_memory(setting: _Setting, n: int, n_rep: int, n_ref: int) -> None:
         if need > limit:
             raise ResourceError(
                 f"goodness_of_fit: parameter '{name}' needs about {need / 2**30:.3g} GiB, past "
-                f"the limit of {limit / 2**30:.3g} GiB (half this machine's memory): take fewer "
+                f"the limit of {limit / 2**30:.3g} GiB (half this machine's memory, or "
+                f"STICKSLIP_MEMORY_LIMIT): take fewer "
                 f"(got {value})"
             )
 
@@ -512,11 +514,3 @@ def _joint_p(observed, stats, p_values) -> float:
         rank = np.sum(T[None, :] >= T[:, None], axis=1) - 1  # others at least as large
         smallest = np.minimum(smallest, (1 + rank) / n_rep)
     return float((1 + np.sum(smallest <= min(p_values.values()))) / (1 + n_rep))
-
-
-def _to_fit(scale, x) -> float:
-    return float(np.log(x)) if scale == "log" else float(x)
-
-
-def _from_fit(scale, u) -> float:
-    return float(np.exp(u)) if scale == "log" else float(u)
