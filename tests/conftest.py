@@ -3,12 +3,19 @@
 from __future__ import annotations
 
 import json
+import os
 import pathlib
 
 import numpy as np
 import pytest
 
 DATA = pathlib.Path(__file__).parent / "data"
+
+# The suite runs many models and sizes, each compiled once: it takes the stand-in sizes the
+# simulator already has rather than compiling every buffer size (the same numbers: checked by
+# tests/test_cold_start.py, which also tests the other policies), and starts no background
+# compiler (`stickslip._compile.policy`). A value set by the caller is kept.
+os.environ.setdefault("STICKSLIP_COMPILE", "reuse")
 
 
 RELEASE_RSS = 1.5e9  # bytes, per test process (up to 4 run at once)

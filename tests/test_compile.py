@@ -272,6 +272,7 @@ def test_executables_are_kept_whatever_jax_own_cache_holds(tmp_path):
 def test_the_in_process_cache_is_bounded_and_can_be_cleared(monkeypatch):
     model = ss.get_model("langevin")(**WHITE)
     monkeypatch.setattr(_compile, "MAX_ENTRIES", 3)
+    monkeypatch.setenv("STICKSLIP_COMPILE", "eager")
     a = ss.simulate(model, 300, 0.1, 20.0, seed=2)  # several buffer sizes, more than 3 entries
     assert ss.cache_info()["entries"] <= 3
     ss.clear_caches()

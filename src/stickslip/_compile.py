@@ -46,6 +46,10 @@ _entries: collections.OrderedDict = collections.OrderedDict()  # `memoized`, LRU
 _entries_lock = threading.RLock()
 _exported: dict = {}  # shape-polymorphic traces (few: one per function and model structure)
 stats = {"traces": 0, "compiles": 0, "exported_loaded": 0, "executables_loaded": 0}
+# Seconds spent (since the process started) tracing, compiling, and loading from disk; and the
+# executables handed to the background compiler (`_background`) instead of compiled here.
+seconds = {"trace_seconds": 0.0, "compile_seconds": 0.0, "load_seconds": 0.0}
+requests = [0]
 _cache_hits = [0]  # hits of JAX's own persistent cache (see `_compile`)
 _resident: collections.OrderedDict = collections.OrderedDict()  # `_on_device`, LRU
 _RESIDENT_ENTRIES = 512
@@ -76,6 +80,7 @@ def clear_caches() -> None:
     _exported.clear()
     _resident.clear()
     _keys.clear()
+    _rent.clear()
     jax.clear_caches()
 
 
@@ -97,8 +102,52 @@ def memoized(key, make):
 def cache_info() -> dict:
     """Counts since the process started: `traces` (functions traced), `compiles` (XLA
     compilations), `exported_loaded` / `executables_loaded` (traces and executables read
-    from disk), and `entries` (executables held in memory, at most `MAX_ENTRIES`)."""
-    return dict(stats, entries=len(_cache), max_entries=MAX_ENTRIES)
+    from disk), `background` (executables left to the background compiler, `policy()`),
+    `entries` (executables held in memory, at most `MAX_ENTRIES`); and the seconds spent
+    tracing, compiling and loading (`trace_seconds`, `compile_seconds`, `load_seconds`)."""
+    out = dict(stats, background=requests[0], entries=len(_cache), max_entries=MAX_ENTRIES)
+    return out | {k: round(v, 3) for k, v in seconds.items()}
+
+
+def cold_note() -> str | None:
+    """One line for a command's user when the compiled-code cache is empty (a first run on
+    this machine compiles the simulator's programs), else `None`."""
+    where = jax.config.jax_compilation_cache_dir
+    if not where:
+        return None
+    folder = pathlib.Path(where) / "stickslip-executable"
+    if folder.is_dir() and any(folder.glob("*.bin")):
+        return None
+    return (
+        f"stickslip: first run with an empty compiled-code cache ({where}): compiling the "
+        "simulator, about 5-15 s on 2 cores per model; later runs load it in about a second"
+    )
+
+
+POLICIES = ("background", "reuse", "eager")
+
+
+def policy() -> str:
+    """How the simulator meets a buffer size it has no executable for (`STICKSLIP_COMPILE`):
+
+    - `"background"` (default): where an executable of a larger size of the same program is
+      at hand (in memory or on disk), run on it (padded: the same numbers, keyed by path and
+      step) and have the exact size compiled by a background process (`_background`) for
+      later runs; compile here only what nothing can stand in for. A first run on a fresh
+      machine then compiles a handful of programs instead of one per buffer size.
+    - `"reuse"`: the same, without the background process (later runs stay on the larger
+      sizes until something compiles the exact ones: for test suites and short-lived jobs).
+    - `"eager"`: compile every buffer size where it is first needed (the fastest run once
+      everything is compiled; each size costs ~2 s to compile on 2 cores).
+    Without a cache directory, `"background"` works as `"reuse"`."""
+    value = os.environ.get("STICKSLIP_COMPILE", "background").strip().lower() or "background"
+    if value not in POLICIES:
+        from ._errors import ParameterError
+
+        raise ParameterError(
+            "environment", "STICKSLIP_COMPILE", f"must be one of {', '.join(POLICIES)}", value
+        )
+    return value
 
 
 def call(fn, *args, timer: Timer | None = None, paths: int | None = None):
@@ -111,18 +160,21 @@ def call(fn, *args, timer: Timer | None = None, paths: int | None = None):
     return compiled(*leaves) if flat else compiled(*args)
 
 
-def executable(fn, *args, timer: Timer | None = None, paths: int | None = None):
+def executable(fn, *args, timer: Timer | None = None, paths: int | None = None, build: bool = True):
     """`(compiled, flat, leaves)`: the executable `call` would run on `args`; it takes the
-    array leaves `leaves` if `flat`, else `args` themselves."""
+    array leaves `leaves` if `flat`, else `args` themselves. With `build=False`, only an
+    executable already in memory or on disk, else `None`."""
     dynamic, static = eqx.partition(args, eqx.is_array)
     leaves, treedef = jax.tree_util.tree_flatten(dynamic)
     key = (fn, treedef, tuple((x.shape, str(x.dtype)) for x in leaves), static)
     entry = _cache.get(key)
     if entry is None:
         start = time.perf_counter()
-        entry = _compile(fn, args, leaves, treedef, static, paths)
+        entry = _compile(fn, args, leaves, treedef, static, paths, build)
         if timer is not None:
             timer.compile_seconds += time.perf_counter() - start
+        if entry is None:
+            return None  # (`build=False`)
         _cache[key] = entry
         while len(_cache) > MAX_ENTRIES:
             _cache.popitem(last=False)
@@ -210,14 +262,98 @@ class Fixed:
         compiled, flat = entry
         return compiled(*self.leaves, *rest) if flat else compiled(*self.fixed, *rest)
 
+    def ready(self, *rest, paths: int) -> bool:
+        """Whether a call on these shapes (`rest`: arrays, or `resized` stand-ins) runs
+        without tracing or compiling: its executable is in memory or on disk (then loaded)."""
+        key = (paths,) + tuple((x.shape, x.dtype) for x in rest)
+        if key in self.entries:
+            return True
+        with _entries_lock:
+            entry = _entries.get((Fixed, self.key) + key)
+        if entry is None:
+            found = executable(self.fn, *self.fixed, *rest, timer=self.timer, paths=paths,
+                               build=False)  # fmt: skip
+            if found is None:
+                return False
+            entry = memoized((Fixed, self.key) + key, lambda: found[:2])
+        self.entries[key] = entry
+        return True
 
-def _compile(fn, args, leaves, treedef, static, paths):
-    """`(executable, takes_flat_leaves)` for one shape."""
+
+# -- rent or compile ----------------------------------------------------------------------------
+# A run that has no executable for the size it wants goes on with a larger one (`policy`):
+# the ski-rental rule decides when to compile the wanted one after all. Each call made on a
+# larger size than wanted adds the time it wasted (its seconds times the fraction of the
+# buffer it did not need) to the wanted program's rent; once the rent passes what a
+# compilation costs, the program is compiled (at most twice the best cost in hindsight,
+# whatever the rest of the run holds). A long run on few paths soon compiles its small
+# sizes; a short first run compiles none.
+COMPILE_SECONDS = 2.0  # a compilation of the simulator's loops on 2 cores, until measured
+_rent: dict = {}
+_rent_lock = threading.Lock()
+
+
+def compile_estimate() -> float:
+    """Seconds a compilation takes here: the mean of this process's, else `COMPILE_SECONDS`."""
+    n = stats["compiles"]
+    return seconds["compile_seconds"] / n if n else COMPILE_SECONDS
+
+
+def rent(key, wasted: float) -> bool:
+    """Add `wasted` seconds to the rent of the program `key`; whether to compile it now."""
+    with _rent_lock:
+        total = _rent[key] = _rent.get(key, 0.0) + max(0.0, wasted)
+    return total >= compile_estimate()
+
+
+def due(key) -> bool:
+    """Whether the rent of the program `key` has passed a compilation's cost."""
+    return _rent.get(key, 0.0) >= compile_estimate()
+
+
+def remembered(key):
+    """The entry `memoized` keeps under `key`, or `None` (nothing is made)."""
+    with _entries_lock:
+        entry = _entries.get(key)
+        if entry is not None:
+            _entries.move_to_end(key)
+        return entry
+
+
+def disk_entry(fn, args) -> bool:
+    """Whether the trace of `fn` on these arguments can have a disk entry (a cache
+    directory, and static arguments with a reproducible text form)."""
+    dynamic, static = eqx.partition(args, eqx.is_array)
+    leaves, treedef = jax.tree_util.tree_flatten(dynamic)
+    shapes = tuple((tuple(x.shape), str(x.dtype)) for x in leaves)
+    return _trace_file(fn, treedef, shapes, static) is not None
+
+
+def resized(args, paths: int, size: int):
+    """Stand-ins for `args` on a buffer of `size` paths: every array whose last axis has
+    `paths` entries (the path axis, as `_poly_specs` reads it) becomes a zero-copy array of
+    zeros with `size` there (shapes and dtypes are all an executable's key looks at)."""
+
+    def one(x):
+        if eqx.is_array(x) and x.ndim and x.shape[-1] == paths:
+            return np.broadcast_to(np.zeros((), x.dtype), x.shape[:-1] + (size,))
+        return x
+
+    return jax.tree_util.tree_map(one, args)
+
+
+def _compile(fn, args, leaves, treedef, static, paths, build=True):
+    """`(executable, takes_flat_leaves)` for one shape; `None` where `build` is false and
+    it would have to be traced or compiled."""
     if paths is not None:
-        exported = _export(fn, leaves, treedef, static, paths)
+        exported = _export(fn, leaves, treedef, static, paths, build)
+        if exported is None and not build:
+            return None
         if exported is not None:
             file = _executable_file(exported, leaves)
             compiled = _load_executable(file)
+            if compiled is None and not build:
+                return None
             if compiled is None:
                 # Another process may be compiling the same executable (test workers, a
                 # sweep's processes, all starting cold): wait for it and load its copy.
@@ -226,7 +362,9 @@ def _compile(fn, args, leaves, treedef, static, paths):
                     if compiled is None:
                         stats["compiles"] += 1
                         hits = _cache_hits[0]
+                        start = time.perf_counter()
                         compiled = _fresh(jax.jit(exported.call).lower(*leaves))
+                        seconds["compile_seconds"] += time.perf_counter() - start
                         # An executable that JAX itself loaded from its persistent cache
                         # cannot be serialised again (XLA's CPU runtime then loses its
                         # functions: "Function ... not found" when the copy runs); only
@@ -236,10 +374,15 @@ def _compile(fn, args, leaves, treedef, static, paths):
                         return compiled, True
             stats["executables_loaded"] += 1
             return compiled, True
+    if not build:
+        return None
     stats["traces"] += 1
     stats["compiles"] += 1
+    start = time.perf_counter()
     jitted = fn if hasattr(fn, "lower") else eqx.filter_jit(fn)
-    return jitted.lower(*args).compile(), False
+    compiled = jitted.lower(*args).compile()
+    seconds["compile_seconds"] += time.perf_counter() - start
+    return compiled, False
 
 
 # An XLA option that leaves the code as it is (fast math is off by default) but changes the key
@@ -275,9 +418,9 @@ def _poly_specs(leaves, paths):
     return specs
 
 
-def _export(fn, leaves, treedef, static, paths):
+def _export(fn, leaves, treedef, static, paths, build=True):
     """The shape-polymorphic trace of `fn` for these arguments (memory, then disk, then a
-    new trace); `None` where it cannot be exported."""
+    new trace unless `build` is false); `None` where it cannot be exported."""
     specs = _poly_specs(leaves, paths)
     poly_shapes = tuple((str(s.shape), str(s.dtype)) for s in specs)
     key = (fn, treedef, poly_shapes, static)
@@ -286,11 +429,15 @@ def _export(fn, leaves, treedef, static, paths):
     file = _trace_file(fn, treedef, poly_shapes, static)
     exported = _load_exported(file)
     if exported is None:
+        if not build:
+            return None
         with _exclusive(file):
             # Another process may be tracing it (see `_compile`): load its copy after it.
             exported = _load_exported(file)
             if exported is None:
+                start = time.perf_counter()
                 exported = _trace(fn, specs, treedef, static, file)
+                seconds["trace_seconds"] += time.perf_counter() - start
             else:
                 stats["exported_loaded"] += 1
     else:
@@ -439,7 +586,10 @@ def _environment(sources: bool = True) -> str:
 
 # Parts of the package that no traced function of the simulator imports (an edit there keeps
 # the traces on disk); everything else counts.
-_UNTRACED = ("study", "cli", "_estimate", "selection.py", "stability.py", "__init__.py")
+_UNTRACED = (
+    "study", "cli", "_estimate", "_inference", "_extract", "selection.py", "stability.py",
+    "__init__.py", "extract.py", "units.py", "_background.py", "_output.py",
+)  # fmt: skip
 
 
 def _trace_file(fn, treedef, shapes, static) -> pathlib.Path | None:
@@ -478,10 +628,13 @@ def _load_exported(file):
         return None
     from jax import export
 
+    start = time.perf_counter()
     try:
         return export.deserialize(bytearray(file.read_bytes()))
     except Exception:  # a damaged or foreign entry: trace again (and overwrite it)
         return None
+    finally:
+        seconds["load_seconds"] += time.perf_counter() - start
 
 
 def _load_executable(file):
@@ -489,11 +642,14 @@ def _load_executable(file):
         return None
     from jax.experimental.serialize_executable import deserialize_and_load
 
+    start = time.perf_counter()
     try:
         blob, in_tree, out_tree = pickle.loads(file.read_bytes())
         return deserialize_and_load(blob, in_tree, out_tree)
     except Exception:  # damaged, or made by another runtime: compile again
         return None
+    finally:
+        seconds["load_seconds"] += time.perf_counter() - start
 
 
 def _save_executable(file, compiled) -> None:

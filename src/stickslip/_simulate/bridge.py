@@ -37,15 +37,17 @@ run, for all `MAX_DEPTH + 1` levels, as runtime arrays.
 from __future__ import annotations
 
 import collections
+import contextlib
 import functools
 import math
 import os
 import threading
+import time
 
 import equinox as eqx
 import numpy as np
 
-from .. import _compile, _rng
+from .. import _background, _compile, _rng
 from .._jax import jax, jnp
 from .._linear import propagators, propagators_host
 from .._solver.exact import psd_factor, psd_pinv
@@ -187,11 +189,20 @@ def _rows(table):
     return table[..., :1]
 
 
+def _at(x, k: int, axis: int = 0):
+    """`x`'s entry `k` (static) along `axis`, by a slice: the same values as `x[k]`, whose
+    general indexing took ~1 ms a use to trace (the bounds below index hundreds of times:
+    a second of every first run's tracing)."""
+    if isinstance(x, np.ndarray):
+        return np.take(x, k, axis)
+    return jax.lax.index_in_dim(x, k, axis % x.ndim, keepdims=False)
+
+
 def _dot(M, X):
     """`sum_k M[..., k, :] * X[k, :]` for path-wise rows `M` `(..., d, n)` and `X` `(d, n)`."""
-    acc = M[..., 0, :] * X[0]
+    acc = _at(M, 0, -2) * _at(X, 0)
     for k in range(1, X.shape[0]):
-        acc = acc + M[..., k, :] * X[k]
+        acc = acc + _at(M, k, -2) * _at(X, k)
     return acc
 
 
@@ -219,21 +230,22 @@ def expected_upcrossings(T: BridgeTables, Xa, Xb, level, cheap: bool = False):
     c, r, ra = T.crossing[:, :1], T.rate[:, :1], T.rate_offset[:1]
     means = [(_dot(c, Xa), _dot(r, Xa) + ra)]
     for i in range(QUADRATURE):
-        mv = _dot(vP[i], Xa) + _dot(vG[i], Xb) + vq[i]
-        ma = _dot(aP[i], Xa) + _dot(aG[i], Xb) + aq[i]
+        mv = _dot(_at(vP, i), Xa) + _dot(_at(vG, i), Xb) + _at(vq, i)
+        ma = _dot(_at(aP, i), Xa) + _dot(_at(aG, i), Xb) + _at(aq, i)
         means.append((mv, ma))
         gap = level - mv
-        z = gap * inv_sv[i]
+        inv_sv_i, w_i = _at(inv_sv, i), _at(w, i)
+        z = gap * inv_sv_i
         # E[a^+ | v = L] = E[(m + s Z)^+] <= m^+ + s E[Z^+]: an upper bound that needs no
         # normal CDF (measured 2.8x cheaper per node on the target CPU, where one exp costs
         # ~10 ns). It is tight where a rises through L and loose only where a falls, so it
         # refines a little more; the bound stays a bound, so exactness is untouched.
-        e_plus = jnp.maximum(ma + kappa[i] * gap, 0.0) + s_a[i] * _INV_SQRT_2PI
+        e_plus = jnp.maximum(ma + _at(kappa, i) * gap, 0.0) + _at(s_a, i) * _INV_SQRT_2PI
         if cheap:
             z2min = jnp.minimum(z2min, z * z)
-            total = total + (w[i] * _INV_SQRT_2PI) * inv_sv[i] * e_plus
+            total = total + (w_i * _INV_SQRT_2PI) * inv_sv_i * e_plus
         else:
-            total = total + (w[i] * _INV_SQRT_2PI) * inv_sv[i] * _exp32(-0.5 * z * z) * e_plus
+            total = total + (w_i * _INV_SQRT_2PI) * inv_sv_i * _exp32(-0.5 * z * z) * e_plus
     # Guard: where the bridge mean itself may reach the level inside the interval, the
     # integrand is a peak of width ~ sd(v) / |a| that a fixed quadrature can step over
     # (measured: bound 0.003 against Rice's 1.0 for a mean that crosses up and back within
@@ -245,7 +257,7 @@ def expected_upcrossings(T: BridgeTables, Xa, Xb, level, cheap: bool = False):
     # H(u) - L <= u (D + (1 - u) M) can be positive, i.e. D + M > 0. The interval's own
     # end is not tested (a step that ends above is a candidate anyway).
     means.append((_dot(c, Xb), _dot(r, Xb) + ra))
-    length = rows(T.length)[0]
+    length = _at(rows(T.length), 0)
     reach = jnp.zeros(total.shape, dtype=bool)
     for k in range(QUADRATURE + 1):
         (p0, m0), (p1, m1) = means[k], means[k + 1]
@@ -539,16 +551,102 @@ class Refiner:
         self.timer = timer
         self.sizes: dict = {}
         self._lock = threading.Lock()
+        self._prefetch = None  # the thread compiling the first buffer (`prefetch`)
 
-    def _call(self, j, keyed, a, b, owner, pos, k0, k1, count):
-        C = a.shape[-1]
+    def prefetch(self, n: int, d: int) -> None:
+        """Start compiling, in a thread, the buffer that the first refinement of `n`
+        candidates at most will want (cut into batches), unless it is compiled already.
+        A first run then compiles it while the stepping loop is compiled and runs (XLA
+        compiles without Python's lock): on 2 cores the two compilations overlap. Nothing
+        changes but when it is compiled."""
+        if self._prefetch is not None or self.sizes:
+            return
+        parts = 2 if n >= 2 * CAPACITIES[1] and _threads() >= 2 else 1
+        C = _capacity(min(BATCH, -(-n // parts)))
+        if self._ready(C, d):
+            return
+
+        def build():
+            with contextlib.suppress(Exception):  # (the call compiles it then, and says why)
+                self._ready(C, d, build=True)
+
+        self._prefetch = threading.Thread(target=build, name="stickslip-prefetch", daemon=True)
+        self._prefetch.start()
+
+    def _joined(self) -> None:
+        """Wait for the prefetching thread, if any (its time is the run's compile time)."""
+        thread = self._prefetch
+        if thread is not None and thread.is_alive():
+            start = time.perf_counter()
+            thread.join()
+            if self.timer is not None:
+                self.timer.compile_seconds += time.perf_counter() - start
+
+    def _args(self, j, keyed, a, b, owner, pos, k0, k1, count, want=None):
         rows_t, depths, level, tol, key = self.fixed
-        args = (
+        C = a.shape[-1] if want is None else want
+        return (
             rows_t, np.asarray(j, np.int32), depths, level, tol, key,
             np.asarray(_shrink_at(C), np.int32), np.asarray(keyed, np.int32),
             a, b, owner, pos, k0, k1,
             np.asarray(count, np.int32),
         )  # fmt: skip
+
+    def _choose(self, want: int, d: int) -> int:
+        """The capacity that `want` open intervals' buffer runs on: `want` where it is
+        compiled (in memory or on disk), under the `"eager"` policy, or once its rent has
+        passed a compilation's cost (`_compile.rent`); else the smallest larger capacity that
+        is compiled (the background compiler is asked for `want`), else `want` (compiled at
+        its first call). A larger buffer gives the same refinement (keyed by path, step and
+        tree node; each pass reads only the open intervals)."""
+        self._joined()
+        if want in self.sizes or _compile.policy() == "eager" or _compile.due(self._key(want)):
+            return want
+        for C in [c for c in CAPACITIES if c >= want] + [want]:
+            if C in self.sizes or self._ready(C, d):
+                if C != want:
+                    _background.request(_refine_levels, *self._stand_ins(want, d), paths=want)
+                return C
+        return want
+
+    def _key(self, C: int):
+        return (_refine_levels, self.layout, C)
+
+    def _stand_ins(self, C: int, d: int):
+        zeros = lambda shape, dtype: np.broadcast_to(np.zeros((), dtype), shape)  # noqa: E731
+        f, i, u = np.float64, np.int32, np.uint32
+        bufs = (zeros((d, C), f), zeros((d, C), f), zeros(C, i), zeros(C, i), zeros(C, u),
+                zeros(C, u))  # fmt: skip
+        return self._args(0, 0, *bufs, 0) + (self.layout,)
+
+    def _ready(self, C: int, d: int, build: bool = False) -> bool:
+        """Whether the executable of capacity `C` is compiled (then kept in `sizes`); with
+        `build`, compile it if not."""
+        with self._lock:
+            if C in self.sizes:
+                return True
+            entry = _compile.remembered(self._key(C))  # (a run of the same structure made it)
+            if entry is not None:
+                self.sizes[C] = entry
+                return True
+            found = _compile.executable(
+                _refine_levels, *self._stand_ins(C, d), paths=C, build=build
+            )
+            if found is None:
+                return False
+            compiled, flat, _ = found
+            entry = compiled if flat else functools.partial(_tail, compiled, self.layout)
+            self.sizes[C] = _compile.memoized(self._key(C), lambda: entry)
+            return True
+
+    def _call(self, j, keyed, a, b, owner, pos, k0, k1, count, want=None):
+        """One compiled call on the buffer `a, b, owner, pos, k0, k1` (capacity `C`, its last
+        axis); `want`: the capacity the open intervals called for, if smaller (a stand-in
+        buffer: it hands back where `want`'s would, so the capacities wanted next are
+        known, and its wasted time is rent for `want`)."""
+        C = a.shape[-1]
+        stand_in = want is not None and want < C
+        args = self._args(j, keyed, a, b, owner, pos, k0, k1, count, want if stand_in else None)
         if C not in self.sizes:
             with self._lock:  # the two threads of `first_crossing` compile each size once
                 if C not in self.sizes:
@@ -561,8 +659,14 @@ class Refiner:
 
                     # The layout fixes every argument's shape and dtype: the runs of one
                     # model structure share the executables.
-                    self.sizes[C] = _compile.memoized((_refine_levels, self.layout, C), make)
-        return self.sizes[C](*args)
+                    self.sizes[C] = _compile.memoized(self._key(C), make)
+        if not stand_in:
+            return self.sizes[C](*args)
+        start = time.perf_counter()
+        out = self.sizes[C](*args)
+        int(out[-1])  # (the call's time: wait for it)
+        _compile.rent(self._key(want), (time.perf_counter() - start) * (1.0 - want / C))
+        return out
 
     def first_crossing(self, Xa, Xb, path, step):
         """Refine candidate steps and find each one's first crossing of the level.
@@ -616,11 +720,13 @@ class Refiner:
         state, unresolved, miss); returns their number of splits."""
         found, frac, state, unresolved, miss = into
         splits = 0
+        d = Xa.shape[0]
         cuts = _batch_cuts(lo, hi, BATCH)
         for first, last in zip(cuts[:-1], cuts[1:], strict=True):
             who = np.arange(first, last)  # the candidate of each owner
             m = who.size
-            C = _capacity(m)
+            want = _capacity(m)
+            C = self._choose(want, d)
             # Slices, not gathers (`who` is a range): each copied once, into its buffer.
             part = slice(first, last)
             buf = [
@@ -630,7 +736,7 @@ class Refiner:
             buf = [_padded(x, C - m) for x in buf]
             j, count, keyed = 0, m, 0  # the first call hashes (path, step) into a key
             while True:
-                out = self._call(j, keyed, *buf, count)
+                out = self._call(j, keyed, *buf, count, want=want)
                 keyed = 1
                 status, j, count = int(out[-1]), int(out[0]), int(out[8])
                 k = who.size
@@ -652,7 +758,8 @@ class Refiner:
                     break
                 # The open intervals are the first `count` slots of the returned buffer; on a
                 # smaller buffer the slots past them are left as they are (never read).
-                C = _capacity(2 * count if status == _GROW else HEADROOM * count)
+                want = _capacity(2 * count if status == _GROW else HEADROOM * count)
+                C = self._choose(want, d)
                 buf = [np.asarray(x) for x in out[1:7]]
                 buf = [x[..., :C] if C <= x.shape[-1] else _padded(x, C - x.shape[-1])
                        for x in buf]  # fmt: skip

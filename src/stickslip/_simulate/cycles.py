@@ -189,8 +189,7 @@ def _cycles_block(model, dt, t_max, seed, opts, start, stop) -> dict:
             .astype(np.uint32)
         )
         X0, stick_state, t_stick, _ = run.first_passages(slots, 2**16)
-        next_onset = run.onsets(slots + np.uint32(1))
-        out = run.cycle_outputs(stick_state, t_stick, next_onset)
+        _, out = run.cycle_outputs(slots + np.uint32(1), 0, stick_state, t_stick)
         out.update(
             path=np.repeat(path_ids[ids], count),
             cycle=np.tile(np.arange(first, first + count), ids.size),

@@ -14,7 +14,7 @@ import diffrax
 import equinox as eqx
 import numpy as np
 
-from .. import _compile, _rng
+from .. import _background, _compile, _rng
 from .._errors import ParameterError, ResourceError, check_choice, check_int, check_positive
 from .._jax import jax, jnp
 from .._model import FrictionModel, LinearGaussian, _to_arrays
@@ -192,17 +192,18 @@ def _detector(lg, solver: str, monitor: str, smooth: bool) -> str:
 
 
 @eqx.filter_jit
-def _onset(model, key, path, counter):
+def _onset(model, smooth: bool, key, path, counter, stick_state):
+    """Per-path helpers, one program (each program is a compilation on a fresh machine):
+    the onset states `X` of the paths' cycle `counter`, their positions and, for a smooth
+    crossing variable, its rate there; and the stick times from `stick_state` to the
+    release at `X` (the next cycle's onset) with the positions of `stick_state`. The
+    first call of a run has no stick states yet: what it computes from them is unused."""
     keys = _rng.path_keys(key, path, counter)
-    return jax.vmap(model.onset_state, out_axes=-1)(keys)
-
-
-@eqx.filter_jit
-def _onset_ends(model, X, smooth: bool):
-    """The onset positions and, for a smooth crossing variable, its rate at onset."""
+    X = jax.vmap(model.onset_state, out_axes=-1)(keys)
     position = over_paths(model.position)(X)
     rate = over_paths(model.crossing_rate)(X) if smooth else jnp.zeros_like(position)
-    return position, rate
+    T_st = over_paths(model.stick_duration)(stick_state, X)
+    return X, position, rate, T_st, over_paths(model.position)(stick_state)
 
 
 @eqx.filter_jit
@@ -246,12 +247,6 @@ def _locate(model, solver, cfg, X_prev, X, k_stick, path, dt, z_key, u_key):
     return localise.locate(
         model, solver, X_prev, X, dt, smooth=cfg.smooth, monitor=cfg.monitor, z=z, u=u
     )
-
-
-@eqx.filter_jit
-def _finish(model, stick_state, next_onset):
-    T_st = over_paths(model.stick_duration)(stick_state, next_onset)
-    return T_st, over_paths(model.position)(stick_state)
 
 
 _ARRAYS = (np.ndarray, np.generic, jax.Array)
@@ -310,6 +305,11 @@ def _pad_paths(x, size: int):
     return np.concatenate([x, np.repeat(x[..., :1], size - n, axis=-1)], axis=-1)
 
 
+def _larger_buffer(size: int) -> int:
+    """The next buffer size above `size` (see `_smaller_buffer`)."""
+    return size * 2 if size >= FINE_BUFFER else size * 8
+
+
 def _smaller_buffer(size: int) -> int:
     """The next buffer size below `size` (0 below the smallest)."""
     if size <= MIN_BUFFER:
@@ -355,6 +355,7 @@ def _validate(owner, model, n_paths, dt, t_max, seed, solver, monitor, chunk_siz
     check_choice(owner, "solver", solver, ("auto", "exact", "euler"))
     check_choice(owner, "monitor", monitor, ("continuous", "grid"))
     chunk_size = check_int(owner, "chunk_size", chunk_size, minimum=1)
+    _compile.policy()  # (a bad STICKSLIP_COMPILE is said before anything runs)
     if n_paths >= 2**32:
         raise ParameterError(owner, "n_paths", "must be < 2**32", n_paths)
     return n_paths, dt, t_max, seed, chunk_size
@@ -472,11 +473,7 @@ def _simulate_block(model, dt, t_max, seed, opts, start, stop, bar=None) -> dict
     )  # fmt: skip
     paths = np.arange(start, stop, dtype=np.uint32)
     X0, stick_state, t_stick, located = run.first_passages(paths, opts["chunk_size"])
-    # The next onsets as the call left them (padded, on the device: `cycle_outputs` takes
-    # them as they are), read through a view.
-    next_dev = run._onset_states(paths, counter=1)
-    next_onset = np.asarray(next_dev)[:, : paths.size]
-    out = run.cycle_outputs(stick_state, t_stick, next_dev)
+    next_onset, out = run.cycle_outputs(paths, 1, stick_state, t_stick)
     upcrossings = None
     if opts["record_upcrossings"]:
         upcrossings = run.upcrossings(
@@ -610,6 +607,7 @@ class _Run:
         self.advance = _compile.Fixed(
             _advance, self.model, self.solver, self.cfg, 0, timer=self.timer
         )
+        self.onset = _compile.Fixed(_onset, self.model, smooth, timer=self.timer)
         # Small buffers of the bridge detector (`_chunk`): the loop that steps past candidates.
         self.advance_past = _compile.Fixed(
             _advance, self.model, self.solver, self.cfg, PAST_SLOTS, timer=self.timer
@@ -667,28 +665,20 @@ class _Run:
         stepped = float(np.sum(self.miss)) if self.miss is not None else 0.0
         return stepped + self.refined_miss
 
-    def finish(self, stick_state, next_onset):
-        """`_finish` (stick times, positions) for per-path states, on the padded size."""
-        n = stick_state.shape[-1]
-        size = _padded_size(n)
-        out = self.call(
-            _finish, self.model, _pad_paths(stick_state, size), _pad_paths(next_onset, size),
-            paths=size,
-        )  # fmt: skip
-        return tuple(np.asarray(a)[..., :n] for a in out)
-
-    def cycle_outputs(self, stick_state, t_stick, next_onset):
-        """The per-path outputs of an `Ensemble` from the raw first-passage results of the
-        last `first_passages` (the next onsets `(d, n)`, or already padded to the size the
-        helper calls run on)."""
-        T_st, x_sl = self.finish(stick_state, next_onset)
+    def cycle_outputs(self, paths, counter, stick_state, t_stick):
+        """The next onset states `(d, n)` (of the cycle `counter` of the paths `paths`) and
+        the per-path outputs of an `Ensemble`, from the raw first-passage results of the
+        last `first_passages`."""
+        n = paths.size
+        X1, _, _, T_st, x_sl = self._onset_states(paths, counter, stick_state)
+        X1, T_st, x_sl = (np.asarray(a)[..., :n] for a in (X1, T_st, x_sl))
         x_start = self.onset_positions
         stuck = np.isfinite(t_stick) & (t_stick <= self.t_max)
         nan = np.where(stuck, 1.0, np.nan)
         stick_state *= nan  # no stick state for the paths that never stuck
         slip_time = t_stick * nan
         stick_time = T_st * nan
-        return dict(
+        return X1, dict(
             slip_time=slip_time,
             stick_position=x_sl * nan,
             slip_distance=(x_start - x_sl) * nan,
@@ -723,25 +713,29 @@ class _Run:
             count[rows] = np.asarray(c)[: rows.size].astype(np.int64)
             times[rows] = np.asarray(t)[:, : rows.size].T
             positions[rows] = np.asarray(x)[:, : rows.size].T
-        pos = self.finish(X0, X0)[1]
+        pos = np.array(self.onset_positions, dtype=float)  # (of X0: the last first passages)
         return Upcrossings(times, positions, count, immediate.copy(), pos, self.t_max, self.dt)
 
     def onsets(self, paths, counter=0):
         """Onset states of the paths with counters `paths`."""
-        return np.asarray(self._onset_states(paths, counter))[:, : paths.size]
+        return np.asarray(self._onset_states(paths, counter)[0])[:, : paths.size]
 
-    def _onset_states(self, paths, counter=0):
-        """`onsets` on the padded size, as the device array of the call."""
+    def _onset_states(self, paths, counter=0, stick_state=None):
+        """`_onset` for the paths `paths` (and their stick states, if given), on the padded
+        size, as the device arrays of the call."""
         size = _padded_size(paths.size)
-        return self.call(
-            _onset, self.model, self.keys["onset"], _pad_paths(paths, size), np.uint32(counter),
-            paths=size,
-        )  # fmt: skip
+        if stick_state is None:
+            stick = np.zeros((len(self.model.state_names), size))
+        else:
+            stick = _pad_paths(np.asarray(stick_state, dtype=np.float64), size)
+        return self.onset(
+            self.keys["onset"], _pad_paths(paths, size), np.uint32(counter), stick, paths=size
+        )
 
     def _chunk(self, paths):
         """First passages of one chunk of paths; see `simulate`. Also returns each path's
         miss bound (bridge detector; zeros otherwise)."""
-        model, cfg, keys = self.model, self.cfg, self.keys
+        cfg, keys = self.cfg, self.keys
         refine = cfg.detect == "bridge"
         count = paths.size
         size = _buffer_size(count)
@@ -749,14 +743,11 @@ class _Run:
         path[:count] = paths
         # On the device for the calls below (a NumPy argument is copied at every call: the
         # states twice, ~2.5 ms at 131072 paths); read here through a zero-copy view.
-        X0_dev = self._onset_states(path)
-        X0 = np.asarray(X0_dev)
+        X0_dev, x_start, rate = self._onset_states(path)[:3]
+        X0, x_start, rate = np.asarray(X0_dev), np.asarray(x_start), np.asarray(rate)
         k_stick = np.full(size, INACTIVE)
         k_stick[:count] = SLIPPING
         immediate = np.zeros(size, dtype=bool)
-        x_start, rate = (
-            np.asarray(a) for a in self.call(_onset_ends, model, X0_dev, cfg.smooth, paths=size)
-        )
         if cfg.smooth:
             # A crossing variable already rising at onset ends the slip at once (T_sl = 0).
             immediate[:count] = rate[:count] >= 0.0
@@ -778,24 +769,33 @@ class _Run:
         X_dev, X_prev_dev, miss_dev = X0_dev, X0_dev, miss
         horizon = np.asarray(float(self.n_steps))
         tol = np.asarray(self.tol)
-        advance = self.advance
         # Small buffers step past candidate steps that end below the level (as if refuted)
         # and refine them all at the end, each path's in step order: the same first crossing
         # as refining each before going on (the draws are keyed by path, step and node), in
         # one refinement instead of one per stepping round (each ~1 ms whatever its size).
         pending = []
+        # `want`: the buffer size the paths left call for; `size`: the one they run on, larger
+        # where `want` has no executable yet (`_stand_in`; the same numbers either way).
+        want, past = size, self._speculates(size)
+        if refine:  # the refinement's first buffer compiles while the stepping loop does
+            # (a speculating loop holds up to 1 + PAST_SLOTS candidates a path for the end)
+            self.refiner().prefetch(count * (1 + PAST_SLOTS if past else 1), X0.shape[0])
         while True:
             n_slip = np.count_nonzero(ks == SLIPPING)
             if n_slip == 0:
                 if pending:
                     self._settle(pending, t_stick, stick_state, miss_end)
                 break
-            stop_at = _smaller_buffer(size)
-            past = refine and size <= SPECULATE_BELOW
-            out = (self.advance_past if past and PAST_SLOTS else advance)(
+            stop_at = _smaller_buffer(want)
+            args = (
                 X_dev, X_prev_dev, ks, miss_dev, p, offset, horizon, self.dt_arr, keys["step"],
-                keys["bridge"], np.asarray(stop_at), tol, paths=size,
+                keys["bridge"], np.asarray(stop_at), tol,
             )  # fmt: skip
+            start = time.perf_counter()
+            out = (self.advance_past if past else self.advance)(*args, paths=size)
+            if size > want:  # the rent of the size wanted (`_compile.rent`)
+                wasted = (time.perf_counter() - start) * (1.0 - want / size)
+                _compile.rent(self._want_key(want), wasted)
             # The states stay where the loop left them for its next call (read here through
             # zero-copy views; copying them in and out cost ~3 ms a call at 131072 paths).
             X_dev, X_prev_dev, miss_dev = out[0], out[1], out[3]
@@ -854,9 +854,13 @@ class _Run:
             alive = np.nonzero(ks == SLIPPING)[0]
             if self.bar is not None:
                 self.bar.update(n_slip - alive.size)
-            if alive.size and size > MIN_BUFFER and alive.size <= _smaller_buffer(size):
+            if alive.size and want > MIN_BUFFER and alive.size <= _smaller_buffer(want):
+                want = _buffer_size(alive.size)
+                new_size, past = self._stand_in(want, size, past, args)
+                if new_size == size:
+                    continue
                 # Re-pack the survivors into a smaller buffer: finished paths cost nothing.
-                size = _buffer_size(alive.size)
+                size = new_size
                 pad = size - alive.size
                 # Every path left slips, and the loop's first step sets a slipping path's
                 # `X_prev` (the start of its last step) before anything reads it: the repacked
@@ -871,6 +875,40 @@ class _Run:
         imm = immediate[:count]
         t_stick[imm] = 0.0
         return X0[:, :count], stick_state, t_stick, located, miss_end[:count], x_start[:count]
+
+    def _speculates(self, size: int) -> bool:
+        """Whether a buffer of `size` paths steps past candidates (`advance_past`)."""
+        return bool(PAST_SLOTS) and self.cfg.detect == "bridge" and size <= SPECULATE_BELOW
+
+    def _want_key(self, size: int):
+        """The rent key (`_compile.rent`) of the stepping loop wanted for `size` paths."""
+        loop = self.advance_past if self._speculates(size) else self.advance
+        return (loop.key, size)
+
+    def _stand_in(self, want, size, past, args):
+        """The buffer size (and whether it speculates) that `want` paths run on, at most
+        `size` (the current one, whose loop `past` is at hand): `want` itself where its loop
+        is compiled (in memory or on disk), under the `"eager"` policy, or once its rent has
+        passed a compilation's cost (`_compile.rent`); otherwise the smallest size between
+        them whose loop is compiled (the background compiler is asked for `want`'s). `args`:
+        the loop's last arguments, on `size` paths."""
+        policy = _compile.policy()
+        candidate = want
+        while candidate < size:
+            stand_in = _compile.resized(args, size, candidate)
+            options = (True, False) if self._speculates(candidate) else (False,)
+            for spec in options:
+                loop = self.advance_past if spec else self.advance
+                if loop.ready(*stand_in, paths=candidate):
+                    return candidate, spec
+            if candidate == want:
+                spec = self._speculates(want)
+                if policy == "eager" or _compile.due(self._want_key(want)):
+                    return want, spec  # compiled at its first call
+                loop = self.advance_past if spec else self.advance
+                _background.request(loop.fn, *loop.fixed, *stand_in, paths=want)
+            candidate = _larger_buffer(candidate)
+        return size, past
 
     def _settle(self, pending, t_stick, stick_state, miss_end):
         """Refine the candidate steps that `_chunk` stepped past (`pending`: per stepping
@@ -913,19 +951,23 @@ class _Run:
         if n == 0:
             return np.zeros(0, bool), np.zeros(0), np.zeros((X.shape[0], 0)), np.zeros(0)
         self.stats["candidates"] += n
-        if self._refiner is None:
-            self._refiner = bridge.Refiner(
-                self.solver.bridge, self.model.stick_level, self.keys["tree"], self.depths,
-                self.tol, self.timer,
-            )  # fmt: skip
         if cand[-1] - cand[0] + 1 == n:  # a range (a buffer's onset steps): slices, no gathers
             cand = slice(cand[0], cand[-1] + 1)
-        found, frac, state, add, unresolved, splits = self._refiner.first_crossing(
+        found, frac, state, add, unresolved, splits = self.refiner().first_crossing(
             _cols(X_prev, cand), _cols(X, cand), p[cand], ks[cand].astype(np.uint32)
         )
         self.stats["unresolved"] += int(np.sum(unresolved))
         self.stats["refined_nodes"] += int(splits)
         return found, frac, state, add
+
+    def refiner(self) -> bridge.Refiner:
+        """The run's exact refinement (bridge detector), made on first use."""
+        if self._refiner is None:
+            self._refiner = bridge.Refiner(
+                self.solver.bridge, self.model.stick_level, self.keys["tree"], self.depths,
+                self.tol, self.timer,
+            )  # fmt: skip
+        return self._refiner
 
     def _locate_chunk(self, X_end, X_prev_end, k_end, path, count, t_stick, stick_state, located):
         """Locate each stick inside its step (all detectors but the bridge), in batches that

@@ -26,9 +26,15 @@ def run(study, out, overrides, force, no_figures, quiet, dask):
     from .._output import check_output_dir
     from ..study import load_study, run_study
 
-    if dask is not None:  # a bad study or --out is reported before any cluster starts
-        load_study(study, list(overrides))
-        check_output_dir(out, inputs=[study], force=force)
+    # A bad study or --out is reported before anything else (a cluster, the note below).
+    load_study(study, list(overrides))
+    check_output_dir(out, inputs=[study], force=force)
+    if not quiet:
+        from .._compile import cold_note
+
+        note = cold_note()
+        if note:
+            click.echo(note, err=True)
     with dask_client(dask) as client:
         run_study(
             study,

@@ -1,0 +1,155 @@
+"""The first run on a fresh machine (issue 43): stand-in buffer sizes instead of one
+compilation per size, the background compiler, the rent rule, and the same numbers under
+every policy (`stickslip._compile.policy`)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import stickslip as ss
+from stickslip import _background, _compile
+
+PUBLIC = dict(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0)
+OUTPUTS = ("slip_time", "stick_time", "slip_distance", "stick_position", "next_onset_state")
+
+SCRIPT = """
+import json, sys
+import numpy as np
+import stickslip as ss
+params = dict(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0)
+if float(sys.argv[3]) > 0:
+    params["tau"] = float(sys.argv[3])
+m = ss.get_model("langevin")(**params)
+e = ss.simulate(m, int(sys.argv[1]), float(sys.argv[2]), 50.0, seed=3)
+out = {k: np.nan_to_num(getattr(e, k)).ravel().tolist() for k in OUTPUTS}
+print(json.dumps({"info": ss.cache_info(), "out": out}))
+""".replace("OUTPUTS", repr(OUTPUTS))
+
+
+def _process(cache_dir, n, dt, tau, policy):
+    env = dict(os.environ, STICKSLIP_CACHE_DIR=str(cache_dir), STICKSLIP_COMPILE=policy)
+    done = subprocess.run(
+        [sys.executable, "-c", SCRIPT, str(n), str(dt), str(tau)], env=env,
+        capture_output=True, text=True, check=True, timeout=600,
+    )  # fmt: skip
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+@pytest.fixture
+def empty_cache(tmp_path):
+    """An empty compiled-code cache for this process (as on a fresh machine), restored
+    after the test."""
+    import jax
+
+    before = jax.config.jax_compilation_cache_dir
+    _compile.clear_caches()
+    jax.config.update("jax_compilation_cache_dir", str(tmp_path))
+    try:
+        yield tmp_path
+    finally:
+        jax.config.update("jax_compilation_cache_dir", before)
+        _compile.clear_caches()
+
+
+@pytest.mark.parametrize(
+    "monitor", ["continuous", pytest.param("grid", marks=pytest.mark.slow)], ids=["exact", "grid"]
+)
+def test_stand_in_sizes_give_the_numbers_of_every_size_compiled(empty_cache, monkeypatch, monitor):
+    """From an empty cache, the `"reuse"` policy runs the survivors on the buffers it has
+    (the first size, padded) and compiles a few programs; `"eager"` then compiles every
+    buffer size the run passes through: the same numbers to the last bit (they are keyed by
+    path and step, not by buffer). The exact detector (refinement, speculation at small
+    buffers) and the grid monitor (sticks located after the stepping)."""
+    model = ss.get_model("langevin")(**PUBLIC, tau=0.1)
+    monkeypatch.setenv("STICKSLIP_COMPILE", "reuse")
+    before = ss.cache_info()["compiles"]
+    reuse = ss.simulate(model, 3000, 0.2, 30.0, seed=5, monitor=monitor)
+    # the model's description, the per-path helpers, the loop, the refinement or locator
+    assert ss.cache_info()["compiles"] - before <= 4
+    _compile.clear_caches()
+    monkeypatch.setenv("STICKSLIP_COMPILE", "eager")
+    before = ss.cache_info()["compiles"]
+    eager = ss.simulate(model, 3000, 0.2, 30.0, seed=5, monitor=monitor)
+    assert ss.cache_info()["compiles"] > before  # sizes the reuse run never compiled
+    for name in OUTPUTS:
+        np.testing.assert_array_equal(getattr(reuse, name), getattr(eager, name), err_msg=name)
+    assert reuse.stats["miss_bound"] == pytest.approx(eager.stats["miss_bound"], rel=1e-12)
+
+
+def test_the_background_compiler_makes_what_the_eager_run_needs(tmp_path):
+    """A first run under the default policy asks the background compiler for the sizes it
+    stood in for; once it is done, a run that wants every size (`"eager"`) finds them all
+    compiled, and gets the first run's numbers."""
+    first = _process(tmp_path, 3000, 0.2, 0.1, "background")
+    assert first["info"]["background"] > 0
+    assert _background.wait(tmp_path, timeout=300)
+    again = _process(tmp_path, 3000, 0.2, 0.1, "eager")
+    assert again["info"]["compiles"] == 0 and again["info"]["traces"] == 0, again["info"]
+    assert again["out"] == first["out"]
+
+
+def test_a_bad_policy_is_one_line(monkeypatch):
+    monkeypatch.setenv("STICKSLIP_COMPILE", "fastest")
+    model = ss.get_model("langevin")(**PUBLIC)
+    with pytest.raises(ss.ParameterError, match="STICKSLIP_COMPILE.*background, reuse, eager"):
+        ss.simulate(model, 10, 0.4, 5.0)
+
+
+def test_cache_info_reports_compile_seconds():
+    before = ss.cache_info()
+    for key in ("trace_seconds", "compile_seconds", "load_seconds", "background"):
+        assert before[key] >= 0
+    model = ss.get_model("langevin")(**PUBLIC, tau=0.1)
+    ss.simulate(model, 100, 0.4, 5.0)
+    after = ss.cache_info()
+    if after["compiles"] > before["compiles"]:
+        assert after["compile_seconds"] > before["compile_seconds"]
+
+
+def test_rent_compiles_once_the_waste_passes_a_compilation(monkeypatch):
+    """The ski-rental rule: a program's rent is the time wasted on larger stand-ins; it is
+    due once it passes what a compilation costs here."""
+    monkeypatch.setattr(_compile, "_rent", {})
+    monkeypatch.setattr(_compile, "compile_estimate", lambda: 1.0)
+    assert not _compile.rent("loop", 0.6)
+    assert not _compile.due("loop")
+    assert _compile.rent("loop", 0.5) and _compile.due("loop")
+    assert not _compile.due("other")
+
+
+def test_the_cold_note_says_when_the_cache_is_empty(empty_cache):
+    assert "first run" in _compile.cold_note()
+    ss.simulate(ss.get_model("langevin")(**PUBLIC), 100, 0.4, 5.0)
+    assert _compile.cold_note() is None
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("tau", [0.1, 0.0], ids=["ou-exact", "white-brownian"])
+def test_the_public_set_cold_and_warm_gives_one_ensemble(tmp_path, tau):
+    """The README's first call (10^5 paths of the public set at dt 0.8) from an empty cache:
+    at most 4 compilations (OU noise); after the background compiler, the run on every
+    exact size gives the same ensemble to the last bit."""
+    first = _process(tmp_path, 100_000, 0.8, tau, "background")
+    if tau:
+        assert first["info"]["compiles"] <= 4
+    assert _background.wait(tmp_path, timeout=600)
+    again = _process(tmp_path, 100_000, 0.8, tau, "eager")
+    assert again["info"]["compiles"] == 0
+    assert again["out"] == first["out"]
+
+
+@pytest.mark.slow
+def test_a_long_run_on_few_paths_compiles_its_small_sizes(empty_cache, monkeypatch):
+    """Many steps on a stand-in buffer pay its rent: the run compiles the smaller sizes it
+    wants after all (a first run must not stay slow where compiling pays)."""
+    monkeypatch.setenv("STICKSLIP_COMPILE", "reuse")
+    monkeypatch.setattr(_compile, "compile_estimate", lambda: 0.05)
+    model = ss.get_model("langevin")(**PUBLIC, tau=0.1)
+    ss.simulate(model, 20_000, 0.02, 40.0, seed=1)
+    assert ss.cache_info()["compiles"] > 4
