@@ -116,7 +116,7 @@ def test_rent_compiles_once_the_waste_passes_a_compilation(monkeypatch):
     """The ski-rental rule: a program's rent is the time wasted on larger stand-ins; it is
     due once it passes what a compilation costs here."""
     monkeypatch.setattr(_compile, "_rent", {})
-    monkeypatch.setattr(_compile, "compile_estimate", lambda: 1.0)
+    monkeypatch.setattr(_compile, "compile_estimate", lambda fn=None: 1.0)
     assert not _compile.rent("loop", 0.6)
     assert not _compile.due("loop")
     assert _compile.rent("loop", 0.5) and _compile.due("loop")
@@ -149,7 +149,7 @@ def test_a_long_run_on_few_paths_compiles_its_small_sizes(empty_cache, monkeypat
     """Many steps on a stand-in buffer pay its rent: the run compiles the smaller sizes it
     wants after all (a first run must not stay slow where compiling pays)."""
     monkeypatch.setenv("STICKSLIP_COMPILE", "reuse")
-    monkeypatch.setattr(_compile, "compile_estimate", lambda: 0.05)
+    monkeypatch.setattr(_compile, "compile_estimate", lambda fn=None: 0.05)
     model = ss.get_model("langevin")(**PUBLIC, tau=0.1)
     ss.simulate(model, 20_000, 0.02, 40.0, seed=1)
     assert ss.cache_info()["compiles"] > 4

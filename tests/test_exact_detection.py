@@ -435,10 +435,10 @@ def test_refinement_in_two_threads_is_the_one_thread_one(Langevin, monkeypatch):
     sizes = []
     call = bridge.Refiner._call
 
-    def spy_call(self, j, *a, sizes=sizes):
+    def spy_call(self, j, *a, sizes=sizes, **kw):
         if j == 0:
             sizes.append(a[-1])  # a batch's first call: its candidates
-        return call(self, j, *a)
+        return call(self, j, *a, **kw)
 
     monkeypatch.setattr(bridge.Refiner, "_call", spy_call)
     batched = original(refiner, *cands)

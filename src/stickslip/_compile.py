@@ -81,6 +81,7 @@ def clear_caches() -> None:
     _resident.clear()
     _keys.clear()
     _rent.clear()
+    _compiled_seconds.clear()
     jax.clear_caches()
 
 
@@ -262,6 +263,14 @@ class Fixed:
         compiled, flat = entry
         return compiled(*self.leaves, *rest) if flat else compiled(*self.fixed, *rest)
 
+    def trace(self, *rest, paths: int) -> None:
+        """Trace the program for these shapes now (memory, disk, or a new trace), compiling
+        nothing: a caller that wants other work (a thread's) to start after the tracing,
+        which holds Python's lock, and overlap the compilation, which does not."""
+        dynamic, static = eqx.partition((*self.fixed, *rest), eqx.is_array)
+        leaves, treedef = jax.tree_util.tree_flatten(dynamic)
+        _export(self.fn, leaves, treedef, static, paths)
+
     def ready(self, *rest, paths: int) -> bool:
         """Whether a call on these shapes (`rest`: arrays, or `resized` stand-ins) runs
         without tracing or compiling: its executable is in memory or on disk (then loaded)."""
@@ -293,22 +302,41 @@ _rent: dict = {}
 _rent_lock = threading.Lock()
 
 
-def compile_estimate() -> float:
-    """Seconds a compilation takes here: the mean of this process's, else `COMPILE_SECONDS`."""
-    n = stats["compiles"]
-    return seconds["compile_seconds"] / n if n else COMPILE_SECONDS
+_compiled_seconds: dict = {}  # function -> (seconds, compilations) in this process
+
+
+def compile_estimate(fn=None) -> float:
+    """Seconds a compilation of `fn` takes here: the mean of this process's compilations of
+    it, else `COMPILE_SECONDS`."""
+    total, count = _compiled_seconds.get(fn, (0.0, 0))
+    return total / count if count else COMPILE_SECONDS
+
+
+def _key_fn(key):
+    """The function of a rent key: `(Fixed key, size)` or `(fn, ...)`."""
+    head = key[0] if isinstance(key, tuple) and key else key
+    if isinstance(head, _Key):
+        head = head.key[0]
+    return head
 
 
 def rent(key, wasted: float) -> bool:
-    """Add `wasted` seconds to the rent of the program `key`; whether to compile it now."""
+    """Add `wasted` seconds to the rent of the program `key` (a tuple whose first item is
+    its function or a `Fixed` key); whether to compile it now."""
     with _rent_lock:
         total = _rent[key] = _rent.get(key, 0.0) + max(0.0, wasted)
-    return total >= compile_estimate()
+    return total >= compile_estimate(_key_fn(key))
 
 
 def due(key) -> bool:
     """Whether the rent of the program `key` has passed a compilation's cost."""
-    return _rent.get(key, 0.0) >= compile_estimate()
+    return _rent.get(key, 0.0) >= compile_estimate(_key_fn(key))
+
+
+def _count_compile(fn, elapsed: float) -> None:
+    seconds["compile_seconds"] += elapsed
+    total, count = _compiled_seconds.get(fn, (0.0, 0))
+    _compiled_seconds[fn] = (total + elapsed, count + 1)
 
 
 def remembered(key):
@@ -364,7 +392,7 @@ def _compile(fn, args, leaves, treedef, static, paths, build=True):
                         hits = _cache_hits[0]
                         start = time.perf_counter()
                         compiled = _fresh(jax.jit(exported.call).lower(*leaves))
-                        seconds["compile_seconds"] += time.perf_counter() - start
+                        _count_compile(fn, time.perf_counter() - start)
                         # An executable that JAX itself loaded from its persistent cache
                         # cannot be serialised again (XLA's CPU runtime then loses its
                         # functions: "Function ... not found" when the copy runs); only
@@ -381,7 +409,7 @@ def _compile(fn, args, leaves, treedef, static, paths, build=True):
     start = time.perf_counter()
     jitted = fn if hasattr(fn, "lower") else eqx.filter_jit(fn)
     compiled = jitted.lower(*args).compile()
-    seconds["compile_seconds"] += time.perf_counter() - start
+    _count_compile(fn, time.perf_counter() - start)
     return compiled, False
 
 

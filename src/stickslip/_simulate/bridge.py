@@ -326,6 +326,11 @@ CAPACITIES = (256, 1024, 4096, 8192, 16384, 24576, 32768)
 # levels (measured at dt = 1.6 on the public set), so a batch fits the largest buffer.
 BATCH = 26000
 HEADROOM = 1.25  # a buffer is chosen for this many times its open intervals
+# A first run's refinement buffer (`Refiner.prefetch`): later rounds refine a few candidates
+# each, and every pass costs its whole buffer (on 32768 a first run's 33 small refinements
+# took 0.84 s, 25 ms each, where 256 takes 1.4 ms); on this one they cost ~3 ms, and the
+# large first round runs in batches of its size.
+COLD_CAPACITY = 4096
 
 
 def _refine_levels(
@@ -553,9 +558,10 @@ class Refiner:
         self._lock = threading.Lock()
         self._prefetch = None  # the thread compiling the first buffer (`prefetch`)
 
-    def prefetch(self, n: int, d: int) -> None:
+    def prefetch(self, n: int, d: int, exact: bool = True) -> None:
         """Start compiling, in a thread, the buffer that the first refinement of `n`
-        candidates at most will want (cut into batches), unless it is compiled already.
+        candidates at most will want (cut into batches; `exact`: about `n`, else a loose
+        bound), unless it is compiled already.
         A first run then compiles it while the stepping loop is compiled and runs (XLA
         compiles without Python's lock): on 2 cores the two compilations overlap. Nothing
         changes but when it is compiled."""
@@ -565,6 +571,10 @@ class Refiner:
         C = _capacity(min(BATCH, -(-n // parts)))
         if self._ready(C, d):
             return
+        if _compile.policy() != "eager":
+            C = min(C, COLD_CAPACITY)
+        elif not exact:
+            return  # (a loose bound: an eager run compiles what it meets)
 
         def build():
             with contextlib.suppress(Exception):  # (the call compiles it then, and says why)
@@ -608,6 +618,21 @@ class Refiner:
                     _background.request(_refine_levels, *self._stand_ins(want, d), paths=want)
                 return C
         return want
+
+    def _batch(self, n: int, d: int) -> int:
+        """Candidates refined together out of `n`: `BATCH`, sized for the largest buffer,
+        unless the buffer `n` candidates want is not compiled (`_choose`) while a smaller
+        one is: then as many as that one holds (the same refinements, each candidate's own;
+        the wanted buffer is asked of the background compiler)."""
+        self._joined()
+        want = _capacity(min(BATCH, n))
+        if want in self.sizes or _compile.policy() == "eager" or _compile.due(self._key(want)):
+            return BATCH
+        smaller = [C for C in sorted(self.sizes) if C < want]
+        if not smaller or self._ready(want, d):
+            return BATCH
+        _background.request(_refine_levels, *self._stand_ins(want, d), paths=want)
+        return max(1, smaller[-1] * BATCH // CAPACITIES[-1])
 
     def _key(self, C: int):
         return (_refine_levels, self.layout, C)
@@ -721,7 +746,7 @@ class Refiner:
         found, frac, state, unresolved, miss = into
         splits = 0
         d = Xa.shape[0]
-        cuts = _batch_cuts(lo, hi, BATCH)
+        cuts = _batch_cuts(lo, hi, self._batch(hi - lo, d))
         for first, last in zip(cuts[:-1], cuts[1:], strict=True):
             who = np.arange(first, last)  # the candidate of each owner
             m = who.size

@@ -777,9 +777,7 @@ class _Run:
         # `want`: the buffer size the paths left call for; `size`: the one they run on, larger
         # where `want` has no executable yet (`_stand_in`; the same numbers either way).
         want, past = size, self._speculates(size)
-        if refine:  # the refinement's first buffer compiles while the stepping loop does
-            # (a speculating loop holds up to 1 + PAST_SLOTS candidates a path for the end)
-            self.refiner().prefetch(count * (1 + PAST_SLOTS if past else 1), X0.shape[0])
+        first = True
         while True:
             n_slip = np.count_nonzero(ks == SLIPPING)
             if n_slip == 0:
@@ -791,8 +789,19 @@ class _Run:
                 X_dev, X_prev_dev, ks, miss_dev, p, offset, horizon, self.dt_arr, keys["step"],
                 keys["bridge"], np.asarray(stop_at), tol,
             )  # fmt: skip
+            loop = self._loop(past)
+            if first and refine:
+                # The refinement's first buffer compiles in a thread while the stepping loop
+                # compiles: started once the loop is traced (tracing holds Python's lock,
+                # XLA's compiling does not). A speculating loop holds up to 1 + PAST_SLOTS
+                # candidates a path for the end.
+                loop.trace(*args, paths=size)
+                self.refiner().prefetch(
+                    count * (1 + PAST_SLOTS if past else 1), X0.shape[0], exact=not past
+                )
+            first = False
             start = time.perf_counter()
-            out = (self.advance_past if past else self.advance)(*args, paths=size)
+            out = loop(*args, paths=size)
             if size > want:  # the rent of the size wanted (`_compile.rent`)
                 wasted = (time.perf_counter() - start) * (1.0 - want / size)
                 _compile.rent(self._want_key(want), wasted)
@@ -877,13 +886,17 @@ class _Run:
         return X0[:, :count], stick_state, t_stick, located, miss_end[:count], x_start[:count]
 
     def _speculates(self, size: int) -> bool:
-        """Whether a buffer of `size` paths steps past candidates (`advance_past`)."""
-        return bool(PAST_SLOTS) and self.cfg.detect == "bridge" and size <= SPECULATE_BELOW
+        """Whether a buffer of `size` paths steps past candidates (leaves them for the end;
+        the loop itself steps past up to `PAST_SLOTS`, `_loop`)."""
+        return self.cfg.detect == "bridge" and size <= SPECULATE_BELOW
+
+    def _loop(self, past: bool) -> _compile.Fixed:
+        """The stepping loop of a buffer that steps past candidates (`past`) or not."""
+        return self.advance_past if past and PAST_SLOTS else self.advance
 
     def _want_key(self, size: int):
         """The rent key (`_compile.rent`) of the stepping loop wanted for `size` paths."""
-        loop = self.advance_past if self._speculates(size) else self.advance
-        return (loop.key, size)
+        return (self._loop(self._speculates(size)).key, size)
 
     def _stand_in(self, want, size, past, args):
         """The buffer size (and whether it speculates) that `want` paths run on, at most
@@ -898,14 +911,13 @@ class _Run:
             stand_in = _compile.resized(args, size, candidate)
             options = (True, False) if self._speculates(candidate) else (False,)
             for spec in options:
-                loop = self.advance_past if spec else self.advance
-                if loop.ready(*stand_in, paths=candidate):
+                if self._loop(spec).ready(*stand_in, paths=candidate):
                     return candidate, spec
             if candidate == want:
                 spec = self._speculates(want)
                 if policy == "eager" or _compile.due(self._want_key(want)):
                     return want, spec  # compiled at its first call
-                loop = self.advance_past if spec else self.advance
+                loop = self._loop(spec)
                 _background.request(loop.fn, *loop.fixed, *stand_in, paths=want)
             candidate = _larger_buffer(candidate)
         return size, past

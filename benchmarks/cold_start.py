@@ -1,0 +1,95 @@
+"""The first call on a fresh machine: a new process, an empty compiled-code cache.
+
+    python benchmarks/cold_start.py [--runs 3] [--n-paths 100000] [--dt 0.8]
+
+Each run makes a new, empty `STICKSLIP_CACHE_DIR` and times, as whole processes (start-up,
+imports and exit included), `import stickslip` + `simulate` of the public set (OU friction
+noise, the exact detector):
+
+- `cold`: the first process under the default policy (`"background"`): it compiles what
+  nothing can stand in for and leaves the other buffer sizes to the background compiler;
+- `background`: the background compiler's own time until its queue is empty (it runs
+  after the first process, niced; nobody waits for it);
+- `warm`: a second process once it is done (everything loads from disk);
+- `eager cold`: a first process under `"eager"` in another empty cache (one compilation per
+  buffer size: the behaviour before stand-in sizes), the same numbers to the last bit.
+
+Prints the median and the spread of each, the compilations and traces of the first process
+(`cache_info()`), and checks that the four processes' ensembles are identical.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+SCRIPT = """
+import json, sys, time
+t0 = time.perf_counter()
+import numpy as np
+import stickslip as ss
+m = ss.get_model("langevin")(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=0.1)
+e = ss.simulate(m, int(sys.argv[1]), float(sys.argv[2]), 50.0, seed=1, progress=False)
+info = ss.cache_info()
+digest = __import__("hashlib").sha256(np.nan_to_num(np.stack(
+    [e.slip_time, e.stick_time, e.slip_distance])).tobytes()).hexdigest()
+print(json.dumps(dict(info=info, digest=digest, inside=time.perf_counter() - t0)))
+"""
+
+
+def process(cache, policy, n, dt):
+    env = dict(os.environ, STICKSLIP_CACHE_DIR=cache, STICKSLIP_COMPILE=policy)
+    start = time.perf_counter()
+    out = subprocess.run(
+        [sys.executable, "-c", SCRIPT, str(n), str(dt)], env=env, capture_output=True,
+        text=True, check=True,
+    )  # fmt: skip
+    wall = time.perf_counter() - start
+    return wall, json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--n-paths", type=int, default=100_000)
+    parser.add_argument("--dt", type=float, default=0.8)
+    args = parser.parse_args(argv)
+    from stickslip import _background
+
+    rows = {"cold": [], "background": [], "warm": [], "eager cold": []}
+    digests, infos = set(), []
+    for _ in range(args.runs):
+        with tempfile.TemporaryDirectory() as cache, tempfile.TemporaryDirectory() as other:
+            wall, got = process(cache, "background", args.n_paths, args.dt)
+            rows["cold"].append(wall)
+            infos.append(got["info"])
+            digests.add(got["digest"])
+            start = time.perf_counter()
+            _background.wait(cache, timeout=1800)
+            rows["background"].append(time.perf_counter() - start)
+            wall, got = process(cache, "background", args.n_paths, args.dt)
+            rows["warm"].append(wall)
+            digests.add(got["digest"])
+            wall, got = process(other, "eager", args.n_paths, args.dt)
+            rows["eager cold"].append(wall)
+            digests.add(got["digest"])
+    print(f"{args.n_paths} paths of the public set at dt = {args.dt}; {args.runs} runs, each "
+          "from an empty cache (whole processes, seconds)")  # fmt: skip
+    for name, values in rows.items():
+        values = sorted(values)
+        print(f"  {name:11s} median {values[len(values) // 2]:6.2f}  "
+              f"(min {values[0]:.2f}, max {values[-1]:.2f})")  # fmt: skip
+    first = infos[0]
+    print(f"  first process: {first['compiles']} compilations, {first['traces']} traces, "
+          f"{first['compile_seconds']:.2f} s compiling, {first['trace_seconds']:.2f} s tracing, "
+          f"{first['background']} executables left to the background compiler")  # fmt: skip
+    print(f"  the same ensemble in every process: {len(digests) == 1}")
+
+
+if __name__ == "__main__":
+    main()
