@@ -8,16 +8,18 @@ omega0 = 1, zeta = 0.1, x0 = 1, v_b = 1, D = 0.4, tau = 0.1) run through success
 (a tenth of the slip time scale) with Gaussian measurement noise of sd `--noise`. Then, as a
 user with a real trace would:
 
-1. `trace.csv` (columns t, x, trace) -> `extract_cycles` per trace -> `cycles.csv`
-   (the command line does the same: `stickslip cycles trace.csv --v-b 1 --out cycles.csv`
-   for a single trace);
-2. a study with a fit block (`fit_study.yaml`: D and tau free, the other parameters known,
-   `trace: true` because the cycles come from a trace) run by `run_fit`, which is what
-   `stickslip fit fit_study.yaml --out fit` does: `fit/fit.json`, `fit/fit.png`,
-   `fit/summary.md`;
+1. `trace.csv` (columns t, x, trace) -> `extract_cycles` per trace -> `cycles.csv`, written
+   by `Cycles.to_csv` with the extraction's settings in its `# stickslip cycles` header (the
+   command line does the same: `stickslip cycles trace.csv --v-b 1 --out cycles.csv` for a
+   single trace);
+2. a study with a fit block (`fit_study.yaml`: D and tau free, the other parameters known)
+   run by `run_fit`, which is what `stickslip fit fit_study.yaml --out fit` does: the
+   cycles file carries its measurement, so the model is simulated as a trace, sampled,
+   made noisy and extracted alike (`fit/fit.json`, `fit/fit.png`, `fit/summary.md`, with
+   the goodness-of-fit p-values and whether the data reject the model);
 3. the estimates printed beside the truth.
 
-At the defaults: about 1000 cycles, a minute or two on 2 cores.
+At the defaults: about 1000 cycles, a few minutes on 2 cores.
 """
 
 from __future__ import annotations
@@ -63,7 +65,7 @@ def main(argv=None):
     parser.add_argument("--paths", type=int, default=8)
     parser.add_argument("--t-max", type=float, default=800.0)
     parser.add_argument("--noise", type=float, default=1e-3)
-    parser.add_argument("--n-sim", type=int, default=100_000)
+    parser.add_argument("--n-sim", type=int, default=None, help="default: fit's (4000)")
     parser.add_argument("--seed", type=int, default=11)
     args = parser.parse_args(argv)
     out = pathlib.Path(args.out)
@@ -85,15 +87,12 @@ def main(argv=None):
         delimiter=",", header="t,x,trace", comments="", fmt="%.10g",
     )  # fmt: skip
 
-    # 1. trace -> cycles
-    tables = [ss.extract_cycles(t, x, v_b=PARAMS["v_b"]).table for t, x in traces]
-    cycles = {k: np.concatenate([tb[k] for tb in tables]) for k in tables[0]}
-    columns = list(cycles)
-    np.savetxt(
-        out / "cycles.csv", np.column_stack([cycles[k] for k in columns]), delimiter=",",
-        header=",".join(columns), comments="", fmt="%.10g",
-    )  # fmt: skip
-    print(f"{cycles['slip_time'].size} cycles from {args.paths} traces of {args.t_max:g}")
+    # 1. trace -> cycles (one table; the settings of the first trace's extraction, which
+    # the others share: the same sampling, noise level and rules)
+    found = [ss.extract_cycles(t, x, v_b=PARAMS["v_b"]) for t, x in traces]
+    table = {k: np.concatenate([c.table[k] for c in found]) for k in found[0].table}
+    ss.Cycles(table, found[0].info).to_csv(out / "cycles.csv")
+    print(f"{table['slip_time'].size} cycles from {args.paths} traces of {args.t_max:g}")
 
     # 2. cycles -> fit (a study file, as `stickslip fit` runs it)
     known = {k: v for k, v in PARAMS.items() if k not in ("D", "tau")}
@@ -105,11 +104,12 @@ def main(argv=None):
         "simulation": None,
         "analytic": [{"method": "decoupling", "order": 1}],
         "fit": {
-            "data": "cycles.csv", "columns": ["slip_time", "stick_time"], "trace": True,
-            "sampling": SAMPLE,
-            "free": {"D": [0.05, 2.0], "tau": [0.01, 1.0]}, "n_sim": args.n_sim, "seed": 0,
+            "data": "cycles.csv", "columns": ["slip_time", "stick_time"],
+            "free": {"D": [0.05, 2.0], "tau": [0.01, 1.0]}, "seed": 0,
         },
     }  # fmt: skip
+    if args.n_sim is not None:
+        study["fit"]["n_sim"] = args.n_sim
     (out / "fit_study.yaml").write_text(yaml.safe_dump(study, sort_keys=False))
     result = run_fit(out / "fit_study.yaml", out / "fit", force=True)
 

@@ -165,11 +165,11 @@ def test_row_over_time_benchmark_runs(tmp_path):
 
 @pytest.mark.slow
 def test_fit_trace_example(tmp_path):
-    """Reduced: 2 traces of 300 time units, 1e4 simulated cycles per point: the pipeline
+    """Reduced: 2 traces of 300 time units, 2000 simulated cycles per point: the pipeline
     trace -> cycles -> fit -> figure runs and writes every file."""
     run = subprocess.run(
         [sys.executable, str(ROOT / "examples" / "fit_trace.py"), "--out", str(tmp_path),
-         "--paths", "2", "--t-max", "300", "--n-sim", "10000"],
+         "--paths", "2", "--t-max", "300", "--n-sim", "2000"],
         capture_output=True, text=True,
     )  # fmt: skip
     assert run.returncode == 0, run.stderr

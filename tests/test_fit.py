@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import stickslip as ss
-from stickslip._fit import _simulate, visible_cycles
+from stickslip._inference.forward import _simulate
 
 BASE = dict(omega0=1.0, zeta=0.1, v_b=1.0, x0=1.0)
 TRUTH = dict(D=0.4, tau=0.1)
@@ -26,38 +26,6 @@ def slip_times(n, seed, **params):
     return sim["slip_time"][:n]
 
 
-def visible_by_loop(slip, stick):
-    """An independent, phase-by-phase statement of what a trace shows (`visible_cycles`)."""
-    phases = []  # [kind, duration] with adjacent kinds merged and zero lengths dropped
-    for s, k in zip(slip, stick, strict=True):
-        for kind, d in ((0, s), (1, k)):
-            if d == 0.0:
-                continue
-            if phases and phases[-1][0] == kind:
-                phases[-1][1] += d
-            else:
-                phases.append([kind, d])
-    if phases and phases[0][0] == 1:
-        phases = phases[1:]
-    cycles = [(phases[i][1], phases[i + 1][1]) for i in range(0, len(phases) - 1, 2)]
-    cycles = cycles[1:-1]
-    return [c for c in cycles if np.isfinite(c[0]) and np.isfinite(c[1])]
-
-
-def test_visible_cycles_join_zero_length_phases_as_a_trace_does():
-    rng = np.random.default_rng(3)
-    n = 400
-    slip = np.where(rng.random(n) < 0.15, 0.0, rng.exponential(2.0, n))
-    stick = np.where(rng.random(n) < 0.3, 0.0, rng.exponential(1.0, n))
-    slip[rng.random(n) < 0.02] = np.nan  # slips cut at t_max
-    got = visible_cycles(slip, stick)
-    want = visible_by_loop(slip, stick)
-    assert got["slip_time"].size == len(want) > 100
-    np.testing.assert_allclose(got["slip_time"], [c[0] for c in want], rtol=1e-12)
-    np.testing.assert_allclose(got["stick_time"], [c[1] for c in want], rtol=1e-12)
-    np.testing.assert_allclose(got["period"], got["slip_time"] + got["stick_time"])
-
-
 def test_one_free_parameter_is_recovered_within_three_standard_errors():
     """D free (tau fixed at the truth): 1500 slip times, 2e4 simulated cycles per point; the
     estimate within 3 of its standard errors (taken from its 95 % interval) of the truth.
@@ -65,7 +33,7 @@ def test_one_free_parameter_is_recovered_within_three_standard_errors():
     data = {"slip_time": slip_times(1500, seed=101)}
     r = ss.fit(
         "langevin", data, free={"D": (0.05, 2.0)}, fixed={**BASE, "tau": 0.1}, seed=7,
-        n_sim=20_000,
+        n_sim=20_000, check=False,
     )  # fmt: skip
     lo, hi = r.ci["D"]
     se = np.log(hi / lo) / (2 * 1.959964)  # the interval is Wald's in log D
@@ -94,12 +62,16 @@ def test_bad_input_is_one_line_naming_the_field(data, free, match):
     assert "\n" not in str(err.value) and str(err.value).startswith("fit: parameter")
 
 
-def test_slip_distances_of_a_trace_are_refused():
-    data = {"slip_time": np.ones(50), "slip_distance": np.ones(50)}
-    with pytest.raises(ss.ParameterError, match="cannot be fitted from a trace"):
-        ss.fit(
-            "langevin", data, {"D": (0.1, 1)}, fixed=BASE | {"tau": 0.1}, trace=True, sampling=0.1
-        )
+def test_the_deprecated_trace_arguments_say_what_to_pass_instead():
+    """`trace=`/`sampling=` are replaced by the `Cycles`' measurement: a dict cannot be
+    fitted as a trace any more (no extraction settings), and says so with the warning."""
+    data = {"slip_time": np.linspace(1.0, 2.0, 50)}
+    with (
+        pytest.warns(DeprecationWarning, match="pass the Cycles"),
+        pytest.raises(ss.ParameterError, match="'trace' cannot model a dict's measurement"),
+    ):
+        ss.fit("langevin", data, {"D": (0.1, 1)}, fixed=BASE | {"tau": 0.1}, trace=True,
+               sampling=0.1)  # fmt: skip
 
 
 def _study(tmp_path, csv_name="cycles.csv", free=None, **fit):
@@ -131,7 +103,16 @@ def test_fit_command_writes_estimates_intervals_and_figure(tmp_path):
     assert lo < record["estimate"]["D"] < hi
     assert record["fixed"]["tau"] == 0.1 and "D" not in record["fixed"]
     assert (out / "fit.png").stat().st_size > 1000
-    assert "| D |" in (out / "summary.md").read_text()
+    # the goodness of fit, the checks and the warnings (issue 40, item 7)
+    p = record["p_values"]["slip_time"]
+    assert 0 < p <= 1 and record["rejected"] is (p < 0.01)
+    assert record["measurement"] is None  # a plain table: per-cycle values
+    assert record["optimizer"]["cap"] > 0 and record["mc_noise"]["seed"] > 0
+    assert isinstance(record["warnings"], list)
+    summary = (out / "summary.md").read_text()
+    assert f"| D | {record['estimate']['D']:.4g} | [{lo:.4g}, {hi:.4g}] |" in summary
+    assert f"| slip_time | {p:.3g} |" in summary
+    assert ("The data reject the model" if p < 0.01 else "do not reject the model") in summary
 
 
 @pytest.mark.parametrize(
@@ -189,28 +170,10 @@ def test_intervals_cover_the_truth_over_20_data_sets():
         data = {"slip_time": slip_times(3000, seed=1000 + i)}
         r = ss.fit(
             "langevin", data, free={"D": (0.1, 1.0), "tau": (0.02, 0.5)}, fixed=BASE,
-            seed=2000 + i,
+            seed=2000 + i, check=False,
         )  # fmt: skip
         for k, truth in TRUTH.items():
             cover[k] += r.ci[k][0] <= truth <= r.ci[k][1]
     print(f"coverage over 20 data sets: {cover}")
     for k in TRUTH:
         assert 17 <= cover[k] <= 20, cover
-
-
-def test_a_trace_needs_its_sampling_interval():
-    with pytest.raises(ss.ParameterError, match="'sampling' is required with trace=True"):
-        ss.fit("langevin", {"slip_time": np.ones(50)}, {"D": (0.1, 1)}, BASE | {"tau": 0.1},
-               trace=True)  # fmt: skip
-
-
-def test_visible_cycles_drop_what_the_sampling_cannot_see():
-    """Phases no longer than the resolution join their neighbours (the loop statement with
-    those phases set to zero length)."""
-    rng = np.random.default_rng(5)
-    n = 300
-    slip, stick = rng.exponential(1.0, n), rng.exponential(0.5, n)
-    got = visible_cycles(slip, stick, min_slip=0.2, min_stick=0.3)
-    want = visible_by_loop(np.where(slip <= 0.2, 0.0, slip), np.where(stick <= 0.3, 0.0, stick))
-    np.testing.assert_allclose(got["slip_time"], [c[0] for c in want], rtol=1e-12)
-    np.testing.assert_allclose(got["stick_time"], [c[1] for c in want], rtol=1e-12)

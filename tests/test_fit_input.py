@@ -13,7 +13,8 @@ import yaml
 from click.testing import CliRunner
 
 import stickslip as ss
-from stickslip import _fit
+from stickslip._inference import data as fit_data
+from stickslip._inference import likelihood, params
 from stickslip.cli import main
 from stickslip.extract import Cycles
 from stickslip.study import fitting
@@ -30,7 +31,7 @@ def no_simulation(monkeypatch):
     def refuse(*args, **kwargs):
         raise AssertionError("fit simulated: the bad input was not refused up front")
 
-    monkeypatch.setattr(_fit, "_simulate", refuse)
+    monkeypatch.setattr(likelihood, "_simulate", refuse)
 
 
 def refused(cls, data, free=None, fixed=FIXED, **kwargs) -> str:
@@ -55,7 +56,7 @@ def test_constant_data_is_refused_with_the_evidence():
 
 def test_too_few_cycles_states_the_minimum():
     text = refused(ss.DataError, {"slip_time": GOOD[:9]})
-    assert "too few cycles" in text and "9 cycles" in text and f"{_fit.MIN_CYCLES}" in text
+    assert "too few cycles" in text and "9 cycles" in text and f"{fit_data.MIN_CYCLES}" in text
 
 
 def test_too_few_distinct_values():
@@ -69,7 +70,7 @@ def test_distinct_values_are_counted_to_nine_digits():
     x = 1.0 + 1e-12 * np.arange(50)
     assert "1 distinct value" in refused(ss.DataError, {"slip_time": x})
     y = 1.0 + 1e-6 * np.arange(50)
-    np.testing.assert_array_equal(_fit._check_data({"slip_time": y})["slip_time"], y)
+    np.testing.assert_array_equal(fit_data._check_data({"slip_time": y})["slip_time"], y)
 
 
 def test_a_stick_time_column_of_zeros_has_no_positive_values():
@@ -114,14 +115,17 @@ def test_slip_distances_too_large_to_take_a_spread_of():
     assert "slip_distance" in text and "overflow" in text
 
 
-def test_a_cycles_object_is_fitted_without_its_slip_distances():
-    """A trace's `Cycles` has a slip_distance column, which a trace cannot fit: it is left
-    out (here the constant slip times are what is refused, not the column)."""
-    table = {k: np.full(20, 2.0) for k in ("release_time", "slip_time", "slip_distance")}
-    table |= {"stick_time": GOOD[:20], "period": GOOD[:20] + 2.0}
-    cycles = Cycles(table, {"sampling_interval": 0.01})
-    text = refused(ss.DataError, cycles)
-    assert "'data['slip_time']' is constant" in text
+INFO = dict(input="x", sampling_interval=0.01, noise_sd=0.01, min_stick=2, tol_rule="given",
+            tol=0.05)  # fmt: skip
+
+
+def test_a_cycles_object_is_checked_as_its_columns_are_fitted():
+    """A `Cycles`' release times are not fitted (a constant column there is no matter); its
+    slip distances are, through the measurement: a constant one is refused."""
+    table = {k: np.full(20, 2.0) for k in ("release_time", "slip_distance")}
+    table |= {"slip_time": GOOD[:20], "stick_time": GOOD[:20], "period": 2 * GOOD[:20]}
+    text = refused(ss.DataError, Cycles(table, INFO))
+    assert "'data['slip_distance']' is constant" in text
 
 
 # -- arguments named as fit names them ---------------------------------------------------
@@ -133,8 +137,8 @@ def test_huge_n_sim_is_a_resource_error_with_the_figure():
 def test_memory_limit_boundary(monkeypatch):
     """The estimate is linear in n_sim: at the limit it passes (and the constant data are
     what is refused next), one cycle above it it is refused."""
-    per_cycle = _fit.SIM_BYTES_PER_STATE * 3  # langevin: x, v, eta
-    monkeypatch.setattr(_fit, "_memory_limit", lambda: 5000 * per_cycle)
+    per_cycle = params.SIM_BYTES_PER_STATE * 3  # langevin: x, v, eta
+    monkeypatch.setattr(params, "_memory_limit", lambda: 5000 * per_cycle)
     refused(ss.DataError, {"slip_time": np.ones(20)}, n_sim=5000)
     text = refused(ss.ResourceError, {"slip_time": np.ones(20)}, n_sim=5001)
     assert "take at most 5e+03" in text
@@ -164,17 +168,19 @@ def test_a_bad_fixed_value_names_it():
     assert err.value.parameter == "fixed['omega0']"
 
 
-def test_a_sampling_that_leaves_no_cycles_is_named():
+def test_cycles_without_their_extraction_settings_are_refused_naming_data():
+    """A `Cycles` from an older file (only its sampling interval) cannot have its
+    measurement modelled: refused up front, naming what it lacks."""
+    table = dict(release_time=np.cumsum(GOOD + 1.0), slip_time=GOOD + 0.5,
+                 slip_distance=GOOD, stick_time=GOOD + 0.5, period=2 * GOOD + 1.0)  # fmt: skip
     with pytest.raises(ss.ParameterError) as err:
-        ss.fit("langevin", {"slip_time": GOOD}, {"D": (0.1, 1.0)}, FIXED, trace=True, sampling=100)
-    assert err.value.parameter == "sampling" and "0 cycles" in str(err.value)
-    assert "5 x sampling = 500" in str(err.value)
+        ss.fit("langevin", Cycles(table, {"sampling_interval": 0.1}), {"D": (0.1, 1.0)}, FIXED)
+    assert err.value.parameter == "data" and "lacks input" in str(err.value)
 
 
 @pytest.mark.parametrize(
     "kwargs, parameter",
     [
-        (dict(sampling=0.1), "sampling"),  # without trace: would be ignored
         (dict(trace="yes", sampling=0.1), "trace"),
         (dict(dt="abc"), "dt"),
         (dict(t_max=-1.0), "t_max"),
@@ -294,7 +300,7 @@ def test_cli_non_finite_rows_are_reported_with_their_lines(tmp_path):
 
 def test_cli_a_byte_order_mark_reaches_the_fit(tmp_path, monkeypatch):
     """The marked file is read (the fit then refuses an n_sim past the memory limit)."""
-    monkeypatch.setattr(_fit, "_memory_limit", lambda: 2**30)
+    monkeypatch.setattr(params, "_memory_limit", lambda: 2**30)
     csv = write_csv(tmp_path / "cycles.csv", GOOD, prefix="\ufeff")
     study(tmp_path, n_sim=10**9)
     line = fit_command(tmp_path, csv)
@@ -315,11 +321,14 @@ def test_cli_a_bad_box_names_the_free_entry(tmp_path):
     assert "fit.free.tau:" in line and "tau must be > 0" in line
 
 
-def test_cli_a_coarse_sampling_names_sampling(tmp_path):
+def test_cli_trace_with_a_plain_table_names_trace(tmp_path):
+    """The deprecated `trace: true` on a table without the cycles header: its measurement
+    cannot be modelled, said at fit.trace."""
     csv = write_csv(tmp_path / "cycles.csv", GOOD)
-    study(tmp_path, trace=True, sampling=100.0)
-    line = fit_command(tmp_path, csv)
-    assert "fit.sampling:" in line and "fit.data" not in line
+    study(tmp_path, trace=True, sampling=0.1)
+    with pytest.warns(DeprecationWarning, match="trace and sampling are deprecated"):
+        line = fit_command(tmp_path, csv)
+    assert "fit.trace:" in line and "stickslip cycles" in line
 
 
 def test_cli_a_file_that_is_not_a_table_is_not_quoted(tmp_path):

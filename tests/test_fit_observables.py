@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import stickslip as ss
-from stickslip import _fit
-from stickslip._fit import _simulate
+from stickslip._inference import intervals, likelihood, surface
+from stickslip._inference.forward import _simulate
 from stickslip.extract import Cycles
 
 BASE = dict(omega0=1.0, zeta=0.1, v_b=1.0, x0=1.0)
@@ -31,16 +31,17 @@ def cycles():
 
 
 def fit_quietly(*args, **kwargs):
-    """`fit`, with its warnings caught (they are in `diagnostics["warnings"]` too)."""
+    """`fit`, with its warnings caught (they are in `diagnostics["warnings"]` too), without
+    its goodness-of-fit check (tests/test_goodness.py tests that)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return ss.fit(*args, **kwargs)
+        return ss.fit(*args, check=False, **kwargs)
 
 
 def log_se(ci) -> float:
     """The standard error on the log scale from a 95 % Wald interval in log coordinates."""
     lo, hi = ci
-    return math.log(hi / lo) / (2 * _fit.Z95)
+    return math.log(hi / lo) / (2 * intervals.Z95)
 
 
 # -- zero sticks: a point mass -----------------------------------------------------------
@@ -53,9 +54,9 @@ def test_a_zero_datum_contributes_the_log_of_the_simulated_zero_fraction():
     positive = rng.exponential(1.0, 700)
     sim = np.r_[np.zeros(300), positive]
     data = np.r_[0.0, 0.0, rng.exponential(1.0, 200)]
-    h = _fit._bandwidth(np.log(data[data > 0]), sim.size)
-    terms = _fit._log_density("stick_time", data, sim, h)
-    alone = _fit._log_density("stick_time", data, positive, h)
+    h = likelihood._bandwidth(np.log(data[data > 0]), sim.size)
+    terms = likelihood._log_density("stick_time", data, sim, h)
+    alone = likelihood._log_density("stick_time", data, positive, h)
     assert terms.shape == data.shape
     p0, p0_alone = 300.5 / 1001, 0.5 / 701
     np.testing.assert_allclose(terms[:2], math.log(p0), rtol=1e-12)
@@ -66,7 +67,9 @@ def test_a_zero_datum_contributes_the_log_of_the_simulated_zero_fraction():
     # the positive part is a density of the durations: it integrates to about one (less by
     # Jensen's inequality: it is the exponential of a smoothed log-density)
     grid = np.exp(np.linspace(-12, 4, 4001))
-    density = np.exp(_fit._log_density("stick_time", grid, positive, h) - math.log1p(-p0_alone))
+    density = np.exp(
+        likelihood._log_density("stick_time", grid, positive, h) - math.log1p(-p0_alone)
+    )
     mass = np.trapezoid(density * grid, np.log(grid))
     assert 0.9 < mass <= 1.0, mass
 
@@ -150,7 +153,7 @@ def test_the_sd_of_a_random_threshold_is_recovered():
     ],
 )
 def test_a_bad_nested_name_is_refused_up_front(monkeypatch, free, fixed, says):
-    monkeypatch.setattr(_fit, "_simulate", _no_simulation)
+    monkeypatch.setattr(likelihood, "_simulate", _no_simulation)
     x = np.random.default_rng(3).exponential(1.0, 60)
     with pytest.raises(ss.ParameterError, match=says) as err:
         ss.fit("random-threshold", {"slip_time": x}, free, fixed)
@@ -179,12 +182,12 @@ def test_the_cap_the_clipped_design_and_the_simulation_noise_are_said(small, mon
     """One fit: Nelder-Mead's cap set to 3 evaluations, a box whose edge lies 0.1 (one design
     step) from the truth, and the noise check's threshold set to 0: three one-line warnings,
     each in the diagnostics; the design's points lie inside the box."""
-    monkeypatch.setattr(_fit, "MAXFEV_PER_PARAMETER", 3)
-    monkeypatch.setattr(_fit, "MC_RATIO_WARN", 0.0)
+    monkeypatch.setattr(surface, "MAXFEV_PER_PARAMETER", 3)
+    monkeypatch.setattr(intervals, "MC_RATIO_WARN", 0.0)
     box = (0.4 * math.exp(-0.1), 2.0)
     with warnings.catch_warnings(record=True) as record:
         warnings.simplefilter("always")
-        r = ss.fit("langevin", small, {"D": box}, FIXED, seed=11, n_sim=5000)
+        r = ss.fit("langevin", small, {"D": box}, FIXED, seed=11, n_sim=5000, check=False)
     said = r.diagnostics["warnings"]
     for text in ("Nelder-Mead stopped on its cap of 3", "reaches past the box in D",
                  "take n_sim >="):  # fmt: skip
@@ -194,21 +197,21 @@ def test_the_cap_the_clipped_design_and_the_simulation_noise_are_said(small, mon
     D = np.array([p[0][0] for p in r.diagnostics["points"]])
     assert np.all(D >= box[0] * (1 - 1e-12)) and np.all(D <= box[1] * (1 + 1e-12))
     mc = r.diagnostics["mc_noise"]
-    want = max(5000, 5000 * (mc["ratio"]["D"] / _fit.MC_RATIO_GOAL) ** 2)
+    want = max(5000, 5000 * (mc["ratio"]["D"] / intervals.MC_RATIO_GOAL) ** 2)
     assert mc["n_sim_needed"] == int(float(f"{want:.2g}"))
 
 
 def test_a_rejected_surface_vertex_is_said(small, monkeypatch):
     """The polynomial's vertex rejected (forced here): the fit says so and falls back."""
-    real = _fit._polynomial_vertex
+    real = surface._polynomial_vertex
 
     def rejected(du, values, steps):
         return None, real(du, values, steps)[1]
 
-    monkeypatch.setattr(_fit, "_polynomial_vertex", rejected)
+    monkeypatch.setattr(surface, "_polynomial_vertex", rejected)
     with warnings.catch_warnings(record=True) as record:
         warnings.simplefilter("always")
-        r = ss.fit("langevin", small, {"D": (0.05, 2.0)}, FIXED, seed=12, n_sim=5000)
+        r = ss.fit("langevin", small, {"D": (0.05, 2.0)}, FIXED, seed=12, n_sim=5000, check=False)
     assert warned(record, "has no maximum within 2 design steps")
     assert r.diagnostics["design"]["vertex"] is False
     assert any("no maximum" in w for w in r.diagnostics["warnings"])
@@ -231,24 +234,32 @@ def first_simulation(monkeypatch):
     """Record the arguments of fit's first simulation, then stop the fit."""
     seen = {}
 
-    def stop(model, n, dt, t_max, seed, observe=None):
-        seen["observe"] = observe
+    def stop(model, n, dt, t_max, seed, measurement=None):
+        seen.update(measurement=measurement, n=n, dt=dt)
         raise Stop
 
-    monkeypatch.setattr(_fit, "_simulate", stop)
+    monkeypatch.setattr(likelihood, "_simulate", stop)
     return seen
 
 
 GOOD = np.random.default_rng(42).exponential(1.0, 300)
 
 
-def test_cycles_carry_their_sampling_interval(monkeypatch):
+def test_cycles_carry_their_measurement(monkeypatch):
+    """A `Cycles` is simulated through its measurement (read from its info: the x trace's
+    interval velocities' noise is sqrt(2) x the position noise over h), with the measured
+    default of n_sim and the measurement's own step; its release times are not fitted."""
     table = dict(release_time=np.cumsum(GOOD + 2.0), slip_time=GOOD + 1.0,
                  slip_distance=GOOD, stick_time=GOOD + 1.0, period=2 * GOOD + 2.0)  # fmt: skip
+    info = dict(input="x", sampling_interval=0.01, noise_sd=0.2, min_stick=2,
+                tol_rule="5 robust sd", tol=1.0)  # fmt: skip
     seen = first_simulation(monkeypatch)
     with pytest.raises(Stop):
-        ss.fit("langevin", Cycles(table, {"sampling_interval": 0.01}), {"D": (0.1, 1.0)}, FIXED)
-    assert seen["observe"]["min_slip"] == 0.01 and seen["observe"]["cut"] == 0.05
+        ss.fit("langevin", Cycles(table, info), {"D": (0.1, 1.0)}, FIXED)
+    m = seen["measurement"]
+    assert m.sampling_interval == 0.01 and m.signal == "x" and m.tol is None
+    assert m.noise_sd == pytest.approx(0.2 * 0.01 / math.sqrt(2.0), rel=1e-12)
+    assert seen["n"] == 4000 and seen["dt"] is None
 
 
 @pytest.mark.parametrize(

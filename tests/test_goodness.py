@@ -10,8 +10,9 @@ import pytest
 from scipy import stats
 
 import stickslip as ss
-from stickslip._fit import _simulate
-from stickslip._goodness import _anderson_darling, _pit, goodness_of_fit
+from stickslip._inference.forward import _simulate
+from stickslip._inference.goodness import _anderson_darling, _pit, goodness_of_fit
+from stickslip._inference.likelihood import cycle_log_likelihood
 
 BASE = dict(omega0=1.0, zeta=0.1, v_b=1.0, x0=1.0)
 TRUTH = dict(D=0.4, tau=0.1)
@@ -26,9 +27,12 @@ def cycles(n, seed, **params):
     return {k: v[:n] for k, v in sim.items()}
 
 
-def fit_d(data):
-    """D free, the rest known: 5000 simulated cycles per point (the fast tier's size)."""
-    return ss.fit("langevin", data, free={"D": (0.05, 2.0)}, fixed=FIXED, seed=7, n_sim=5000)
+def fit_d(data, check=False):
+    """D free, the rest known: 5000 simulated cycles per point (the fast tier's size);
+    without fit's own check unless asked (most tests call `goodness_of_fit` themselves)."""
+    return ss.fit(
+        "langevin", data, free={"D": (0.05, 2.0)}, fixed=FIXED, seed=7, n_sim=5000, check=check
+    )
 
 
 def test_randomised_pit_is_uniform_with_an_atom_and_sees_a_wrong_atom():
@@ -60,10 +64,18 @@ def test_anderson_darling_is_the_weighted_distance_of_its_definition():
 
 def test_exponential_slip_times_are_rejected_with_a_warning_and_a_figure(tmp_path):
     """Exponential 'slip times' of the model's own mean slip time: no stick-slip model
-    makes them, and the fit alone gives an estimate and an interval without a word."""
+    makes them, yet they get an estimate and an interval; `fit`'s check and
+    `goodness_of_fit` both reject them."""
     mean = np.mean(cycles(20_000, seed=99)["slip_time"])
     x = np.random.default_rng(5).exponential(mean, 1500)
-    r = fit_d({"slip_time": x})
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        r = fit_d({"slip_time": x}, check=True)
+    # fit's own check: one plain warning, in the diagnostics too, and the p-value on r
+    said = [str(w.message) for w in caught if "reject" in str(w.message)]
+    assert len(said) == 1 and said[0].startswith("fit: the data reject the model: slip_time p")
+    assert said[0].removeprefix("fit: ") in r.diagnostics["warnings"]
+    assert r.p_values["slip_time"] < 0.01 and r.goodness.rejected
     with pytest.warns(UserWarning, match="the data reject the model: slip_time p = "):
         g = goodness_of_fit(r, n_rep=200, seed=3)
     assert g.p_values["slip_time"] < 0.01 and g.rejected
@@ -114,12 +126,19 @@ def test_bad_arguments_are_one_line_naming_the_field(monkeypatch):
         goodness_of_fit({"slip_time": np.ones(10)})
     assert "\n" not in str(err.value)
     r = fit_d({"slip_time": cycles(300, seed=23)["slip_time"]})
+    assert r.p_values is None and r.goodness is None  # check=False
+    with pytest.raises(ss.ParameterError, match="'check' must be True or False"):
+        ss.fit("langevin", {"slip_time": cycles(300, seed=23)["slip_time"]}, {"D": (0.1, 1.0)},
+               FIXED, check="yes")  # fmt: skip
     with pytest.raises(ss.ParameterError, match="'n_rep' must be >= 1"):
         goodness_of_fit(r, n_rep=0)
-    with pytest.warns(UserWarning, match="no p-value is below 0.0196: take n_rep >= 99"):
+    with pytest.warns(UserWarning, match="no p-value is below 0.0196: take n_rep >= 100"):
         goodness_of_fit(r, n_rep=50, seed=3)
+    # 99 replicates: the smallest p-value is 1/100, not below 0.01: still no verdict
+    with pytest.warns(UserWarning, match="no p-value is below 0.01: take n_rep >= 100"):
+        goodness_of_fit(r, n_rep=99, seed=3)
     # 10^6 replicates of 300 cycles are 2.24 GiB of values: refused before any is simulated
-    monkeypatch.setattr("stickslip._fit._memory_limit", lambda: 2**30)
+    monkeypatch.setattr("stickslip._inference.goodness._memory_limit", lambda: 2**30)
     with pytest.raises(ss.ResourceError, match="'n_rep' needs about 2.24 GiB, past the limit"):
         goodness_of_fit(r, n_rep=10**6)
 
@@ -149,14 +168,54 @@ def test_the_linearised_refit_matches_the_exact_one():
 @pytest.mark.slow
 def test_p_values_at_the_truth_are_uniform_over_40_sets():
     """Issue 40's acceptance: 40 data sets simulated at the truth (seeds 1000-1039), each
-    fitted (seeds 2000-2039) and tested (seeds 3000-3039: one seed for all would share one
-    simulation error among the sets, and their p-values would not be independent); the
-    p-values pass a KS test of uniformity at 0.01."""
+    fitted (seeds 2000-2039) with fit's own check (`FitResult.p_values`, its replicates
+    seeded from the fit's seed: one seed for all would share one simulation error among the
+    sets, and their p-values would not be independent); the p-values pass a KS test of
+    uniformity at 0.01."""
     ps = []
     for s in range(40):
         data = {"slip_time": cycles(1500, 1000 + s)["slip_time"]}
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             r = ss.fit("langevin", data, {"D": (0.05, 2.0)}, FIXED, seed=2000 + s, n_sim=5000)
-            ps.append(goodness_of_fit(r, n_rep=200, seed=3000 + s).p_values["slip_time"])
+        ps.append(r.p_values["slip_time"])
     assert stats.kstest(ps, "uniform").pvalue > 0.01, np.round(np.sort(ps), 3)
+
+
+# -- fit's own check: FitResult.p_values -----------------------------------------------------
+def test_fit_checks_itself_and_data_from_the_truth_pass():
+    """`fit` with its default check, slip and stick times of 600 cycles at the truth (zero
+    sticks in): a p-value per column and a joint one, each in (0, 1] and a multiple of
+    1/(n_rep + 1) (a simulation-calibrated rank); none below 0.01 (at the truth each is with
+    probability 0.01); in the summary and the figure's titles."""
+    data = {k: v for k, v in cycles(600, seed=31).items() if k in ("slip_time", "stick_time")}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        r = ss.fit("langevin", data, {"D": (0.05, 2.0)}, FIXED, seed=17, n_sim=5000)
+    assert isinstance(r.goodness, ss.GoodnessOfFit)
+    assert set(r.p_values) == {"slip_time", "stick_time", "joint"}
+    n_rep = r.goodness.n_rep
+    for p in r.p_values.values():
+        assert 0 < p <= 1 and p * (n_rep + 1) == pytest.approx(round(p * (n_rep + 1)))
+    assert min(r.p_values.values()) >= 0.01, r.summary()
+    assert not [w for w in caught if "reject" in str(w.message)]
+    assert f"stick_time p = {r.p_values['stick_time']:.3g}" in r.summary()
+    fig = r.plot()
+    titles = [ax.get_title() for ax in fig.axes]
+    assert f"slip_time: p = {r.p_values['slip_time']:.3g}" in titles, titles
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+
+    # the per-cycle terms another fit or a held-out set is scored with
+    terms = cycle_log_likelihood(r)
+    assert terms.shape == (600,) and np.all(np.isfinite(terms))
+    assert terms.sum() == pytest.approx(r.log_likelihood, rel=1e-12, abs=1e-9)
+    far = cycle_log_likelihood(r, {"D": 3 * r.estimate["D"]})
+    assert far.sum() < terms.sum() - 10, (far.sum(), terms.sum())
+    held_out = {k: v for k, v in cycles(300, seed=32).items() if k in data}
+    assert cycle_log_likelihood(r, data=held_out).shape == (300,)
+    with pytest.raises(ss.ParameterError, match="'data' must have the fit's columns"):
+        cycle_log_likelihood(r, data={"slip_time": held_out["slip_time"]})
+    with pytest.raises(ss.ParameterError, match="'params\\['Q'\\]' is not a parameter"):
+        cycle_log_likelihood(r, {"Q": 1.0})

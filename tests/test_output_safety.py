@@ -35,7 +35,7 @@ FIT = {"data": "cycles.csv", "free": {"D": [0.05, 2.0]}, "n_sim": 1000}
 @pytest.fixture
 def no_work(monkeypatch):
     """Every refusal must come before any work: a simulation or a fit started fails."""
-    import stickslip._fit
+    import stickslip._inference.fit
     import stickslip.study.run as run_module
 
     def refuse(*args, **kwargs):
@@ -43,7 +43,7 @@ def no_work(monkeypatch):
 
     monkeypatch.setattr(run_module, "_compute", refuse)
     monkeypatch.setattr(run_module, "_compute_chain", refuse)
-    monkeypatch.setattr(stickslip._fit, "fit", refuse)
+    monkeypatch.setattr(stickslip._inference.fit, "fit", refuse)
 
 
 @pytest.fixture

@@ -1,14 +1,20 @@
 """`stickslip fit STUDY.yaml`: a study's `fit` block run, and its results written.
 
-The data come from a CSV file of per-cycle values; the results are `fit.json` (estimates,
-95 % intervals, log-likelihood, method, settings), `fit.png` (data against the fitted model,
-log-likelihood along each parameter) and `summary.md`, made in a temporary directory and
+The data come from a CSV file: the cycles `stickslip cycles` wrote (its `# stickslip cycles`
+header keeps the extraction's settings: read with `read_cycles` and fitted with the
+measurement in the model), or any other table of per-cycle values (fitted as per-cycle
+values of the model). The results are `fit.json` (estimates, 95 % intervals,
+log-likelihood, goodness-of-fit p-values, method, settings, the measurement, the optimiser,
+the Monte Carlo noise check, the warnings), `fit.png` (data against the fitted model,
+log-likelihood along each parameter) and `summary.md` (the estimates with their intervals,
+the p-values and whether the data reject the model), made in a temporary directory and
 moved into place at the end, as `run` does.
 """
 
 from __future__ import annotations
 
 import codecs
+import dataclasses
 import difflib
 import json
 import os
@@ -17,6 +23,7 @@ import re
 import shutil
 import stat
 import tempfile
+import warnings
 
 import numpy as np
 
@@ -26,6 +33,7 @@ from .load import StudyError, load_study
 # path naming something else (a disk image, a log) from being read whole.
 MAX_DATA_BYTES = 256 * 2**20
 _SHOWN = 5  # rows named in a message
+_CYCLES_HEADER = "# stickslip cycles"  # the first line `Cycles.to_csv` writes
 
 
 def read_cycles_csv(path: pathlib.Path, columns=None, source: str | None = None) -> dict:
@@ -34,7 +42,7 @@ def read_cycles_csv(path: pathlib.Path, columns=None, source: str | None = None)
     file of at most `MAX_DATA_BYTES`, text, the columns asked for, a number in each of their
     cells, no `nan` or `inf` (refused with the lines, not dropped: a table with holes is the
     user's to mend, knowing why they are there), durations of the right sign."""
-    from .._fit import KINDS
+    from .._inference.data import KINDS
 
     name = source or str(path)
     text = _read_text(path, name)
@@ -92,6 +100,34 @@ def read_cycles_csv(path: pathlib.Path, columns=None, source: str | None = None)
                 f"{_lines(numbers[wrong])}",
             )  # fmt: skip
     return data
+
+
+def read_fit_data(path: pathlib.Path, columns=None, source: str | None = None):
+    """The data of a study's fit: a `Cycles` (its measurement kept) when the file is one
+    `stickslip cycles` wrote (first line `# stickslip cycles`), with only `columns` where
+    given; else the per-cycle columns of `read_cycles_csv`. Bad files are one `StudyError`
+    at `fit.data` that quotes none of the file."""
+    from .._errors import DataError
+    from .._extract import Cycles, read_cycles
+    from .._inference.data import KINDS
+
+    name = source or str(path)
+    text = _read_text(path, name)
+    if not text.lstrip("\ufeff").startswith(_CYCLES_HEADER):
+        return read_cycles_csv(path, columns, source)
+    try:
+        cycles = read_cycles(path)
+    except DataError as err:
+        reason = str(err).removeprefix(f"{os.fspath(path)}: ")
+        raise _data_error(name, path, reason) from None
+    wanted = list(columns) if columns else [k for k in KINDS if k in cycles.table]
+    missing = [c for c in wanted if c not in cycles.table]
+    if missing:
+        header = list(cycles.table)
+        raise _data_error(
+            name, path, f"has no column {', '.join(missing)} ({_header_hint(header, KINDS)})"
+        )
+    return Cycles({k: cycles.table[k] for k in wanted}, cycles.info)
 
 
 def _read_text(path: pathlib.Path, name: str) -> str:
@@ -174,7 +210,7 @@ def _fit_field(err, data_path) -> tuple[str, str]:
     """Where an error of `fit` lies in the study, and why: its argument names, turned into
     the study's fields (`free['tau']` -> `fit.free.tau`, `fixed['x0']` -> `model.params.x0`,
     `data['slip_time']` -> the data file's column)."""
-    # DataError and ResourceError carry these only when `fit` raised them (`_fit._refuse`)
+    # DataError and ResourceError carry these only when `fit` raised them (`data._refuse`)
     parameter = getattr(err, "parameter", None)
     if getattr(err, "owner", None) != "fit" or parameter is None:
         return "fit", str(err)
@@ -194,7 +230,7 @@ def run_fit(study, out=None, *, overrides=None, force: bool = False, progress: b
     """Run the `fit` block of `study` (a path to a YAML file, a dict or a `Study`); write
     the results to `out` if given. Returns the `FitResult`."""
     from .._errors import DataError, ParameterError, ResourceError
-    from .._fit import fit
+    from .._inference.fit import fit
     from .run import _check_out
 
     base = pathlib.Path(study).parent if isinstance(study, (str, os.PathLike)) else pathlib.Path()
@@ -208,19 +244,70 @@ def run_fit(study, out=None, *, overrides=None, force: bool = False, progress: b
     inputs = [source, path if path.is_absolute() else base / path]
     out_dir = None if out is None else _check_out(out, force, inputs)
     data_path = path if path.is_absolute() else base / path
-    data = read_cycles_csv(data_path, spec.columns, source)
+    data = read_fit_data(data_path, spec.columns, source)
+    measured = not isinstance(data, dict)
+    if spec.trace is not None or spec.sampling is not None:
+        warnings.warn(
+            "study fit: trace and sampling are deprecated and ignored: a cycles CSV written by "
+            "`stickslip cycles` carries its measurement (its '# stickslip cycles' header); "
+            "remove them from the fit block",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        if spec.trace and not measured:
+            raise StudyError(
+                source, "fit.trace", f"needs the cycles as `stickslip cycles` writes them: "
+                f"{data_path.name} has no '# stickslip cycles' header with the extraction's "
+                "settings (its measurement cannot be modelled)",
+            )  # fmt: skip
     free = {k: tuple(v) for k, v in spec.free.items()}
     fixed = {k: v for k, v in study.model.params.items() if k not in free}
     try:
         result = fit(
             study.model.name, data, free, fixed, seed=spec.seed, n_sim=spec.n_sim, dt=spec.dt,
-            t_max=spec.t_max, trace=spec.trace, sampling=spec.sampling, progress=progress,
+            t_max=spec.t_max, progress=progress,
         )  # fmt: skip
     except (ParameterError, DataError, ResourceError) as err:
         raise StudyError(source, *_fit_field(err, data_path)) from None
     if out_dir is not None:
         write_fit(result, study, out_dir, force)
     return result
+
+
+def _jsonable(value):
+    """JSON-ready settings: NumPy scalars and arrays to Python, dataclasses to dicts."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return _jsonable(dataclasses.asdict(value))
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def _verdict(result) -> str:
+    """One plain sentence: do the data reject the fitted model?"""
+    from .._inference.goodness import ALPHA
+
+    p = result.p_values
+    if p is None:
+        return "The fit was not checked against the data (no p-values)."
+    low = {k: v for k, v in p.items() if v < ALPHA}
+    if low:
+        shown = ", ".join(f"{k} (p = {v:.3g})" for k, v in low.items())
+        return (
+            f"The data reject the model: {shown} below {ALPHA}; its distribution is unlike "
+            "the data's (see fit.png), so its parameters describe the data only roughly."
+        )
+    smallest = min(p.values())
+    return (
+        f"The data do not reject the model: every p-value is at least {smallest:.3g} "
+        f"(>= {ALPHA}); the fitted model reproduces the distribution of each fitted quantity."
+    )
 
 
 def write_fit(result, study, out: pathlib.Path, force: bool):
@@ -235,13 +322,17 @@ def write_fit(result, study, out: pathlib.Path, force: bool):
             estimate=result.estimate,
             ci95={k: list(v) for k, v in result.ci.items()},
             log_likelihood=result.log_likelihood,
+            p_values=result.p_values,
+            rejected=None if result.goodness is None else bool(result.goodness.rejected),
             method=result.method,
+            goodness_method=None if result.goodness is None else result.goodness.method,
             fixed={k: v for k, v in study.model.params.items() if k not in result.estimate},
-            settings={
-                k: d[k] for k in ("n_sim", "dt", "t_max", "seed", "trace", "sampling", "n_data")
-            },
+            settings={k: d[k] for k in ("n_sim", "dt", "t_max", "seed", "n_data")},
+            measurement=_jsonable(d.get("measurement")),
             covariance=d["covariance"],
             evaluations=d["evaluations"],
+            optimizer=_jsonable(d["optimizer"]),
+            mc_noise=_jsonable(d["mc_noise"]),
             seconds=d["seconds"],
             warnings=d["warnings"],
         )
@@ -253,7 +344,13 @@ def write_fit(result, study, out: pathlib.Path, force: bool):
         for k, v in result.estimate.items():
             lo, hi = result.ci[k]
             lines.append(f"| {k} | {v:.4g} | [{lo:.4g}, {hi:.4g}] |")
-        lines += ["", f"log-likelihood {result.log_likelihood:.2f}; {d['evaluations']} points "
+        lines += [""]
+        if result.p_values is not None:
+            lines += ["| observable | goodness-of-fit p-value |", "|---|---|"]
+            lines += [f"| {k} | {p:.3g} |" for k, p in result.p_values.items()]
+            lines += [""]
+        lines += [_verdict(result), ""]
+        lines += [f"log-likelihood {result.log_likelihood:.2f}; {d['evaluations']} points "
                   f"evaluated in {d['seconds']:.1f} s; data: "
                   + ", ".join(f"{n} {k}" for k, n in d["n_data"].items()), ""]  # fmt: skip
         lines += [f"- warning: {w}" for w in d["warnings"]]

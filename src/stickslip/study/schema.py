@@ -341,9 +341,11 @@ class Fit(Base):
     values in `model.params` (those of the free ones there are not used)."""
 
     data: str = Field(
-        description="CSV file of per-cycle values (a header naming slip_time, slip_distance, "
-        "stick_time and/or period, e.g. written by `stickslip cycles`); a relative path is "
-        "taken from the study file's folder."
+        description="CSV file of cycles: as `stickslip cycles` writes them (its '# stickslip "
+        "cycles' header keeps the extraction's settings: the model is fitted through the same "
+        "measurement, sampled, noisy and extracted alike), or any table of per-cycle values "
+        "of the model (a header naming slip_time, slip_distance, stick_time and/or period; no "
+        "measurement); a relative path is taken from the study file's folder."
     )
     columns: list[Literal["slip_time", "slip_distance", "stick_time", "period"]] | None = Field(
         None, description="The columns to fit (default: every known column in the file)."
@@ -353,16 +355,20 @@ class Fit(Base):
         description="Parameter -> [low, high]: the parameters to estimate and the box searched "
         "(log scale where low > 0).",
     )
-    trace: bool = Field(
-        False,
-        description="The data are the cycles of a measured trace (from `stickslip cycles`): "
-        "simulated cycles are joined as a trace shows them (zero-length sticks and slips).",
+    trace: bool | None = Field(
+        None,
+        description="Deprecated and ignored: a cycles file written by `stickslip cycles` "
+        "carries its measurement (true with any other file is refused).",
     )
     sampling: PositiveFloat | None = Field(
-        None, description="With trace: the trace's sampling interval (required there)."
+        None, description="Deprecated and ignored: the cycles file carries its sampling interval."
     )
-    n_sim: int = Field(
-        100_000, ge=1000, le=2**32 - 1, description="Simulated cycles per evaluated point."
+    n_sim: int | None = Field(
+        None,
+        ge=1000,
+        le=2**32 - 1,
+        description="Simulated cycles per evaluated point (default: 100000 for per-cycle values, "
+        "4000 model cycles for a cycles file of a measured trace, each ~40 times dearer).",
     )
     seed: int = Field(0, ge=0, description="Seed of the simulations (common to every point).")
     dt: PositiveFloat | None = Field(
@@ -374,8 +380,6 @@ class Fit(Base):
 
     @model_validator(mode="after")
     def _boxes(self):
-        if self.sampling is not None and not self.trace:
-            raise fail("sampling", "is used only with trace: true (the data are a trace's cycles)")
         if self.t_max is not None and self.dt is not None:
             _check_steps("t_max", self.t_max, self.dt)
         for name, (low, high) in self.free.items():

@@ -1,0 +1,195 @@
+r"""The simulated maximum-likelihood estimator behind `fit`, a composition of the
+subpackage's pieces:
+
+1. the data and their measurement (`data`), the parameters, their box and the fit
+   coordinates (`params`), the simulation settings (`forward._simulation_settings`);
+2. the simulated smoothed likelihood (`likelihood`), maximised by a coarse grid and
+   Nelder-Mead (`surface._search`), then a polynomial fitted around the maximum
+   (`surface._local_surface`): its vertex the estimate, its Hessian the information;
+3. the sandwich covariance, the Monte Carlo noise check with a second seed, and the Wald
+   intervals (`intervals`).
+
+`fit` adds the goodness-of-fit check; a parametric bootstrap's refit (`goodness`) calls
+`_estimate` itself.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+
+import numpy as np
+
+from .._errors import ParameterError, check_int, check_positive
+from .data import LOG_KINDS, _check_data, _looks_sampled, _measurement, _transform
+from .forward import _simulation_settings
+from .intervals import _combine_seeds, _mc_noise, _sandwich, _wald
+from .likelihood import _bandwidth, _per_cycle
+from .params import (
+    _check_box,
+    _check_fixed,
+    _check_free,
+    _check_memory,
+    _from_fit,
+    _kwargs,
+    _model_class,
+    _to_fit,
+)
+from .result import FitResult
+from .surface import _evaluate, _local_surface, _polynomial_vertex, _search
+
+# warnings point at the line that called `fit` (fit -> _estimate -> warnings.warn)
+STACKLEVEL = 3
+# Simulated cycles per evaluated point. Per-cycle values: 10^5 (about 0.3 s on 2 cores). A
+# measured trace costs ~40 times more a cycle (recorded slips, sampling, extraction: 0.15-0.2
+# ms a model cycle, ~1 s for 5000 on 2 cores), so ~4000 model cycles (~2500 measured ones
+# after the joins) keep one evaluation near a second and a fit of ~100 points near minutes.
+N_SIM_PER_CYCLE = 100_000
+N_SIM_MEASURED = 4000
+
+
+def _estimate(
+    model, data, free, fixed=None, *, seed=0, n_sim=None, dt=None, t_max=None, scales=None,
+    trace=None, sampling=None, progress=False, measurement=None,
+) -> FitResult:  # fmt: skip
+    """`fit` without its goodness-of-fit check: the arguments and result are `fit`'s.
+    `measurement` (private: a bootstrap replicate's refit) fits a dict of cycles as if they
+    came with that measurement."""
+    wall0 = time.perf_counter()
+    owner = "fit"
+    Model = _model_class(model)
+    data, measured = _measurement(data, trace, sampling, scales, owner)
+    if measurement is not None:
+        measured = measurement
+    fixed = _check_fixed(fixed, Model)
+    free = _check_free(free, fixed, Model)
+    seed = check_int(owner, "seed", seed, minimum=0)
+    if seed >= 2**64:
+        raise ParameterError(owner, "seed", "must be < 2**64", seed)
+    if n_sim is None:
+        n_sim = N_SIM_PER_CYCLE if measured is None else N_SIM_MEASURED
+    n_sim = check_int(owner, "n_sim", n_sim, minimum=1000)
+    dt = check_positive(owner, "dt", dt, allow_none=True)
+    t_max = check_positive(owner, "t_max", t_max, allow_none=True)
+    if measured is not None and t_max is not None:
+        raise ParameterError(
+            owner, "t_max", "applies to per-cycle data (a dict) only: a measured trace's "
+            "length follows from n_sim", t_max,
+        )  # fmt: skip
+    names = list(free)
+    scales = {k: "log" if free[k][0] > 0 else "linear" for k in names}
+    lo = np.array([_to_fit(scales[k], free[k][0]) for k in names])
+    hi = np.array([_to_fit(scales[k], free[k][1]) for k in names])
+
+    def params(u):
+        return {k: _from_fit(scales[k], float(x)) for k, x in zip(names, u, strict=True)}
+
+    # The model at the box's centre and at each end of each axis: a value the model refuses
+    # is the box's fault, said here in one line rather than as points that quietly fail.
+    centre = _check_box(Model, fixed, free, params(0.5 * (lo + hi)))
+    _check_memory(n_sim, centre)
+    given = data
+    data = _check_data(data, measured=measured is not None)
+    sampled = None if measured is not None else _looks_sampled(given, data)
+    if sampled is not None:  # said now: the fit may take minutes
+        warnings.warn(f"fit: {sampled}", stacklevel=STACKLEVEL)
+    if measured is None:
+        dt, t_max = _simulation_settings(centre, data, dt, t_max, owner)
+    else:
+        missing = [k for k in data if k not in measured.columns]
+        if missing:
+            raise ParameterError(
+                owner, "data", f"has columns the measurement does not extract: "
+                f"{', '.join(missing)}", sorted(data),
+            )  # fmt: skip
+    n_data = max(x.size for x in data.values())
+    bandwidth = {k: _bandwidth(_transform(k, data[k]), n_sim) for k in data}
+    points: list = []
+
+    def loglik(u, at_seed=seed):
+        """The log-likelihood at `u` (clipped to the box) and its per-cycle terms (`None`
+        where the model refuses `u`: a joint constraint inside the box)."""
+        u = np.clip(u, lo, hi)
+        try:
+            m = Model(**_kwargs(fixed, params(u)))
+        except (ValueError, ArithmeticError):
+            m = None
+        try:
+            terms = None if m is None else _per_cycle(m, data, bandwidth, n_sim, dt, t_max,
+                                                      at_seed, measured)  # fmt: skip
+        except ParameterError as err:  # simulate's names are fit's arguments
+            name = {"n_paths": "n_sim"}.get(err.parameter, err.parameter)
+            raise ParameterError(owner, name, err.reason, err.value) from None
+        value = -np.inf if terms is None else float(sum(np.sum(v) for v in terms.values()))
+        if at_seed == seed:  # the surface's points (the second seed's are in mc_noise)
+            points.append((np.array([params(u)[k] for k in names]), value))
+        if progress:
+            import sys
+
+            shown = ", ".join(f"{k}={v:.4g}" for k, v in params(u).items())
+            print(f"fit: {shown}: log-likelihood {value:.2f}", file=sys.stderr, flush=True)
+        return value, terms
+
+    # 1. a coarse grid over the box, Nelder-Mead from its best point
+    u_best, optimizer, caught = _search(loglik, lo, hi, free)
+    # 2. a polynomial around it: the vertex and the Hessian
+    surface = _local_surface(loglik, u_best, lo, hi, data, names)
+    caught += surface.warnings
+    cov, said = _sandwich(surface, names)
+    caught += said
+    # 3. the simulation's own noise: the same design with a second, independent seed. The
+    # simulator's draws move with the parameters (see `surface._search`), so the surface
+    # carries Monte Carlo noise that common random numbers do not cancel: measured, the two
+    # seeds' vertices differed by 1-1.5 standard errors at n_sim = 2e4 for two columns, far
+    # above the sqrt(n / n_sim) widening alone assumes.
+    seed2 = (seed + 0x9E3779B97F4A7C15) % 2**64  # far from seed: an independent stream
+    values2, _ = _evaluate(surface.design, lambda u: loglik(u, seed2), data)
+    shift2, _ = _polynomial_vertex(surface.design - surface.centre, np.array(values2),
+                                   surface.steps)  # fmt: skip
+    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    mc_noise = _mc_noise(names, surface.shift, shift2, se, n_sim)
+    mc_noise.update(
+        seed=seed2, log_likelihood_difference=float(surface.values[0] - values2[0])
+    )  # fmt: skip
+    if mc_noise["warning"]:
+        caught.append(mc_noise["warning"])
+    u_hat, cov = _combine_seeds(surface, shift2, cov, n_data, n_sim, lo, hi)
+    # 4. the estimate, its intervals
+    ll_hat, _ = loglik(u_hat)
+    estimate = params(u_hat)
+    ci, said = _wald(u_hat, cov, names, scales, lo, hi, free)
+    caught += said
+    for text in caught:
+        warnings.warn(f"fit: {text}", stacklevel=STACKLEVEL)
+    through = (
+        f", through the data's measurement (a {measured.signal} trace sampled every "
+        f"{measured.sampling_interval:.4g}, its noise, extract_cycles' settings)"
+        if measured is not None
+        else ""
+    )
+    method = (
+        f"simulated maximum likelihood ({n_sim} cycles per point{through}, common random "
+        "numbers, "
+        f"smoothed kernel likelihood of {', '.join(data)}, zero durations as a point mass); "
+        "95 % Wald intervals from the sandwich covariance of per-cycle scores"
+    )
+    diagnostics = dict(
+        n_sim=n_sim, dt=dt, t_max=t_max, seed=seed, measurement=measured,
+        # `trace`, `sampling`, `observe`: the measurement as the model comparison reads it
+        trace=measured is not None,
+        sampling=None if measured is None else measured.sampling_interval, observe=measured,
+        n_data={k: int(v.size) for k, v in data.items()},
+        zero_fraction={k: float(np.mean(v == 0)) for k, v in data.items() if k in LOG_KINDS},
+        bandwidth=bandwidth, scales=scales, covariance=cov.tolist(),
+        hessian=surface.hessian.tolist(), evaluations=len(points), points=points,
+        seconds=time.perf_counter() - wall0,
+        warnings=([sampled] if sampled else []) + caught,
+        to_fit=lambda name, x: _to_fit(scales[name], np.asarray(x)),
+        optimizer=optimizer,
+        design=dict(clipped=surface.clipped, vertex=surface.shift is not None),
+        mc_noise=mc_noise,
+    )  # fmt: skip
+    return FitResult(
+        estimate=estimate, ci=ci, log_likelihood=ll_hat, method=method,
+        diagnostics=diagnostics, data=data, model=Model(**_kwargs(fixed, estimate)),
+    )  # fmt: skip

@@ -1,0 +1,156 @@
+r"""`fit`: friction-noise parameters from measured per-cycle statistics, and whether the
+model reproduces the data at all.
+
+`fit` is the simulated maximum-likelihood estimator (`estimator._estimate`: the data and
+their measurement, the parameters and their box, the simulated likelihood, its maximum and
+curvature, the intervals) followed, with `check=True`, by a simulation-calibrated
+goodness-of-fit test (`goodness`).
+
+What it assumes: independent cycles (the paper's sharp reset: every slip starts from the
+model's onset state), the model family is right (`check` tests it), and the maximum lies
+inside the `free` box. Cycles extracted from a trace (a `Cycles`) are fitted with the
+measurement inside the forward model (`measurement`). Nothing fails silently: a one-line
+warning each (also in `diagnostics["warnings"]`) when Nelder-Mead stops on its cap, the
+estimate sits on an edge, the polynomial has no vertex near the best point, design points
+are clipped at the box, the simulation noise is comparable with the curvature, a dict of
+data looks like the cycles of a sampled trace, or the data reject the model.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+import warnings
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .._errors import ParameterError
+from .estimator import _estimate
+from .goodness import ALPHA, MIN_VERDICT_REP, goodness_of_fit
+from .result import FitResult
+
+if TYPE_CHECKING:
+    from .._extract import Cycles
+
+
+def fit(
+    model,
+    data: dict | Cycles,
+    free: dict,
+    fixed: dict | None = None,
+    *,
+    seed: int = 0,
+    n_sim: int | None = None,
+    dt: float | None = None,
+    t_max: float | None = None,
+    scales=None,
+    check: bool = True,
+    progress: bool = False,
+    trace: bool | None = None,
+    sampling: float | None = None,
+) -> FitResult:
+    r"""Estimate the `free` parameters of `model` from per-cycle data.
+
+    **Arguments:**
+
+    - `model`: a model name (`"langevin"`) or class with a linear-Gaussian slip or not
+      (any model `simulate` runs; exact stepping where it applies).
+    - `data`: the cycles, one row per cycle, any of the columns `slip_time`,
+      `slip_distance`, `stick_time` (zeros included: a point mass), `period`, all of one
+      length, fitted jointly. Either
+      - a `Cycles` (from `extract_cycles`, or `read_cycles` of its CSV): the cycles of a
+        measured trace, which carry their measurement (`Measurement.from_cycles`: the
+        sampling interval, the noise, the extraction's settings). The model is then
+        simulated as a continuous trace, sampled at the data's interval with the data's
+        noise, and its cycles extracted with the data's settings (`measured_cycles`), so
+        that data and model are compared like with like: what the sampling joins (short
+        sticks, immediate re-sticks) or mistimes is joined and mistimed in the simulated
+        cycles alike. Its `release_time` is not fitted; or
+      - a dict of per-cycle arrays: *per-cycle values of the model* (as `simulate` gives
+        them: no measurement). A dict that looks sampled (durations on one grid, a
+        `sampling_interval` attribute, or release times with no stick of zero length, as
+        an extracted table has) gets a warning: pass the `Cycles` instead.
+
+      Data that cannot be fitted raise a `DataError` with the evidence: a `nan` or `inf`
+      (the rows named: drop them yourself, knowing why they are there), columns of
+      different lengths, fewer than 10 cycles or 10 distinct values in a column (a
+      constant), a column that is not 1-D or not numbers.
+    - `free`: `{name: (low, high)}`: the parameters to estimate and the box searched; a
+      parameter with `low > 0` is searched on a log scale. An entry of a dict parameter is
+      named with a dot, `"threshold_params.sd"`, its other entries in `fixed`.
+    - `fixed`: the model's other parameters (a dotted free entry replaces its value in
+      the dict fixed gives).
+    - `seed`: the simulation's seed (common to every evaluated point; use one other than
+      the data's when the data are simulated).
+    - `n_sim`: simulated cycles per evaluation. Default 10^5 for per-cycle data (about
+      0.3 s each on 2 cores); 4000 model cycles for a `Cycles` (a measured trace costs
+      ~40 times more a cycle: recorded slips, sampling, extraction; 4000 take about a
+      second, and about 60 % of them survive the measurement's joins as measured cycles).
+    - `dt`: simulation step (per-cycle data: default a fifth of the model's slowest time
+      scale, exact in law for linear-Gaussian slips at any step; a `Cycles`: default half
+      the sampling interval, within an eighth and a half of the fastest time scale, since
+      the recorded slips are interpolated onto the sampling grid).
+    - `t_max`: longest simulated slip (per-cycle data only; default three times the
+      longest slip or period in the data, at least 50 slow time scales).
+    - `scales`: for a `Cycles` of a force trace in seconds and newtons, the model's units:
+      a `stickslip.units.Scales` or a `Slider` (`Measurement.from_cycles`).
+    - `check`: test the fitted model against the data (`goodness_of_fit` with its default
+      replicates, 100 for a `Cycles`, seeded from `seed`): the result's `goodness` and
+      `p_values`, and a one-line warning naming the observables whose p-value is below
+      0.01 (the data reject the model). `False` skips it (`p_values` is then `None`).
+    - `progress`: print each evaluated point's log-likelihood to stderr.
+    - `trace`, `sampling`: deprecated (a `DeprecationWarning`), replaced by the measurement
+      a `Cycles` carries: pass the `Cycles`. `trace=False` with a `Cycles` still fits its
+      table as per-cycle values (pass `cycles.table` instead); `trace=True` with a dict is
+      refused (a dict has no extraction settings to model).
+
+    A parameter value whose simulated trace shows no cycles through the measurement (e.g.
+    a sampling too coarse for its slips) has log-likelihood $-\infty$: the search moves
+    away from it.
+
+    A `ParameterError` names a bad argument (a box the model refuses at its ends: the
+    `free` entry), a `ResourceError` an `n_sim` past half this machine's memory (an estimate
+    of 160 B per cycle and state component), both before anything is simulated.
+
+    **Returns:** a `FitResult`.
+    """
+    wall0 = time.perf_counter()
+    if not isinstance(check, (bool, np.bool_)):
+        raise ParameterError("fit", "check", "must be True or False", check)
+    result = _estimate(
+        model, data, free, fixed, seed=seed, n_sim=n_sim, dt=dt, t_max=t_max, scales=scales,
+        trace=trace, sampling=sampling, progress=progress,
+    )  # fmt: skip
+    return _checked(result, seed, wall0) if check else result
+
+
+# Replicates of the goodness-of-fit check for a fit through a measurement: the fewest that
+# allow a verdict at ALPHA = 0.01 (the smallest p-value is 1/(n_rep + 1)); each replicate is
+# a data set of measured cycles, ~40 times the cost of per-cycle ones (the default 200 would
+# take over 3 minutes for 3000 cycles).
+MEASURED_N_REP = MIN_VERDICT_REP
+
+
+def _checked(result: FitResult, seed: int, wall0: float) -> FitResult:
+    """`result` with its goodness of fit (`goodness_of_fit`, its own warnings kept in
+    `goodness.warnings`), and one warning, also in the diagnostics, when the data reject
+    the model."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        # a seed of its own: the goodness check's streams are drawn from [seed, 0]
+        measured = result.diagnostics.get("measurement") is not None
+        extra = dict(n_rep=MEASURED_N_REP) if measured else {}
+        g = goodness_of_fit(result, seed=seed % 2**63, **extra)
+    low = {k: p for k, p in g.p_values.items() if p < ALPHA}
+    d = result.diagnostics
+    if low:
+        shown = ", ".join(f"{k} p = {p:.3g}" for k, p in low.items())
+        text = (
+            f"the data reject the model: {shown} < {ALPHA} (the data's distribution is unlike "
+            f"the fitted {type(result.model).__name__}'s: see FitResult.plot)"
+        )
+        d["warnings"].append(text)
+        warnings.warn(f"fit: {text}", stacklevel=3)
+    d["seconds"] = time.perf_counter() - wall0
+    return dataclasses.replace(result, goodness=g)

@@ -1,0 +1,128 @@
+r"""The estimate's uncertainty: 95 % Wald intervals in fit coordinates (so asymmetric in the
+parameter) with the sandwich covariance $H^{-1} J H^{-1}$ (`_sandwich`: per-cycle scores
+summed over the columns, `_score_outer`; the smoothed likelihood is not a likelihood, and
+the columns of one cycle are dependent), widened by $\sqrt{1 + n/n_{sim}}$ for the
+simulation's own noise; and the Monte Carlo noise check (`_mc_noise`): the surface's design
+evaluated again with a second seed, the estimate the mean of the two vertices, the square
+of their half difference, the Monte Carlo covariance of that mean, added to the covariance
+(`_combine_seeds`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from .params import _from_fit
+
+Z95 = 1.959963984540054
+# The Monte Carlo noise check: a warning when the estimate's Monte Carlo sd (from two seeds)
+# passes this fraction of its standard error (its variance then a quarter of the data's: the
+# interval, which includes it, 12 % wider from the simulation alone); the n_sim advised
+# brings it to MC_RATIO_GOAL (under 5 % wider).
+MC_RATIO_WARN = 0.5
+MC_RATIO_GOAL = 0.3
+
+
+def _sandwich(surface, names) -> tuple[np.ndarray, list[str]]:
+    """The sandwich covariance $H^{-1} J H^{-1}$ from the surface's Hessian and per-cycle
+    scores (the Hessian's inverse alone if a design point failed), with its warnings."""
+    said = []
+    info = -surface.hessian
+    if not np.all(np.linalg.eigvalsh(info) > 0):
+        said.append(
+            "the log-likelihood is not concave around the estimate (the data do not pin the "
+            "free parameters down, or the box holds no maximum): intervals unreliable"
+        )
+        info = info + np.eye(len(names)) * max(1e-9, -np.min(np.linalg.eigvalsh(info)) + 1e-9)
+    cov = np.linalg.inv(info)
+    if all(s is not None for s in surface.scores):
+        J = _score_outer(surface.nominal, surface.design, surface.centre, surface.scores)
+        cov = cov @ J @ cov
+    else:
+        said.append("a design point failed: intervals from the Hessian alone")
+    return cov, said
+
+
+def _combine_seeds(surface, shift2, cov, n_data, n_sim, lo, hi):
+    """The estimate and covariance from two seeds' vertices: the covariance widened by
+    $1 + n/n_{sim}$, and, when both seeds have a vertex, the estimate their mean and the
+    square of their half difference added (unbiased; one draw, so added on top of the
+    widening rather than instead of it)."""
+    u_hat = surface.vertex(lo, hi)
+    cov = cov * (1.0 + n_data / n_sim)
+    shift = surface.shift
+    if shift is not None and shift2 is not None:
+        half = 0.5 * (shift - shift2)
+        u_hat = np.clip(surface.centre + 0.5 * (shift + shift2), lo, hi)
+        cov = cov + np.outer(half, half)
+    return u_hat, cov
+
+
+def _wald(u_hat, cov, names, scales, lo, hi, free) -> tuple[dict, list[str]]:
+    """95 % Wald intervals in fit coordinates, and a warning for each estimate on an edge
+    of its box."""
+    ci, said = {}, []
+    for i, k in enumerate(names):
+        half = Z95 * math.sqrt(max(cov[i, i], 0.0))
+        ci[k] = (_from_fit(scales[k], u_hat[i] - half), _from_fit(scales[k], u_hat[i] + half))
+        edge = min(u_hat[i] - lo[i], hi[i] - u_hat[i]) < 0.01 * (hi[i] - lo[i])
+        if edge:
+            value = _from_fit(scales[k], u_hat[i])
+            said.append(f"{k} = {value:.4g} is on the edge of its box {free[k]}: widen it")
+    return ci, said
+
+
+def _score_outer(nominal, design, u_hat, scores):
+    """J = sum over cycles of the outer product of per-cycle scores (differences between
+    the design's +-1 step points along each axis, over their distance where they were
+    evaluated: clipped at the box, a point is nearer), centred."""
+    p = u_hat.size
+    grads = []
+    for i in range(p):
+        d = nominal - u_hat
+        axis = np.all(np.isclose(np.delete(d, i, axis=1), 0), axis=1)
+        ends = np.flatnonzero(axis & (np.abs(d[:, i]) > 0))
+        ends = ends[np.argsort(np.abs(d[ends, i]))][:2]  # the +-1 step points
+        plus, minus = sorted(ends, key=lambda j: -d[j, i])
+        width = design[plus, i] - design[minus, i]
+        if width <= 0:  # a box narrower than the design: no difference to take
+            grads.append(np.zeros_like(scores[0]))
+            continue
+        grads.append((scores[plus] - scores[minus]) / width)
+    G = np.stack(grads, axis=1)
+    G = G - G.mean(axis=0)
+    return G.T @ G
+
+
+def _mc_noise(names, shift, shift2, se, n_sim) -> dict[str, Any]:
+    """The Monte Carlo sd of the estimate (the mean of two seeds' vertices: |difference|
+    / 2) against the standard error; a warning when it passes MC_RATIO_WARN of it, with the
+    n_sim that would bring it to MC_RATIO_GOAL (its variance falls as 1/n_sim)."""
+    out: dict[str, Any] = dict(warning=None)
+    if shift is None:
+        return out
+    if shift2 is None:
+        out["warning"] = (
+            "with a second seed the surface has no maximum near the estimate: the simulation "
+            f"noise is comparable with the likelihood's curvature; take n_sim >= {4 * n_sim}"
+        )
+        return out
+    sd = 0.5 * np.abs(shift - shift2)
+    ratio = sd / np.maximum(se, 1e-300)
+    worst = int(np.argmax(ratio))
+    need = n_sim * (ratio[worst] / MC_RATIO_GOAL) ** 2
+    out.update(
+        sd={k: float(v) for k, v in zip(names, sd, strict=True)},
+        ratio={k: float(v) for k, v in zip(names, ratio, strict=True)},
+        n_sim_needed=int(float(f"{max(need, n_sim):.2g}")),
+    )
+    if ratio[worst] > MC_RATIO_WARN:
+        out["warning"] = (
+            f"the simulation noise is comparable with the likelihood's curvature: its sd in "
+            f"{names[worst]}'s estimate (two seeds) is {ratio[worst]:.2g} standard errors; "
+            f"the interval includes it; take n_sim >= {out['n_sim_needed']:.2g} (now {n_sim})"
+        )
+    return out

@@ -1,0 +1,408 @@
+r"""The measurement inside the forward model (issue 40, item 1).
+
+Cycles extracted from a sampled trace are not the model's per-cycle values: the sampling
+joins what it cannot resolve (a stick shorter than a few samples, zero-length ones among
+them, runs the slips on either side into one; an immediate re-stick is invisible), times
+each transition to within a sampling interval, and the noise moves the thresholds. Rather
+than emulate that by a rule on per-cycle values, the model's cycles are passed through the
+same measurement as the data, so that data and model are compared like with like:
+
+1. the model runs as one continuous trace of successive cycles (`simulate_cycles`, every
+   cycle from the onset state, eq. 9 in the sticks);
+2. the trace is sampled at the data's interval $h$ (the recorded slip states, one per
+   simulator step $\Delta t = h/2$ by default, interpolated linearly; the sticks are linear
+   in closed form);
+3. the data's noise model is added (white Gaussian of the measured sd; for a force trace
+   also spikes and mains lines as `extract_cycles` reported them);
+4. `extract_cycles` runs with the data's settings, and its per-cycle columns are returned.
+
+`Measurement.from_cycles` reads the measurement from a `Cycles` (its `info`, also kept in
+the CSV header). Per-cycle data given as a dict of arrays carry no measurement.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import warnings
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from .._errors import (
+    DataError,
+    ParameterError,
+    StickSlipError,
+    check_int,
+    check_nonnegative,
+    check_positive,
+)
+
+OWNER = "Measurement"
+SIGNALS = ("x", "v", "x and v", "force")
+CYCLE_COLUMNS = ("slip_time", "slip_distance", "stick_time", "period", "peak_force", "force_drop")
+# The noise's own stream, far from the simulator's (which derives its keys from `seed` by
+# JAX's threefry): common random numbers across parameter values, independent of the paths.
+_NOISE_STREAM = 0x6D656173
+# The mean period that sets each path's duration is measured on this many independent
+# cycles (`simulate`): its relative error, cv / 32 (cv ~ 1), moves the number of simulated
+# cycles by ~3 %, which only sets the Monte Carlo sample size.
+_PILOT_PATHS = 1024
+# Longest slip followed by the pilot, in slow time scales (fit's default is 50): a slip cut
+# there is left out of the pilot's mean, which then errs low by its share (< 0.5 % on the
+# public set's tail).
+_PILOT_HORIZON = 200.0
+# Successive cycles run as several paths (vectorised over paths): 1000 cycles a path lose
+# 0.2 % of them to the cut ends of each path's trace, 64 paths bound the padding.
+_CYCLES_PER_PATH = 1000
+_MAX_PATHS = 64
+# The recorded slip states are interpolated linearly onto the sampling grid: with a step
+# of half the sampling interval (and of the fastest time scale) the position errs by
+# dt^2 |a| / 8 (3e-4 at dt = 0.05 on the public set), the velocity by the friction noise's
+# change over a step (~1e-2 there), both far below the timing resolution h.
+_STEPS_PER_SAMPLE = 2.0
+# ... but no finer than an eighth of the fastest time scale (a sampling far finer than the
+# model's own scales would cost steps without changing what the samples show: the slip is
+# smooth between steps, its position to (dt / scale)^2 / 8 = 2e-3 of its scale's change).
+_FINEST = 0.25
+# Peak bytes per sample of the sampled trace: the grid, x, v, the noise, the signal and the
+# extraction's work arrays of one path (about ten float arrays at a time), counted on all.
+_TRACE_BYTES = 8 * 10
+# A spike `extract_cycles` found is replaced by the running median whatever its height
+# beyond the threshold (the height is not reported): simulated spikes are twice it.
+_SPIKE_HEIGHT = 2.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Measurement:
+    r"""How a trace was measured and its cycles extracted, in the model's units.
+
+    - `sampling_interval` $h$ (> 0): the trace's (median) sampling interval;
+    - `signal`: what was recorded and given to `extract_cycles`: `"x"` (position), `"v"`
+      (velocity), `"x and v"` or `"force"` (the spring force, in units of $k x_0$: the
+      model's position);
+    - `noise_sd` ($\ge 0$): sd of white Gaussian noise on that signal (for `"x and v"`
+      on the velocity: `extract_cycles` does not measure the position's noise, taken as 0);
+    - `tol`, `min_stick` (`x`/`v`): the stuck band, when it was given (None: from the
+      trace's own noise, as on the data), and the fewest stuck values a stick holds;
+    - `window`, `thresholds` (`force`): the force-rate filter's samples and the detection
+      thresholds (as `extract_cycles` takes them);
+    - `spike_fraction`, `spike_height` (`force`): the fraction of samples replaced as
+      spikes and a spike's height (twice the detection threshold: the height beyond it is
+      not reported and does not change what the despiking does);
+    - `lines`, `line_amplitude` (`force`): the frequencies of the spectral lines notched
+      out (cycles per model time unit), and their amplitude in the simulated trace (not
+      reported by `extract_cycles`: one noise sd, which its detector finds and notches out);
+    - `columns`: the per-cycle columns the data have.
+
+    `Measurement.from_cycles(cycles)` reads all of it from a `Cycles`.
+    """
+
+    sampling_interval: float
+    signal: str
+    noise_sd: float = 0.0
+    tol: float | None = None
+    min_stick: int | None = None
+    window: int | None = None
+    thresholds: tuple[tuple[str, float], ...] | None = None
+    spike_fraction: float = 0.0
+    spike_height: float = 0.0
+    lines: tuple[float, ...] = ()
+    line_amplitude: float = 0.0
+    columns: tuple[str, ...] = ("slip_time", "slip_distance", "stick_time", "period")
+
+    def __post_init__(self):
+        def put(name, value):  # (frozen: store the checked values)
+            object.__setattr__(self, name, value)
+
+        put("sampling_interval", check_positive(OWNER, "sampling_interval",
+                                                self.sampling_interval))  # fmt: skip
+        if self.signal not in SIGNALS:
+            raise ParameterError(
+                OWNER, "signal", f"must be one of {', '.join(map(repr, SIGNALS))}", self.signal
+            )
+        put("noise_sd", check_nonnegative(OWNER, "noise_sd", self.noise_sd))
+        force = self.signal == "force"
+        for name in ("tol", "min_stick") if force else ("window", "thresholds"):
+            if getattr(self, name) is not None:
+                kind = "x/v" if force else "force"
+                raise ParameterError(OWNER, name, f"applies to {kind} traces only")
+        if not force:
+            for name in ("spike_fraction", "spike_height", "line_amplitude"):
+                if getattr(self, name) != 0.0:
+                    raise ParameterError(OWNER, name, "applies to force traces only")
+            if self.lines:
+                raise ParameterError(OWNER, "lines", "applies to force traces only")
+        put("tol", check_positive(OWNER, "tol", self.tol, allow_none=True))
+        if self.min_stick is not None:
+            put("min_stick", check_int(OWNER, "min_stick", self.min_stick, minimum=1))
+        if self.window is not None:
+            put("window", check_int(OWNER, "window", self.window, minimum=5))
+        if self.thresholds is not None:
+            items = self.thresholds.items() if isinstance(self.thresholds, Mapping) else None
+            if items is None:
+                raise ParameterError(OWNER, "thresholds", "must be a mapping of names to numbers")
+            put("thresholds", tuple(sorted(
+                (str(k), check_positive(OWNER, f"thresholds[{k!r}]", v)) for k, v in items
+            )))  # fmt: skip
+        put("spike_fraction", check_nonnegative(OWNER, "spike_fraction", self.spike_fraction))
+        if self.spike_fraction >= 1.0:
+            raise ParameterError(OWNER, "spike_fraction", "must be < 1", self.spike_fraction)
+        put("spike_height", check_nonnegative(OWNER, "spike_height", self.spike_height))
+        put("lines", tuple(check_positive(OWNER, "lines", f) for f in self.lines))
+        put("line_amplitude", check_nonnegative(OWNER, "line_amplitude", self.line_amplitude))
+        columns = tuple(self.columns)
+        unknown = [c for c in columns if c not in CYCLE_COLUMNS]
+        if unknown or not columns:
+            raise ParameterError(
+                OWNER, "columns", f"must be some of {', '.join(CYCLE_COLUMNS)}",
+                ", ".join(map(str, unknown)) or None,
+            )  # fmt: skip
+        if not force and set(columns) & {"peak_force", "force_drop"}:
+            raise ParameterError(OWNER, "columns", "peak_force and force_drop need a force trace")
+        put("columns", columns)
+
+    @classmethod
+    def from_cycles(cls, cycles, scales=None) -> Measurement:
+        """The measurement of the trace `cycles` were extracted from (`Cycles.info`).
+
+        **Arguments:**
+
+        - `cycles`: a `Cycles` from `extract_cycles`, or read back from its CSV (the
+          settings are in its `#` header);
+        - `scales`: for a force trace in SI (or a `Slider.to_model` one), the model's units:
+          a `stickslip.units.Scales` or a `Slider`; times are divided by its `time`, forces
+          by its `force` ($k x_0$). Position and velocity traces are taken in the model's
+          units, as `fit` takes their cycles.
+
+        **Returns:** a `Measurement`. A `ParameterError` names what `info` lacks (a table
+        from an older file without its settings, or a dict: per-cycle values carry no
+        measurement).
+        """
+        info = getattr(cycles, "info", None)
+        table = getattr(cycles, "table", None)
+        if not isinstance(info, Mapping) or not isinstance(table, Mapping):
+            raise ParameterError(
+                OWNER, "cycles", "must be a Cycles from extract_cycles (a dict of per-cycle "
+                "values carries no measurement)",
+            )  # fmt: skip
+        if "si" in info and isinstance(info["si"], Mapping):
+            info = info["si"]  # `Slider.to_model`: the extraction's own settings, in SI
+        columns = tuple(c for c in CYCLE_COLUMNS if c in table)
+        signal = info.get("input")
+        need = ["input", "sampling_interval", "noise_sd"]
+        if signal == "force":
+            need += ["window", "thresholds", "n_spikes", "n_samples", "spike_threshold",
+                     "lines_removed"]  # fmt: skip
+        else:
+            need += ["min_stick", "tol_rule", "tol"]
+        missing = [k for k in need if k not in info]
+        if missing:
+            raise ParameterError(
+                OWNER, "cycles.info", f"lacks {', '.join(missing)}: the settings of the "
+                "extraction are needed to model the measurement (a table from an older file "
+                "without them? extract the cycles again)",
+            )  # fmt: skip
+        if signal not in SIGNALS:
+            raise ParameterError(OWNER, "cycles.info['input']", "is not a known signal", signal)
+        h = _number(info, "sampling_interval")
+        noise = _number(info, "noise_sd")
+        if signal != "force":
+            if scales is not None:
+                raise ParameterError(
+                    OWNER, "scales", "applies to force traces only: position and velocity "
+                    "traces are taken in the model's units",
+                )  # fmt: skip
+            if signal == "x":
+                # the extraction measures the noise of the interval velocities
+                # (x_{k+1} - x_k) / h: sqrt(2) times the position noise over h
+                noise = noise * h / math.sqrt(2.0)
+            given = info["tol_rule"] == "given"
+            return cls(
+                sampling_interval=h, signal=signal, noise_sd=noise,
+                tol=_number(info, "tol") if given else None,
+                min_stick=int(info["min_stick"]), columns=columns,
+            )  # fmt: skip
+        if scales is None:
+            raise ParameterError(
+                OWNER, "scales", "is required for a force trace: its cycles are in seconds and "
+                "newtons; give Slider(...).scales (or the Slider) for the model's units",
+            )  # fmt: skip
+        scales = getattr(scales, "scales", scales)  # a Slider gives its Scales
+        time, force = getattr(scales, "time", None), getattr(scales, "force", None)
+        if not (isinstance(time, float) and isinstance(force, float)):
+            raise ParameterError(OWNER, "scales", "must be a stickslip.units.Scales or a Slider")
+        n_samples = max(int(info["n_samples"]), 1)
+        return cls(
+            sampling_interval=h / time, signal="force", noise_sd=noise / force,
+            window=int(info["window"]), thresholds=dict(info["thresholds"]),
+            spike_fraction=int(info["n_spikes"]) / n_samples,
+            spike_height=_SPIKE_HEIGHT * _number(info, "spike_threshold") / force,
+            lines=tuple(float(f) * time for f in info["lines_removed"]),
+            line_amplitude=noise / force if info["lines_removed"] else 0.0,
+            columns=columns,
+        )  # fmt: skip
+
+    def extract_settings(self, v_b: float) -> dict[str, Any]:
+        """The keyword arguments of `extract_cycles` for a trace of this measurement driven
+        at `v_b` (model units; the force in units of $k x_0$: stiffness 1)."""
+        if self.signal == "force":
+            return dict(
+                stiffness=1.0, v_b=v_b, window=self.window,
+                thresholds=None if self.thresholds is None else dict(self.thresholds),
+            )  # fmt: skip
+        return dict(v_b=v_b, tol=self.tol, min_stick=self.min_stick)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class MeasuredTrace:
+    """A simulated trace as the measurement records it (`measured_trace`).
+
+    - `traces`: one dict per path, `t` and the recorded signal(s) (`x`, `v` or `force`),
+      noise included;
+    - `truth`: the model's own successive cycles behind them (`simulate_cycles`' table,
+      ordered by path then cycle);
+    - `measurement`, `dt` (the simulator's step).
+    """
+
+    traces: tuple[dict[str, np.ndarray], ...]
+    truth: dict[str, np.ndarray]
+    measurement: Measurement
+    dt: float
+
+
+def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
+                   dt: float | None = None) -> MeasuredTrace:  # fmt: skip
+    """The model as a continuous trace of about `n_cycles` successive cycles, sampled and
+    made noisy as `measurement` says; see `measured_cycles`."""
+    from .._model import FrictionModel, time_scales
+    from .._simulate import simulate, simulate_cycles
+    from .._simulate.driver import check_memory
+
+    owner = "measured_cycles"
+    if not isinstance(model, FrictionModel):
+        raise ParameterError(owner, "model", "must be a FrictionModel instance")
+    names = tuple(model.state_names)
+    if "x" not in names or "v" not in names:
+        raise ParameterError(
+            owner, "model", "must have states x and v (a single-block model): the trace "
+            f"records them (states: {', '.join(names)})",
+        )  # fmt: skip
+    if not isinstance(measurement, Measurement):
+        raise ParameterError(owner, "measurement", "must be a Measurement")
+    n_cycles = check_int(owner, "n_cycles", n_cycles, minimum=10)
+    seed = check_int(owner, "seed", seed, minimum=0)
+    h = measurement.sampling_interval
+    scales = time_scales(model)
+    fast, slow = (1.0, 1.0) if scales is None else scales
+    if dt is None:
+        dt = min(max(h, _FINEST * fast), fast) / _STEPS_PER_SAMPLE
+    dt = check_positive(owner, "dt", dt)
+    # each path's duration: its share of the cycles times the mean period
+    pilot = simulate(model, _PILOT_PATHS, dt, max(_PILOT_HORIZON * slow, 2 * dt), seed)
+    period = np.asarray(pilot.period, float)
+    period = period[np.isfinite(period)]
+    if period.size < _PILOT_PATHS // 2 or not np.mean(period) > 0:
+        raise DataError(
+            f"{owner}: the model sticks again within {_PILOT_HORIZON:g} slow time scales in "
+            f"{period.size} of {_PILOT_PATHS} cycles: no stick-slip trace to measure"
+        )
+    n_paths = int(min(_MAX_PATHS, max(1, round(n_cycles / _CYCLES_PER_PATH))))
+    t_max = math.ceil(n_cycles / n_paths) * float(np.mean(period))
+    check_memory(
+        owner, f"a trace of {n_paths * t_max / h:.3g} samples ({n_cycles} cycles of mean period "
+        f"{np.mean(period):.3g} at an interval of {h:.3g})", _TRACE_BYTES * n_paths * t_max / h,
+        "take fewer cycles",
+    )  # fmt: skip
+    series = simulate_cycles(model, n_paths, dt, t_max, seed, record=True)
+    ix, iv = names.index("x"), names.index("v")
+    traces = []
+    for p in range(n_paths):
+        t, states, _ = series.trajectory(p)
+        # the slip samples lie at release + k dt, which may pass the stick by rounding
+        t = np.maximum.accumulate(np.asarray(t, float))
+        grid = h * np.arange(int(np.floor(t[-1] / h)) + 1)
+        # linear between samples: exact along a stick (x grows at v_b from the stick
+        # state to the next onset, v = v_b), the slips as in `_STEPS_PER_SAMPLE`
+        x = np.interp(grid, t, states[:, ix])
+        v = np.interp(grid, t, states[:, iv])
+        rng = np.random.default_rng([seed, _NOISE_STREAM, p])
+        traces.append(_record(measurement, grid, x, v, rng))
+    return MeasuredTrace(tuple(traces), dict(series.cycles), measurement, dt)
+
+
+def _record(m: Measurement, t, x, v, rng) -> dict[str, np.ndarray]:
+    """The signal(s) `m` records at times `t`, with its noise drawn from `rng` (the white
+    noise first, so that its draws stay the same whatever follows)."""
+    noise = m.noise_sd * rng.standard_normal(t.size) if m.noise_sd > 0 else 0.0
+    if m.signal == "x":
+        return dict(t=t, x=x + noise)
+    if m.signal == "v":
+        return dict(t=t, v=v + noise)
+    if m.signal == "x and v":
+        return dict(t=t, x=x, v=v + noise)
+    force = x + noise
+    for f in m.lines:
+        force = force + m.line_amplitude * np.sin(2 * np.pi * f * t + rng.uniform(0, 2 * np.pi))
+    if m.spike_fraction > 0:
+        at = np.flatnonzero(rng.random(t.size) < m.spike_fraction)
+        force[at] += m.spike_height * rng.choice([-1.0, 1.0], at.size)
+    return dict(t=t, force=force)
+
+
+def measured_cycles(model, measurement: Measurement, n_cycles: int, seed: int, *,
+                    dt: float | None = None) -> dict[str, np.ndarray]:  # fmt: skip
+    r"""The model's cycles as `measurement` sees them: simulated as a continuous trace,
+    sampled, made noisy and extracted with the data's settings.
+
+    **Arguments:**
+
+    - `model`: a single-block model instance (states `x` and `v`);
+    - `measurement`: a `Measurement` (`Measurement.from_cycles(data)`);
+    - `n_cycles`: about how many model cycles to simulate ($\ge 10$): the paths' duration
+      is their share of them times the mean period of 1024 pilot cycles. The measured
+      cycles are fewer where the measurement joins cycles (a zero-length stick, a stick
+      shorter than `min_stick` samples) or drops a path's cut ends;
+    - `seed`: the simulation's seed, and the noise's (its own stream): the same seed gives
+      the same cycles, and the same noise draws at every parameter value;
+    - `dt`: the simulator's step (default: half the sampling interval, within an eighth
+      and a half of the model's fastest time scale).
+
+    **Returns:** a dict with the measurement's `columns` (model units; force columns in
+    units of $k x_0$), the cycles of all paths concatenated.
+
+    **Raises:** `ParameterError` for bad arguments, `ResourceError` for a trace past the
+    memory limit (said before it is simulated), `DataError` where the simulated trace
+    shows no cycles through this measurement (e.g. sampling too coarse for this model, or
+    no stick-slip), with `extract_cycles`' reason.
+    """
+    trace = measured_trace(model, measurement, n_cycles, seed, dt=dt)
+    from .._extract import extract_cycles
+
+    settings = measurement.extract_settings(float(model.v_b))
+    tables = []
+    for p, signals in enumerate(trace.traces):
+        try:
+            # the simulated sticks move at exactly v_b and the noise is the data's: a warning
+            # here is about the simulation, which the fit reports in its own terms
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                tables.append(extract_cycles(**signals, **settings).table)
+        except StickSlipError as err:
+            raise DataError(
+                f"measured_cycles: the simulated trace (path {p}) shows no cycles through "
+                f"this measurement: {err}"
+            ) from None
+    return {k: np.concatenate([tb[k] for tb in tables]) for k in measurement.columns}
+
+
+def _number(info: Mapping, key: str) -> float:
+    try:
+        value = float(info[key])
+    except (TypeError, ValueError):
+        value = math.nan
+    if not math.isfinite(value) or value < 0:
+        raise ParameterError(OWNER, f"cycles.info['{key}']", "must be a finite number >= 0",
+                             info[key])  # fmt: skip
+    return value

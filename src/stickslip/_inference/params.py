@@ -1,0 +1,182 @@
+"""The parameters `fit` estimates: the model class, the `fixed` values and the `free` boxes
+(an entry of a dict parameter named with a dot, `"threshold_params.sd"`), checked before
+anything is simulated; the fit coordinates (log for a parameter whose box is positive);
+and the memory one evaluation needs.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from .._errors import ParameterError, ResourceError
+from .data import _refuse
+
+# Peak memory of one evaluation, per simulated cycle and state component: measured 475 B a
+# cycle for langevin (3 components) at 2e6 cycles, plain and as a trace (peak RSS).
+SIM_BYTES_PER_STATE = 160
+MAX_SIM_PATHS = 2**32 - 1  # the simulator numbers its paths with 32 bits
+
+
+def _model_class(model):
+    from .._model import ChainModel, FrictionModel
+    from .._registry import get_model
+
+    if isinstance(model, str):
+        Model = get_model(model)
+    elif isinstance(model, type) and issubclass(model, FrictionModel):
+        Model = model
+    else:
+        raise ParameterError("fit", "model", "must be a model name or a FrictionModel class", model)
+    if issubclass(Model, ChainModel):
+        raise ParameterError(
+            "fit", "model", f"{Model.__name__} is a chain of blocks: fit needs a single-block model"
+        )
+    return Model
+
+
+def _check_fixed(fixed, Model) -> dict[str, Any]:
+    if fixed is None:
+        return {}
+    if not hasattr(fixed, "items"):
+        raise ParameterError("fit", "fixed", "must be a dict {name: value}", fixed)
+    known = Model.parameters()
+    for k in fixed:
+        if k not in known:
+            raise ParameterError(
+                "fit",
+                f"fixed['{k}']",
+                f"is not a parameter of {Model.__name__} (parameters: {', '.join(known)})",
+            )
+    return dict(fixed)
+
+
+def _check_free(free, fixed, Model) -> dict[str, tuple[float, float]]:
+    """The boxes, checked; a dotted name (`"threshold_params.sd"`) is an entry of a dict
+    parameter, whose other entries `fixed` holds (a value `fixed` gives it too is replaced:
+    a study's `model.params` names a complete model)."""
+    if not hasattr(free, "items") or not free:
+        raise ParameterError("fit", "free", "must be a non-empty dict {name: (low, high)}", free)
+    known = Model.parameters()
+    out = {}
+    for k, box in free.items():
+        head, _, entry = str(k).partition(".")
+        if head not in known:
+            raise ParameterError(
+                "fit",
+                f"free['{k}']",
+                f"is not a parameter of {Model.__name__} (parameters: {', '.join(known)})",
+            )
+        if entry and not hasattr(fixed.get(head), "items"):
+            raise ParameterError(
+                "fit",
+                f"free['{k}']",
+                f"names an entry of {head}, which fixed must give as a dict of its other entries",
+            )
+        try:
+            low, high = (float(b) for b in box)
+        except (TypeError, ValueError):
+            raise ParameterError("fit", f"free['{k}']", "must be a pair (low, high)", box) from None
+        if not (math.isfinite(low) and math.isfinite(high) and low < high):
+            raise ParameterError("fit", f"free['{k}']", "must be finite with low < high", box)
+        if k in fixed:
+            raise ParameterError("fit", f"free['{k}']", "is also fixed")
+        if not entry and any(str(j).startswith(f"{k}.") for j in free):
+            raise ParameterError("fit", f"free['{k}']", "is free with one of its own entries")
+        out[str(k)] = (low, high)
+    return out
+
+
+def _kwargs(fixed: dict, values: dict) -> dict[str, Any]:
+    """The model's keyword arguments: `fixed` with the free `values` set, a dotted name
+    into its dict parameter (copied, so `fixed` is left as given)."""
+    out = dict(fixed)
+    for k, v in values.items():
+        head, _, entry = k.partition(".")
+        if entry:
+            out[head] = {**out[head], entry: v}
+        else:
+            out[k] = v
+    return out
+
+
+def _check_box(Model, fixed, free, centre: dict):
+    """The model at the box's centre, after building it there and at both ends of each
+    axis: a value it refuses is a `ParameterError` naming the free parameter's box."""
+    trials = [(None, centre)] + [(k, {**centre, k: b}) for k in free for b in free[k]]
+    for name, values in trials:
+        try:
+            model = Model(**_kwargs(fixed, values))
+        except TypeError as err:  # a required parameter neither fixed nor free
+            raise ParameterError(
+                "fit",
+                "fixed",
+                f"with free does not make a {Model.__name__}: {str(err).splitlines()[0]}",
+            ) from None
+        except (ValueError, ArithmeticError) as err:
+            culprit = name or (err.parameter if isinstance(err, ParameterError) else None)
+            if isinstance(err, ParameterError):
+                reason = f"{err.owner} says {err.parameter} {err.reason}"
+            else:
+                reason = f"{type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''}"
+            if culprit in free:
+                raise ParameterError(
+                    "fit",
+                    f"free['{culprit}']",
+                    f"reaches {culprit} = {values[culprit]:.4g}, where {reason}: narrow the box",
+                    free[culprit],
+                ) from None
+            where = f"fixed['{culprit}']" if culprit in fixed else "fixed"
+            raise ParameterError(
+                "fit",
+                where,
+                f"with free at the box's centre does not make a {Model.__name__} ({reason})",
+            ) from None
+        if name is None:
+            built = model
+    return built
+
+
+def _memory_limit() -> int:
+    """The simulator's memory limit (`driver.memory_limit`: half this machine's memory, or
+    `STICKSLIP_MEMORY_LIMIT`), so that a fit and a plain simulation refuse alike."""
+    from .._simulate.driver import memory_limit
+
+    return int(memory_limit())
+
+
+def _check_memory(n_sim: int, model) -> None:
+    need = n_sim * SIM_BYTES_PER_STATE * model.state_dim
+    limit = _memory_limit()
+    if need > limit:
+        raise _refuse(
+            ResourceError,
+            "n_sim",
+            f"needs about {need / 2**30:.3g} GiB per evaluated point "
+            f"({SIM_BYTES_PER_STATE * model.state_dim} B a simulated cycle), past the limit of "
+            f"{limit / 2**30:.3g} GiB (half this machine's memory, or STICKSLIP_MEMORY_LIMIT): "
+            f"take at most "
+            f"{limit // (need // n_sim):.3g}",
+            n_sim,
+        )
+    if n_sim > MAX_SIM_PATHS:
+        raise ParameterError(
+            "fit", "n_sim", "must be < 2**32 (the simulator numbers its paths with 32 bits)", n_sim
+        )
+
+
+def _to_fit(scale, x):
+    return np.log(x) if scale == "log" else x
+
+
+def _from_fit(scale, u):
+    return float(np.exp(u)) if scale == "log" else float(u)
+
+
+def model_kwargs(model) -> dict[str, Any]:
+    """The constructor's arguments that rebuild `model`: its `params()` less what they only
+    describe (a random threshold's law summary, `threshold_description`)."""
+    known = type(model).parameters()
+    return {k: v for k, v in model.params().items() if k in known}

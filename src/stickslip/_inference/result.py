@@ -1,0 +1,117 @@
+"""`FitResult`: what `fit` returns (estimate, intervals, diagnostics, goodness of fit)."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from .forward import _simulate
+from .surface import DESIGN_STEP
+
+
+@dataclasses.dataclass(frozen=True)
+class FitResult:
+    """The result of `fit`.
+
+    - `estimate`, `ci`: the maximum simulated-likelihood estimate and 95 % intervals of
+      each free parameter;
+    - `log_likelihood`: at the estimate (of the data's transformed values plus the
+      Jacobian of the log scale: a density of the data themselves);
+    - `method`: what was done, in words;
+    - `diagnostics`: the settings (`n_sim`, `dt`, `t_max`, `seed`, bandwidths,
+      `measurement`: the data's `Measurement`, `None` for per-cycle values), the
+      covariance and Hessian (fit coordinates), every evaluated point, the evaluations and
+      seconds spent, `optimizer` (Nelder-Mead's evaluations and cap), `design` (the axes
+      clipped at the box, whether the polynomial had a vertex), `mc_noise` (the second
+      seed, the Monte Carlo sd of the estimate against its standard error, the `n_sim`
+      advised), `zero_fraction` (of each duration column), and `warnings` (each also
+      issued as a one-line `UserWarning`);
+    - `goodness`: the `GoodnessOfFit` of the fitted model against the data (`fit`'s
+      `check=True`), and `p_values` from it (`None` with `check=False`).
+    """
+
+    estimate: dict[str, float]
+    ci: dict[str, tuple[float, float]]
+    log_likelihood: float
+    method: str
+    diagnostics: dict[str, Any]
+    data: dict[str, np.ndarray] = dataclasses.field(repr=False)
+    model: Any = dataclasses.field(repr=False)
+    goodness: Any = dataclasses.field(default=None, repr=False)
+
+    @property
+    def p_values(self) -> dict[str, float] | None:
+        """`{observable: p}`, the simulation-calibrated goodness-of-fit p-value of each
+        fitted column (`goodness_of_fit`), and `"joint"`, all columns at once, when there
+        are several; `None` when the fit ran with `check=False`. Small: the data are unlike
+        the fitted model's (below `ALPHA` = 0.01 the fit warned)."""
+        if self.goodness is None:
+            return None
+        out = dict(self.goodness.p_values)
+        if len(out) > 1:
+            out["joint"] = self.goodness.p_value
+        return out
+
+    def summary(self) -> str:
+        lines = [f"{self.method}", f"log-likelihood {self.log_likelihood:.2f}"]
+        for k, v in self.estimate.items():
+            lo, hi = self.ci[k]
+            lines.append(f"  {k} = {v:.4g}   95 % interval [{lo:.4g}, {hi:.4g}]")
+        if self.p_values is not None:
+            shown = ", ".join(f"{k} p = {p:.3g}" for k, p in self.p_values.items())
+            lines.append(f"goodness of fit ({self.goodness.n_rep} replicates): {shown}")
+        lines += [f"warning: {w}" for w in self.diagnostics.get("warnings", ())]
+        return "\n".join(lines)
+
+    def plot(self, path=None, n_sim: int | None = None):
+        """Data against the fitted model (a histogram per quantity and the simulated
+        density at the estimate, its goodness-of-fit p-value in the title), and the
+        log-likelihood along each free parameter (the evaluated points and the fitted
+        quadratic). Returns the figure; saves it to `path`."""
+        import matplotlib
+
+        if path is not None:
+            matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        kinds = list(self.data)
+        free = list(self.estimate)
+        fig, axes = plt.subplots(
+            1, len(kinds) + len(free), figsize=(3.6 * (len(kinds) + len(free)), 3.2)
+        )
+        axes = np.atleast_1d(axes)
+        d = self.diagnostics
+        sim = _simulate(
+            self.model, n_sim or d["n_sim"], d["dt"], d["t_max"], d["seed"], d["measurement"]
+        )
+        for ax, k in zip(axes, kinds, strict=False):
+            x = self.data[k]
+            edges = np.histogram_bin_edges(x, bins=min(60, max(10, x.size // 50)))
+            ax.hist(x, edges, density=True, alpha=0.5, label=f"data ({x.size})")
+            ax.hist(sim[k], edges, density=True, histtype="step", lw=1.5, label="fitted model")
+            ax.set_xlabel(k)
+            ax.legend(fontsize=7)
+            if self.p_values is not None:
+                ax.set_title(f"{k}: p = {self.p_values[k]:.3g}", fontsize=9)
+        pts = np.array([p[0] for p in d["points"]])
+        ll = np.array([p[1] for p in d["points"]])
+        for i, (ax, name) in enumerate(zip(axes[len(kinds) :], free, strict=True)):
+            u = d["to_fit"](name, pts[:, i])
+            ax.plot(u, ll, ".", ms=3, color="0.6", label="evaluated")
+            u0 = d["to_fit"](name, self.estimate[name])
+            grid = np.linspace(u0 - 3 * DESIGN_STEP, u0 + 3 * DESIGN_STEP, 50)
+            H = np.asarray(d["hessian"])
+            ax.plot(
+                grid, self.log_likelihood + 0.5 * H[i, i] * (grid - u0) ** 2, "-", label="quadratic"
+            )
+            ax.set_ylim(self.log_likelihood - 20, self.log_likelihood + 2)
+            ax.set_xlabel(f"{d['scales'][name]} {name}")
+            ax.set_ylabel("log-likelihood")
+            ax.legend(fontsize=7)
+        fig.tight_layout()
+        if path is not None:
+            fig.savefig(path, dpi=110)
+            plt.close(fig)
+        return fig

@@ -1,0 +1,202 @@
+"""Where the likelihood is largest, and its curvature there.
+
+The maximum is found by a coarse grid over the `free` box (`_design`) and Nelder-Mead from
+its best point (`_search`), in fit coordinates (log for positive parameters); then a
+quadratic plus a cubic term per axis is fitted by least squares on a design of steps
+`DESIGN_STEP` around it (`_local_surface`: the cubic terms keep the surface's skew out of
+the vertex): the vertex is the estimate, its Hessian the information.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from .._errors import ParameterError
+
+DESIGN_STEP = 0.1  # the quadratic design's step (log coordinates for positive parameters)
+GRID_POINTS = 5  # per free parameter, for the coarse start (p <= 2; 8 p points above)
+# Nelder-Mead's cap a free parameter: converged on the simplex's size it took 22 evaluations
+# for one parameter and 35 for two (measured, slip and stick times); the cap is 4-5 x that.
+MAXFEV_PER_PARAMETER = 100
+
+
+def _search(loglik, lo, hi, free) -> tuple[np.ndarray, dict, list[str]]:
+    """The coarse grid over the box, then Nelder-Mead from its best point. Returns the best
+    point (fit coordinates, inside the box), the optimiser's record and its warnings."""
+    start = _design(lo, hi)
+    values = [loglik(u)[0] for u in start]
+    if not np.any(np.isfinite(values)):
+        raise ParameterError(
+            "fit",
+            "free",
+            f"the model could not be built at any of the {len(start)} starting points of the box",
+            free,
+        )
+    best = start[int(np.argmax(values))]
+    from scipy.optimize import minimize
+
+    cap = _max_evaluations(lo.size)
+    simplex = np.vstack([best, best + 0.15 * np.diag(hi - lo)])
+    res = minimize(
+        lambda u: -loglik(u)[0], best, method="Nelder-Mead",
+        options=dict(xatol=0.02, fatol=np.inf, maxfev=cap, initial_simplex=simplex),
+    )  # fmt: skip
+    # Converged on the simplex's size alone (fatol infinite): the simulator's draws move
+    # with the parameters (a change of 1e-12 in D moved every simulated slip time, by 1e-3
+    # typically), so points 1e-4 apart differ by several log-likelihood units and a value
+    # tolerance (0.2 before) was never met: Nelder-Mead ran into its cap. The polynomial
+    # below, on steps of 0.1, finds the maximum more precisely than 0.02 anyway.
+    said = []
+    if res.status == 1:  # scipy: the cap on evaluations (2 is the cap on iterations)
+        said.append(
+            f"Nelder-Mead stopped on its cap of {cap} evaluations "
+            "before converging: the estimate is the polynomial vertex around its last best "
+            "point; check it with a narrower box"
+        )
+    record = dict(success=bool(res.success), message=str(res.message),
+                  evaluations=int(res.nfev), cap=cap)  # fmt: skip
+    return np.clip(res.x, lo, hi), record, said
+
+
+@dataclasses.dataclass(frozen=True)
+class _Surface:
+    """The polynomial fitted to the log-likelihood around `centre` (fit coordinates):
+    the `nominal` design and the points evaluated (`design`: clipped at the box), their
+    `values` and per-cycle `scores`, the vertex's `shift` from the centre (`None`: no
+    vertex near it), the `hessian` there, and the axes `clipped` at the box."""
+
+    centre: np.ndarray
+    steps: np.ndarray
+    nominal: np.ndarray
+    design: np.ndarray
+    values: list
+    scores: list
+    shift: np.ndarray | None
+    hessian: np.ndarray
+    clipped: list
+
+    @property
+    def warnings(self) -> list[str]:
+        said = []
+        if self.clipped:
+            said.append(
+                f"the surface design around the estimate reaches past the box in "
+                f"{', '.join(self.clipped)}: those points were evaluated and regressed at the "
+                "box's edge (a one-sided fit there): widen the box"
+            )
+        if self.shift is None:
+            said.append(
+                "the polynomial fitted to the surface has no maximum within 2 design steps of "
+                "the best point found (the surface is rough or flat there): the estimate is "
+                "that point, and the curvature the quadratic's"
+            )
+        return said
+
+    def vertex(self, lo, hi) -> np.ndarray:
+        """The estimate: the vertex (inside the box), or the centre if there is none."""
+        return self.centre if self.shift is None else np.clip(self.centre + self.shift, lo, hi)
+
+
+def _local_surface(loglik, u_hat, lo, hi, data, names) -> _Surface:
+    """The maximum and the observed information from a polynomial fitted to the surface
+    around `u_hat`: quadratic, plus a cubic term along each axis, on steps of DESIGN_STEP
+    (wide against the surface's Monte Carlo roughness; on steps of one standard error it
+    drowned the curvature, and what it leaves is measured by the second seed, see
+    `intervals._mc_noise`). The cubic terms take the surface's skew out of the vertex: a
+    quadratic alone put it 3-4 % low. Points past the box are evaluated at the box (`loglik`
+    clips) and so regressed where they were evaluated."""
+    design_steps = np.full(len(names), DESIGN_STEP)
+    for attempt in range(2):
+        nominal = _quadratic_design(u_hat, design_steps)
+        design = np.clip(nominal, lo, hi)
+        values, scores = _evaluate(design, lambda u: loglik(u), data)
+        shift, H = _polynomial_vertex(design - u_hat, np.array(values), design_steps)
+        best_point = int(np.argmax(values))
+        if shift is not None or attempt == 1 or best_point == 0:
+            break
+        # no vertex near Nelder-Mead's point (a rough surface can leave it off the
+        # maximum): once more around the design's best point
+        u_hat = design[best_point]
+    clipped = [k for i, k in enumerate(names) if np.any(design[:, i] != nominal[:, i])]
+    return _Surface(
+        centre=u_hat, steps=design_steps, nominal=nominal, design=design, values=values,
+        scores=scores, shift=shift, hessian=H, clipped=clipped,
+    )  # fmt: skip
+
+
+def _design(lo, hi):
+    p = lo.size
+    if p <= 2:
+        axes = [np.linspace(a, b, GRID_POINTS + 2)[1:-1] for a, b in zip(lo, hi, strict=True)]
+        return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, p)
+    from scipy.stats import qmc
+
+    return qmc.scale(qmc.Sobol(p, seed=0).random(8 * p), lo, hi)
+
+
+def _quadratic_design(u, steps):
+    """The centre, 4 points along each axis (+-1, +-2 steps) and 4 diagonal points per pair."""
+    p = u.size
+    pts = [u]
+    for i in range(p):
+        for m in (-2, -1, 1, 2):
+            e = np.zeros(p)
+            e[i] = m * steps[i]
+            pts.append(u + e)
+        for j in range(i + 1, p):
+            for a, b in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+                e = np.zeros(p)
+                e[i], e[j] = a * steps[i], b * steps[j]
+                pts.append(u + e)
+    return np.array(pts)
+
+
+def _polynomial_vertex(du, values, steps):
+    """Fit c + g.du + du.Q.du / 2 + sum_i k_i du_i^3 by least squares; return the vertex
+    nearest the centre (Newton from 0, `None` if it leaves two steps) and the Hessian there
+    (the quadratic's alone if there is no vertex)."""
+    p = du.shape[1]
+    ok = np.isfinite(values)
+    cols = [np.ones(len(du))] + [du[:, i] for i in range(p)]
+    pairs = [(i, j) for i in range(p) for j in range(i, p)]
+    cols += [du[:, i] * du[:, j] * (0.5 if i == j else 1.0) for i, j in pairs]
+    cols += [du[:, i] ** 3 for i in range(p)]
+    coef = np.linalg.lstsq(np.stack(cols, axis=1)[ok], values[ok], rcond=None)[0]
+    g = coef[1 : 1 + p]
+    Q = np.zeros((p, p))
+    for (i, j), v in zip(pairs, coef[1 + p : 1 + p + len(pairs)], strict=True):
+        Q[i, j] = Q[j, i] = v
+    k = coef[1 + p + len(pairs) :]
+    x = np.zeros(p)
+    for _ in range(20):
+        grad = g + Q @ x + 3 * k * x**2
+        hess = Q + np.diag(6 * k * x)
+        try:
+            step = np.linalg.solve(hess, -grad)
+        except np.linalg.LinAlgError:
+            return None, Q
+        x = x + step
+        if np.any(np.abs(x) > 2 * steps):
+            return None, Q
+        if np.all(np.abs(step) < 1e-6 * steps):
+            break
+    return x, Q + np.diag(6 * k * x)
+
+
+def _evaluate(design, loglik, data):
+    """The log-likelihood at each design point and its per-cycle terms summed over the
+    columns (a cycle's score: the columns of one cycle are dependent)."""
+    values, scores = [], []
+    for u in design:
+        v, terms = loglik(u)
+        values.append(v)
+        scores.append(None if terms is None else np.sum([terms[k] for k in data], axis=0))
+    return values, scores
+
+
+def _max_evaluations(p: int) -> int:
+    """Nelder-Mead's cap: MAXFEV_PER_PARAMETER a free parameter (30 a parameter, with a
+    value tolerance the rough surface never met, was hit in most two-parameter fits)."""
+    return MAXFEV_PER_PARAMETER * p

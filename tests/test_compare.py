@@ -1,0 +1,230 @@
+"""`compare_fits`: the simplest of several fitted models that the data do not reject.
+
+Default tier: the refusals, the quadratic maximum the statistic rests on (against closed
+forms), and one clear case (a threshold of sd 0.4 of its mean against a fixed one, small
+data). Slow tier: the issue's acceptance study, sets simulated with a fixed and with a
+random threshold (sd 0.2 of its mean).
+"""
+
+import dataclasses
+import time
+import warnings
+
+import numpy as np
+import pytest
+
+import stickslip as ss
+from stickslip._inference.compare import _named, _quadratic_max, compare_fits
+from stickslip._inference.likelihood import _simulate
+
+BASE = dict(omega0=1.0, zeta=0.1, v_b=1.0, tau=0.1)
+COLUMNS = ("slip_time", "stick_time")
+
+
+def _data(sd: float, n: int, seed: int) -> dict:
+    """`n` cycles of the random-threshold model (normal threshold, mean 1, this sd; sd = 0
+    is the fixed threshold x0 = 1, bit for bit), as `simulate` gives them."""
+    truth = ss.get_model("random-threshold")(
+        **BASE, D=0.4, threshold="normal", threshold_params={"mean": 1.0, "sd": sd}
+    )
+    sim = _simulate(truth, int(1.2 * n) + 50, 0.2, 60.0, seed)
+    assert sim["slip_time"].size >= n
+    return {k: sim[k][:n] for k in COLUMNS}
+
+
+def _fit_pair(data, free_fixed, free_random, fixed, n_sim, seed=11):
+    """The fixed-threshold (`langevin`) and random-threshold (normal law) fits of `data`;
+    boxes not centred on the truth (x0 = mean = 1, sd = 0 or > 0, D = 0.4)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # an sd on its box's edge (0) is expected here
+        r_fixed = ss.fit("langevin", data, free_fixed, BASE | fixed, seed=seed, n_sim=n_sim,
+                         check=False)  # fmt: skip
+        r_random = ss.fit(
+            "random-threshold", data, free_random,
+            BASE | fixed | {"threshold": "normal", "threshold_params": {}},
+            seed=seed, n_sim=n_sim, check=False,
+        )  # fmt: skip
+    return r_fixed, r_random
+
+
+@pytest.fixture(scope="module")
+def clear_case():
+    """60 cycles with a threshold of sd 0.4 (D held at its value in both candidates, so
+    each fit has one free parameter fewer: the test is of the choice, not of D); the
+    fewest simulated cycles `fit` takes (about 8 s in all)."""
+    data = _data(0.4, 60, seed=2024)
+    r_fixed, r_random = _fit_pair(
+        data, {"x0": (0.4, 4.0)},
+        {"threshold_params.mean": (0.4, 4.0), "threshold_params.sd": (0.0, 1.5)},
+        {"D": 0.4}, n_sim=1000,
+    )  # fmt: skip
+    comparison = compare_fits({"fixed": r_fixed, "random": r_random}, alpha=0.05, n_boot=39, seed=1)
+    return r_fixed, r_random, comparison
+
+
+def test_clear_case_chooses_the_random_threshold(clear_case):
+    r_fixed, r_random, c = clear_case
+    assert c.chosen is r_random
+    (test,) = c.tests
+    assert test["null"] == "fixed" and test["alternative"] == "random"
+    # the bootstrap's smallest p-value, 1 / (n_boot + 1), at both simulation seeds: the
+    # likelihood ratio is far beyond every replicate's
+    assert test["p_values"] == [1 / 40, 1 / 40], test
+    assert min(test["statistic"]) > 20, test
+
+
+def test_table_shape(clear_case):
+    r_fixed, r_random, c = clear_case
+    assert [r["rank"] for r in c.table] == [1, 2]
+    assert [r["name"] for r in c.table] == ["random", "fixed"]  # the chosen first
+    keys = {"rank", "name", "model", "free", "n_free", "log_likelihood", "statistic",
+            "p_value", "verdict"}  # fmt: skip
+    assert all(set(r) == keys for r in c.table)
+    chosen, rejected = c.table
+    assert chosen["model"] == "random-threshold" and rejected["model"] == "langevin"
+    assert chosen["free"] == ["threshold_params.mean", "threshold_params.sd"]
+    assert (chosen["n_free"], rejected["n_free"]) == (2, 1)
+    assert chosen["log_likelihood"] == r_random.log_likelihood
+    assert rejected["p_value"] < c.alpha and rejected["verdict"].startswith("rejected")
+    assert chosen["verdict"].startswith("chosen")
+    text = c.summary()
+    assert "chosen: random" in text and "rejected against random" in text
+
+
+def test_list_input_names_candidates_by_model(clear_case):
+    r_fixed, r_random, _ = clear_case
+    named = _named([r_random, r_fixed, dataclasses.replace(r_fixed)], "compare_fits")
+    assert list(named) == [
+        "random-threshold (threshold_params.mean, threshold_params.sd)",
+        "langevin (x0)",
+        "langevin (x0) #2",
+    ]
+    assert named["random-threshold (threshold_params.mean, threshold_params.sd)"] is r_random
+
+
+def test_three_candidates(clear_case):
+    """The simplest is tested against both richer ones (Bonferroni: twice its smallest
+    p-value, so twice the replicates by default); a candidate with as many free parameters
+    as the chosen one, and a lower or equal log-likelihood, is not tested."""
+    r_fixed, r_random, _ = clear_case
+    twin = dataclasses.replace(r_random)  # another object: a candidate of its own
+    c = compare_fits({"fixed": r_fixed, "random": r_random, "twin": twin}, alpha=0.05, seed=1)
+    assert c.n_boot == 79  # the default: the smallest p-value, 2 / (n_boot + 1), is alpha / 2
+    assert [t["alternative"] for t in c.tests] == ["random", "twin"]
+    rows = {r["name"]: r for r in c.table}
+    assert rows["fixed"]["p_value"] == min(1.0, 2 * min(t["p_value"] for t in c.tests))
+    assert rows["fixed"]["verdict"].startswith("rejected") and rows["fixed"]["rank"] == 3
+    assert c.chosen is r_random and rows["random"]["rank"] == 1
+    assert rows["twin"]["p_value"] is None and rows["twin"]["verdict"].startswith("not tested")
+
+
+def test_refusals(clear_case):
+    r_fixed, r_random, _ = clear_case
+    with pytest.raises(ss.ParameterError, match="at least two"):
+        compare_fits([r_fixed])
+    with pytest.raises(ss.ParameterError, match="list or dict"):
+        compare_fits(r_fixed)
+    with pytest.raises(ss.ParameterError, match=r"fits\[1\].*FitResult"):
+        compare_fits([r_fixed, {"slip_time": [1.0]}])
+    with pytest.raises(ss.ParameterError, match=r"fits\[1\].*fits\[0\] again"):
+        compare_fits([r_fixed, r_fixed])
+    with pytest.raises(ss.ParameterError, match="alpha"):
+        compare_fits([r_fixed, r_random], alpha=1.5)
+    with pytest.raises(ss.ParameterError, match="n_boot.*at least 100"):
+        compare_fits([r_fixed, r_random], n_boot=99)  # p >= 1/100 = alpha
+    twin = dataclasses.replace(r_random)
+    with pytest.raises(ss.ParameterError, match="n_boot.*2 richer.*at least 40"):
+        compare_fits([r_fixed, r_random, twin], alpha=0.05, n_boot=39)  # 2 / 40 = alpha
+    other = {k: v.copy() for k, v in r_random.data.items()}
+    other["slip_time"][7] *= 1.01
+    moved = dataclasses.replace(r_random, data=other)
+    with pytest.raises(ss.DataError, match="different data.*slip_time.*row 7"):
+        compare_fits([r_fixed, moved])
+    fewer = dataclasses.replace(r_random, data={"slip_time": r_random.data["slip_time"]})
+    with pytest.raises(ss.DataError, match="fitted to slip_time and"):
+        compare_fits([r_fixed, fewer])
+    traced = dataclasses.replace(r_random, diagnostics={**r_random.diagnostics, "trace": True})
+    with pytest.raises(ss.DataError, match="measurement differently.*trace"):
+        compare_fits([r_fixed, traced])
+    for err in (ss.ParameterError, ss.DataError):  # one-line messages
+        try:
+            compare_fits([r_fixed, fewer] if err is ss.DataError else [r_fixed])
+        except err as e:
+            assert "\n" not in str(e) and str(e).startswith("compare_fits: ")
+
+
+def test_quadratic_max_against_closed_form():
+    """The statistic's maximum of a quadratic through the design values: exact for values
+    that are a quadratic (a shared curvature, a level and gradient per data set), at the
+    vertex where it lies inside the design's box, on the box's face where it does not."""
+    p = 2
+    offsets = [np.zeros(p)]
+    for i in range(p):
+        for m in (-2, -1, 1, 2):
+            e = np.zeros(p)
+            e[i] = m
+            offsets.append(e)
+    offsets += [np.array(v, float) for v in ((1, 1), (1, -1), (-1, 1), (-1, -1))]
+    offsets = np.array(offsets)
+    Q = np.array([[-2.0, 0.5], [0.5, -1.0]])
+    vertices = np.array([[0.5, -1.0], [-1.5, 0.25], [3.0, 0.0]])  # the last outside the box
+    levels = np.array([-10.0, 3.0, 7.0])
+    values = np.stack(
+        [levels[s] + 0.5 * np.einsum("ni,ij,nj->n", offsets - v, Q, offsets - v)
+         for s, v in enumerate(vertices)], axis=1,
+    )  # fmt: skip
+    got = _quadratic_max(offsets, values)
+    # inside (on the 17-point grid of [-2, 2]: steps of 1/4): the level itself
+    assert got[:2] == pytest.approx(levels[:2], abs=1e-9)
+    # outside along axis 0: on the face x0 = 2, the best x1 = v1 + Q01 (2 - v0) / (-Q11)...
+    # closed form of max over x1 of q(2, x1): x1* = v1 - Q01 (2 - v0) / Q11
+    v0, v1 = vertices[2]
+    x1 = v1 - Q[0, 1] * (2.0 - v0) / Q[1, 1]
+    d = np.array([2.0 - v0, x1 - v1])
+    face = levels[2] + 0.5 * d @ Q @ d
+    grid_x1 = np.linspace(-2, 2, 17)
+    on_grid = max(levels[2] + 0.5 * np.array([2.0 - v0, g - v1]) @ Q @ np.array(
+        [2.0 - v0, g - v1]) for g in grid_x1)  # fmt: skip
+    assert on_grid <= face + 1e-12
+    assert got[2] == pytest.approx(on_grid, abs=1e-9)
+    # a one-sided design (a threshold spread of 0: the model refuses the other side) keeps
+    # the maximum on its side
+    one_sided = offsets[offsets[:, 1] >= 0]
+    vals = levels[0] + 0.5 * np.einsum("ni,ij,nj->n", one_sided - vertices[0], Q,
+                                       one_sided - vertices[0])  # fmt: skip
+    best = _quadratic_max(one_sided, vals[:, None])[0]
+    x0 = vertices[0][0] - Q[0, 1] * (0.0 - vertices[0][1]) / Q[0, 0]  # on the face x1 = 0
+    d = np.array([x0 - vertices[0][0], 0.0 - vertices[0][1]])
+    assert best <= levels[0] + 0.5 * d @ Q @ d + 1e-12
+    assert best == pytest.approx(levels[0] + 0.5 * d @ Q @ d, abs=0.02)  # grid 1/8 apart
+
+
+@pytest.mark.slow
+def test_acceptance_fixed_against_random_threshold():
+    """Issue 40's bar: on 20 sets simulated with a fixed threshold the fixed one is chosen
+    in >= 90 %, on 20 with a normal threshold of sd 0.2 of its mean the random one in
+    >= 90 %. Each set: 150 cycles (slip and stick times), both models fitted with D free
+    (boxes not centred on the truth), 4000 simulated cycles a point, the default level
+    (0.01) and replicates (199). A calibrated test rejects the fixed threshold in 0.2 of
+    20 sets on average, 3 or more with probability 0.001."""
+    t0 = time.perf_counter()
+    chosen = {0.0: [], 0.2: []}
+    for sd, offset in ((0.0, 0), (0.2, 100)):
+        for i in range(20):
+            data = _data(sd, 150, seed=5000 + offset + i)
+            r_fixed, r_random = _fit_pair(
+                data, {"D": (0.05, 2.0), "x0": (0.4, 4.0)},
+                {"D": (0.05, 2.0), "threshold_params.mean": (0.4, 4.0),
+                 "threshold_params.sd": (0.0, 0.8)},
+                {}, n_sim=4000,
+            )  # fmt: skip
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                c = compare_fits({"fixed": r_fixed, "random": r_random}, seed=3)
+            chosen[sd].append(c.chosen_name)
+            (t,) = c.tests
+            print(f"sd {sd} set {i}: {c.chosen_name}, 2dlogL {t['statistic']}, p {t['p_values']}")
+    rates = {sd: names.count("fixed" if sd == 0 else "random") / 20 for sd, names in chosen.items()}
+    print(f"selection rates {rates} in {time.perf_counter() - t0:.0f} s")
+    assert rates[0.0] >= 0.9, chosen
+    assert rates[0.2] >= 0.9, chosen
