@@ -82,6 +82,7 @@ def test_stand_in_sizes_give_the_numbers_of_every_size_compiled(empty_cache, mon
     assert reuse.stats["miss_bound"] == pytest.approx(eager.stats["miss_bound"], rel=1e-12)
 
 
+@pytest.mark.slow
 def test_the_background_compiler_makes_what_the_eager_run_needs(tmp_path):
     """A first run under the default policy asks the background compiler for the sizes it
     stood in for; once it is done, a run that wants every size (`"eager"`) finds them all
