@@ -6,8 +6,15 @@ Both use grid monitoring and linear interpolation of the stick time, the classic
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import scipy.linalg
+
+# The benchmarks that time stickslip against these baselines time compiled code: every
+# buffer size compiled where first met, not left to the background compiler
+# (`stickslip._compile.policy`; the first call is timed by cold_start.py).
+os.environ.setdefault("STICKSLIP_COMPILE", "eager")
 
 
 def _matrices(omega0, zeta, D, tau):

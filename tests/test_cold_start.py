@@ -122,6 +122,8 @@ def test_rent_compiles_once_the_waste_passes_a_compilation(monkeypatch):
     assert not _compile.due("loop")
     assert _compile.rent("loop", 0.5) and _compile.due("loop")
     assert not _compile.due("other")
+    _compile.pay("loop")  # compiled: one compilation's cost off the rent
+    assert not _compile.due("loop") and _compile._rent["loop"] == pytest.approx(0.1)
 
 
 def test_the_cold_note_says_when_the_cache_is_empty(empty_cache):

@@ -293,10 +293,12 @@ class Fixed:
 # A run that has no executable for the size it wants goes on with a larger one (`policy`):
 # the ski-rental rule decides when to compile the wanted one after all. Each call made on a
 # larger size than wanted adds the time it wasted (its seconds times the fraction of the
-# buffer it did not need) to the wanted program's rent; once the rent passes what a
-# compilation costs, the program is compiled (at most twice the best cost in hindsight,
-# whatever the rest of the run holds). A long run on few paths soon compiles its small
-# sizes; a short first run compiles none.
+# buffer it did not need) to the program's rent (one rent for all sizes of a program: as
+# paths finish the wanted size moves on, and a rent per size spread a long run's 2.5 s of
+# waste over six sizes, none of which came due); once the rent passes what a compilation
+# costs, the size wanted then is compiled and one compilation's cost comes off the rent (at
+# most about twice the best cost in hindsight). A long run soon compiles the sizes it
+# needs; a short first run compiles none.
 COMPILE_SECONDS = 2.0  # a compilation of the simulator's loops on 2 cores, until measured
 _rent: dict = {}
 _rent_lock = threading.Lock()
@@ -331,6 +333,12 @@ def rent(key, wasted: float) -> bool:
 def due(key) -> bool:
     """Whether the rent of the program `key` has passed a compilation's cost."""
     return _rent.get(key, 0.0) >= compile_estimate(_key_fn(key))
+
+
+def pay(key) -> None:
+    """A compilation of the program `key` was decided: its cost comes off the rent."""
+    with _rent_lock:
+        _rent[key] = max(0.0, _rent.get(key, 0.0) - compile_estimate(_key_fn(key)))
 
 
 def _count_compile(fn, elapsed: float) -> None:

@@ -610,7 +610,10 @@ class Refiner:
         its first call). A larger buffer gives the same refinement (keyed by path, step and
         tree node; each pass reads only the open intervals)."""
         self._joined()
-        if want in self.sizes or _compile.policy() == "eager" or _compile.due(self._key(want)):
+        if want in self.sizes or _compile.policy() == "eager":
+            return want
+        if _compile.due(self._rent_key):
+            _compile.pay(self._rent_key)
             return want
         for C in [c for c in CAPACITIES if c >= want] + [want]:
             if C in self.sizes or self._ready(C, d):
@@ -626,13 +629,18 @@ class Refiner:
         the wanted buffer is asked of the background compiler)."""
         self._joined()
         want = _capacity(min(BATCH, n))
-        if want in self.sizes or _compile.policy() == "eager" or _compile.due(self._key(want)):
+        if want in self.sizes or _compile.policy() == "eager" or _compile.due(self._rent_key):
             return BATCH
         smaller = [C for C in sorted(self.sizes) if C < want]
         if not smaller or self._ready(want, d):
             return BATCH
         _background.request(_refine_levels, *self._stand_ins(want, d), paths=want)
         return max(1, smaller[-1] * BATCH // CAPACITIES[-1])
+
+    @property
+    def _rent_key(self):
+        """The refinement's rent key (`_compile.rent`): one for all its capacities."""
+        return (_refine_levels, self.layout)
 
     def _key(self, C: int):
         return (_refine_levels, self.layout, C)
@@ -690,7 +698,7 @@ class Refiner:
         start = time.perf_counter()
         out = self.sizes[C](*args)
         int(out[-1])  # (the call's time: wait for it)
-        _compile.rent(self._key(want), (time.perf_counter() - start) * (1.0 - want / C))
+        _compile.rent(self._rent_key, (time.perf_counter() - start) * (1.0 - want / C))
         return out
 
     def first_crossing(self, Xa, Xb, path, step):

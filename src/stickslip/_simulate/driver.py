@@ -802,15 +802,15 @@ class _Run:
             first = False
             start = time.perf_counter()
             out = loop(*args, paths=size)
-            if size > want:  # the rent of the size wanted (`_compile.rent`)
-                wasted = (time.perf_counter() - start) * (1.0 - want / size)
-                _compile.rent(self._want_key(want), wasted)
             # The states stay where the loop left them for its next call (read here through
             # zero-copy views; copying them in and out cost ~3 ms a call at 131072 paths).
             X_dev, X_prev_dev, miss_dev = out[0], out[1], out[3]
             X, X_prev, miss = np.asarray(X_dev), np.asarray(X_prev_dev), np.asarray(miss_dev)
             ks = np.array(out[2])  # a copy: the host sets modes in it
             taken = int(round(float(out[4])))
+            if size > want:  # the rent of the size wanted (`_compile.rent`; the call is done)
+                wasted = (time.perf_counter() - start) * (1.0 - want / size)
+                _compile.rent(self._want_key(want), wasted)
             self.stats["path_steps"] += size * taken
             self.stats["buffers"] += 1
             passing = ks == PASSED
@@ -895,8 +895,9 @@ class _Run:
         return self.advance_past if past and PAST_SLOTS else self.advance
 
     def _want_key(self, size: int):
-        """The rent key (`_compile.rent`) of the stepping loop wanted for `size` paths."""
-        return (self._loop(self._speculates(size)).key, size)
+        """The rent key (`_compile.rent`) of the stepping loop wanted for `size` paths: the
+        loop's, one for all its sizes."""
+        return self._loop(self._speculates(size)).key
 
     def _stand_in(self, want, size, past, args):
         """The buffer size (and whether it speculates) that `want` paths run on, at most
@@ -915,8 +916,11 @@ class _Run:
                     return candidate, spec
             if candidate == want:
                 spec = self._speculates(want)
-                if policy == "eager" or _compile.due(self._want_key(want)):
+                if policy == "eager":
                     return want, spec  # compiled at its first call
+                if _compile.due(self._want_key(want)):
+                    _compile.pay(self._want_key(want))
+                    return want, spec
                 loop = self._loop(spec)
                 _background.request(loop.fn, *loop.fixed, *stand_in, paths=want)
             candidate = _larger_buffer(candidate)
