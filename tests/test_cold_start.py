@@ -156,3 +156,16 @@ def test_a_long_run_on_few_paths_compiles_its_small_sizes(empty_cache, monkeypat
     model = ss.get_model("langevin")(**PUBLIC, tau=0.1)
     ss.simulate(model, 20_000, 0.02, 40.0, seed=1)
     assert ss.cache_info()["compiles"] > 4
+
+
+def test_the_shipped_traces_are_current(tmp_path):
+    """A first run of the built-in model on a new machine traces nothing: the traces shipped
+    with the package (`stickslip._ship`) are the ones it would make. Fails after an edit of a
+    traced source until `python -m stickslip._ship` makes them again."""
+    first = _process(tmp_path, 1000, 0.4, 0.1, "reuse")
+    info = first["info"]
+    assert info["traces"] == 0 and info["shipped_loaded"] >= 4, (
+        f"{info['traces']} traces made, {info['shipped_loaded']} shipped ones used: the "
+        "shipped traces are stale; run `python -m stickslip._ship`"
+    )
+

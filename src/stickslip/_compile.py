@@ -45,7 +45,10 @@ _cache: collections.OrderedDict = collections.OrderedDict()  # executables, LRU
 _entries: collections.OrderedDict = collections.OrderedDict()  # `memoized`, LRU
 _entries_lock = threading.RLock()
 _exported: dict = {}  # shape-polymorphic traces (few: one per function and model structure)
-stats = {"traces": 0, "compiles": 0, "exported_loaded": 0, "executables_loaded": 0}
+stats = {
+    "traces": 0, "compiles": 0, "exported_loaded": 0, "executables_loaded": 0, "shipped_loaded": 0,
+}  # fmt: skip
+SHIPPED = pathlib.Path(__file__).parent / "_data" / "traces"  # traces made by `_ship`
 # Seconds spent (since the process started) tracing, compiling, and loading from disk; and the
 # executables handed to the background compiler (`_background`) instead of compiled here.
 seconds = {"trace_seconds": 0.0, "compile_seconds": 0.0, "load_seconds": 0.0}
@@ -103,9 +106,10 @@ def memoized(key, make):
 def cache_info() -> dict:
     """Counts since the process started: `traces` (functions traced), `compiles` (XLA
     compilations), `exported_loaded` / `executables_loaded` (traces and executables read
-    from disk), `background` (executables left to the background compiler, `policy()`),
-    `entries` (executables held in memory, at most `MAX_ENTRIES`); and the seconds spent
-    tracing, compiling and loading (`trace_seconds`, `compile_seconds`, `load_seconds`)."""
+    from disk), `shipped_loaded` (traces shipped with the package, `_ship`), `background`
+    (executables left to the background compiler, `policy()`), `entries` (executables held
+    in memory, at most `MAX_ENTRIES`); and the seconds spent tracing, compiling and loading
+    (`trace_seconds`, `compile_seconds`, `load_seconds`)."""
     out = dict(stats, background=requests[0], entries=len(_cache), max_entries=MAX_ENTRIES)
     return out | {k: round(v, 3) for k, v in seconds.items()}
 
@@ -464,6 +468,14 @@ def _export(fn, leaves, treedef, static, paths, build=True):
         return _exported[key]
     file = _trace_file(fn, treedef, poly_shapes, static)
     exported = _load_exported(file)
+    if exported is None and file is not None:
+        # Traces of the built-in models ship with the package (`_ship`): a first run on a
+        # new machine loads them instead of tracing (valid for the same sources and
+        # library versions only, which the key says).
+        exported = _load_exported(SHIPPED / file.name)
+        if exported is not None:
+            stats["shipped_loaded"] += 1
+            _save(file, lambda: (SHIPPED / file.name).read_bytes())
     if exported is None:
         if not build:
             return None
@@ -624,7 +636,7 @@ def _environment(sources: bool = True) -> str:
 # the traces on disk); everything else counts.
 _UNTRACED = (
     "study", "cli", "_estimate", "_inference", "_extract", "selection.py", "stability.py",
-    "__init__.py", "extract.py", "units.py", "_background.py", "_output.py",
+    "__init__.py", "extract.py", "units.py", "_background.py", "_output.py", "_ship.py",
 )  # fmt: skip
 
 

@@ -1,0 +1,55 @@
+"""Traces shipped with the package: a first run on a new machine loads them, not traces.
+
+    python -m stickslip._ship
+
+Tracing the simulator's stepping loop and refinement takes about 2 s of a first run's
+Python time (`jax.export`; the compilation that follows is the machine's own). The traces
+are portable StableHLO, keyed (`_compile._trace_file`) by the sources of stickslip and of the
+model's plugin, the versions of jax, jaxlib, diffrax and equinox, the device kind and the
+static arguments, so a shipped trace is used exactly where it is the trace the run would
+make, and ignored elsewhere (a new library version, an edited source: the run traces).
+
+This command makes them: it runs the built-in Langevin model's usual configurations (OU
+friction noise, the exact detector, with every buffer size; white noise, the Brownian-bridge
+detector) in a new process with an empty cache directory, then replaces
+`src/stickslip/_data/traces/` with the traces that process wrote. Run it after editing a
+traced source (`tests/test_cold_start.py` says when the shipped ones are stale).
+"""
+
+from __future__ import annotations
+
+import os
+import pathlib
+import shutil
+import subprocess
+import sys
+import tempfile
+
+RUNS = """
+import stickslip as ss
+base = dict(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0)
+ss.simulate(ss.get_model("langevin")(**base, tau=0.1), 100_000, 0.8, 50.0, seed=1)
+ss.simulate(ss.get_model("langevin")(**base, tau=0.1), 2_000, 0.1, 50.0, seed=1)
+ss.simulate(ss.get_model("langevin")(**base), 20_000, 0.1, 50.0, seed=1)
+"""
+
+
+def main() -> int:
+    from ._compile import SHIPPED
+
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, STICKSLIP_CACHE_DIR=cache, STICKSLIP_COMPILE="eager")
+        subprocess.run([sys.executable, "-c", RUNS], env=env, check=True)
+        made = sorted((pathlib.Path(cache) / "stickslip-exported").glob("*.bin"))
+        if SHIPPED.exists():
+            shutil.rmtree(SHIPPED)
+        SHIPPED.mkdir(parents=True)
+        for file in made:
+            shutil.copy2(file, SHIPPED / file.name)
+    size = sum(f.stat().st_size for f in SHIPPED.glob("*.bin"))
+    print(f"{len(made)} traces, {size / 1e3:.0f} kB, in {SHIPPED}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
