@@ -651,7 +651,9 @@ def _trace_file(fn, treedef, shapes, static) -> pathlib.Path | None:
         return None
     classes = sorted(_classes(static, set()), key=lambda c: (c.__module__, c.__qualname__))
     sources = [f"{c.__module__}.{c.__qualname__}" for c in classes]
-    sources += [_package_hash(c.__module__.split(".")[0]) for c in classes]
+    # (stickslip's own sources are in `_environment`, less the parts no trace imports)
+    tops = {c.__module__.split(".")[0] for c in classes} - {__name__.split(".")[0]}
+    sources += [_package_hash(top) for top in sorted(tops)]
     text = "\n".join([_environment(), _name(fn), str(treedef), repr(shapes), static_text, *sources])
     digest = hashlib.sha256(text.encode()).hexdigest()[:40]
     return pathlib.Path(where) / "stickslip-exported" / f"{digest}.bin"

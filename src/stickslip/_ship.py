@@ -18,6 +18,7 @@ traced source (`tests/test_cold_start.py` says when the shipped ones are stale).
 
 from __future__ import annotations
 
+import json
 import os
 import pathlib
 import shutil
@@ -34,6 +35,13 @@ ss.simulate(ss.get_model("langevin")(**base), 20_000, 0.1, 50.0, seed=1)
 """
 
 
+def versions() -> dict[str, str]:
+    """The library versions the traces' keys hold (`_compile._environment`)."""
+    import importlib.metadata
+
+    return {d: importlib.metadata.version(d) for d in ("jax", "jaxlib", "diffrax", "equinox")}
+
+
 def main() -> int:
     from ._compile import SHIPPED
 
@@ -46,6 +54,7 @@ def main() -> int:
         SHIPPED.mkdir(parents=True)
         for file in made:
             shutil.copy2(file, SHIPPED / file.name)
+    (SHIPPED / "versions.json").write_text(json.dumps(versions(), indent=1) + "\n")
     size = sum(f.stat().st_size for f in SHIPPED.glob("*.bin"))
     print(f"{len(made)} traces, {size / 1e3:.0f} kB, in {SHIPPED}")
     return 0
