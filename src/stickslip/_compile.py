@@ -281,8 +281,7 @@ class Fixed:
         key = (paths,) + tuple((x.shape, x.dtype) for x in rest)
         if key in self.entries:
             return True
-        with _entries_lock:
-            entry = _entries.get((Fixed, self.key) + key)
+        entry = remembered((Fixed, self.key) + key)
         if entry is None:
             found = executable(self.fn, *self.fixed, *rest, timer=self.timer, paths=paths,
                                build=False)  # fmt: skip
