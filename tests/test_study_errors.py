@@ -503,3 +503,82 @@ def test_bad_study_creates_no_output(tmp_path):
     line = assert_one_error_line(code, stdout, stderr, exception)
     assert line.startswith(f"error: {src}: simulation.n_paths: must be >= 1"), line
     assert list(area.iterdir()) == []
+
+
+# -- a fit with several candidate models: each mistake is one line at its field ---------------
+FIT_STUDY = {
+    "model": LANGEVIN["model"],
+    "fit": {
+        "data": "cycles.csv",
+        "candidates": [
+            {"name": "white", "params": {"tau": 0.03}, "free": {"D": [0.05, 2.0]}},
+            {"name": "ou", "free": {"D": [0.05, 2.0], "tau": [0.01, 3.0]}},
+        ],
+    },
+}
+
+
+def _fit_study(change) -> str:
+    spec = copy.deepcopy(FIT_STUDY)
+    change(spec["fit"])
+    return yaml.safe_dump(spec)
+
+
+@pytest.mark.parametrize(
+    "change, expect",
+    [
+        (lambda f: f["candidates"][0].update(colour="red"),
+         "fit.candidates.0.colour: unknown key (known: name, model, params, free)"),
+        (lambda f: f["candidates"][1].update(model={"name": "langevine"}),
+         "fit.candidates.1.model.name: unknown model 'langevine'"),
+        (lambda f: f["candidates"][1].update(name="white"),
+         "fit.candidates.1.name: 'white' is already the name of candidates.0"),
+        (lambda f: f.update(candidates=[]),
+         "fit.candidates: must list at least two models to choose from (got an empty list)"),
+        (lambda f: f.update(candidates=f["candidates"][:1]),
+         "fit.candidates: must list at least two models"),
+        (lambda f: f.update(free={"D": [0.1, 1.0]}),
+         "fit.free: goes inside each candidate when candidates are listed"),
+        (lambda f: f.pop("candidates"), "fit.free: is required"),
+        (lambda f: f["candidates"][0].update(name="../white"), "fit.candidates.0.name: must be"),
+        (lambda f: f["candidates"][0]["free"].update(tua=[0.1, 1.0]),
+         "fit.candidates.0.free.tua: is not a parameter of langevin"),
+        (lambda f: f["candidates"][0]["params"].update(tau=-1.0),
+         "fit.candidates.0.params.tau: must be > 0"),
+        (lambda f: f["candidates"][0].update(model=FIT_STUDY["model"]),
+         "fit.candidates.0.params: give either model"),
+        (lambda f: f["candidates"][1].update(free={}), "fit.candidates.1.free: must not be empty"),
+        (lambda f: f.update(scales={"time": 0.01}), "fit.scales.force: is required"),
+        (lambda f: f.update(alpha=0), "fit.alpha: must be > 0"),
+    ],
+    ids=["unknown-key", "unknown-model", "duplicate-name", "empty-list", "one-candidate",
+         "free-and-candidates", "neither", "name-a-path", "unknown-free", "bad-change",
+         "model-and-params", "no-free", "scales-no-force", "alpha-zero"],
+)  # fmt: skip
+def test_bad_candidates_are_one_line_and_keep_earlier_results(
+    tmp_path, monkeypatch, change, expect
+):
+    """`stickslip fit` with a mistake in its candidates: exit 2, one line naming the field,
+    before any fit; an earlier results folder under --out stays as it was."""
+    import stickslip._inference.fit as fit_module
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a fit was started")
+
+    monkeypatch.setattr(fit_module, "fit", refuse)
+    area = tmp_path / "area"
+    results = area / "results"
+    results.mkdir(parents=True)
+    (results / "keep.txt").write_text("precious results\n")
+    src = tmp_path / "study.yaml"
+    src.write_text(_fit_study(change))
+    (tmp_path / "cycles.csv").write_text(
+        "slip_time\n" + "".join(f"{1 + i / 7}\n" for i in range(30))
+    )
+    before = _snapshot(area)
+    code, stdout, stderr, exception = invoke(
+        ["fit", str(src), "--out", str(results), "-q", "--force"]
+    )
+    line = assert_one_error_line(code, stdout, stderr, exception)
+    assert line.startswith(f"error: {src}: {expect}"), line
+    assert _snapshot(area) == before

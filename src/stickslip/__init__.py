@@ -61,6 +61,7 @@ _LAZY = {
     "GoodnessOfFit": "._inference.goodness",
     "compare_fits": "._inference.compare",
     "Comparison": "._inference.compare",
+    "Measurement": "._inference.measurement",
     "clear_caches": "._compile",
     "cache_info": "._compile",
     "extract_cycles": ".extract",

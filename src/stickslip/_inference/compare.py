@@ -452,6 +452,11 @@ def _table(order, cands, chosen, rejected, tests, alpha) -> list[dict]:
                     f"chosen: not rejected against {worst['alternative']} "
                     f"(p = {worst['p_value']:.3g} >= {alpha:g})"
                 )
+            elif rejected:
+                row["verdict"] = (
+                    f"chosen: every simpler candidate is rejected ({', '.join(rejected)}) and "
+                    "none has more free parameters"
+                )
             else:
                 row["verdict"] = "chosen: no candidate with more free parameters"
         elif k in rejected:

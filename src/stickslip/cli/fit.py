@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import warnings
+
 import click
 
-from ._common import handle_errors, output_options, set_option
+from ._common import handle_errors, one_line, output_options, set_option
 
 
 @click.command()
@@ -14,10 +16,34 @@ from ._common import handle_errors, output_options, set_option
 @handle_errors
 def fit(study, out, overrides, force, quiet):
     """Fit the free parameters of STUDY's fit block to its data; write fit.json, fit.png and
-    summary.md to --out."""
+    summary.md to --out. With candidates, fit each candidate model and choose the simplest
+    the data do not reject (also fit_<name>.png per candidate and candidates.png). Each
+    warning is one line on stderr (and in summary.md)."""
+    from .._inference.compare import Comparison
     from ..study.fitting import run_fit
 
-    result = run_fit(study, out, overrides=list(overrides), force=force, progress=not quiet)
+    with warnings.catch_warnings(record=True) as caught:
+        # a fit's warnings (UserWarning) each time, also when two candidates say the same;
+        # other categories keep their filters (a DeprecationWarning stays hidden)
+        warnings.simplefilter("always", UserWarning)
+        try:
+            result = run_fit(study, out, overrides=list(overrides), force=force,
+                             progress=not quiet)  # fmt: skip
+        finally:
+            ours = [w for w in caught if _ours(w.filename)]
+            for text in dict.fromkeys(one_line(w.message) for w in ours):  # in order, once
+                click.echo(f"warning: {text}", err=True)
+    for w in caught:  # another library's: as Python shows it (its filters apply)
+        if not _ours(w.filename):
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     if not quiet:
         click.echo(result.summary())
-        click.echo(f"results in {out}/ (fit.json, fit.png, summary.md)")
+        more = ", fit_<candidate>.png, candidates.png" if isinstance(result, Comparison) else ""
+        click.echo(f"results in {out}/ (fit.json, fit.png{more}, summary.md)")
+
+
+def _ours(filename) -> bool:
+    """A warning issued from stickslip's code (a fit's, the model choice's)."""
+    import pathlib
+
+    return pathlib.Path(__file__).resolve().parents[1] in pathlib.Path(filename).resolve().parents

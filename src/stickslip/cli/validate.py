@@ -28,4 +28,9 @@ def validate(study, overrides):
     parts.append("outputs " + ", ".join(s.resolved_outputs()))
     if points > 1:
         parts.append(f"{points} sweep points")
+    if s.fit is not None and s.fit.candidates is not None:
+        names = ", ".join(c.name for c in s.fit.candidates)
+        parts.append(f"fit: {len(s.fit.candidates)} candidates ({names})")
+    elif s.fit is not None:
+        parts.append(f"fit: {', '.join(s.fit.free)} free")
     click.echo(f"ok: {study}: " + "; ".join(parts))

@@ -9,6 +9,13 @@ the Monte Carlo noise check, the warnings), `fit.png` (data against the fitted m
 log-likelihood along each parameter) and `summary.md` (the estimates with their intervals,
 the p-values and whether the data reject the model), made in a temporary directory and
 moved into place at the end, as `run` does.
+
+With `candidates`, each candidate model is fitted to the same data with the same settings
+(seed included: common random numbers), `compare_fits` chooses the simplest one the data
+do not reject, and the results say which and why: fit.json holds every candidate and the
+comparison, fit_<name>.png each candidate's figure, summary.md the chosen model first.
+The cycles of a force trace (seconds and newtons) need `scales`, the model's units in SI;
+the summary then states the estimates in SI too.
 """
 
 from __future__ import annotations
@@ -22,7 +29,9 @@ import pathlib
 import re
 import shutil
 import stat
+import sys
 import tempfile
+import types
 import warnings
 
 import numpy as np
@@ -34,6 +43,9 @@ from .load import StudyError, load_study
 MAX_DATA_BYTES = 256 * 2**20
 _SHOWN = 5  # rows named in a message
 _CYCLES_HEADER = "# stickslip cycles"  # the first line `Cycles.to_csv` writes
+# The model choice's replicates are seeded with the fit's seed plus this: a stream other than
+# the one the fits simulate with (`compare_fits` asks for a seed other than the fits').
+COMPARE_SEED_OFFSET = 1
 
 
 def read_cycles_csv(path: pathlib.Path, columns=None, source: str | None = None) -> dict:
@@ -206,30 +218,37 @@ def _lines(numbers: np.ndarray) -> str:
     return f"line{'s' if numbers.size > 1 else ''} {shown}{more}"
 
 
-def _fit_field(err, data_path) -> tuple[str, str]:
+def _fit_field(err, data_path, loc: str = "model") -> tuple[str, str]:
     """Where an error of `fit` lies in the study, and why: its argument names, turned into
     the study's fields (`free['tau']` -> `fit.free.tau`, `fixed['x0']` -> `model.params.x0`,
-    `data['slip_time']` -> the data file's column)."""
+    `data['slip_time']` -> the data file's column). `loc` is where the fitted model's
+    settings lie (`Fit.models`): `model` for a single fit, a candidate's otherwise (its
+    `free` at `fit.candidates.N.free`)."""
     # DataError and ResourceError carry these only when `fit` raised them (`data._refuse`)
     parameter = getattr(err, "parameter", None)
     if getattr(err, "owner", None) != "fit" or parameter is None:
-        return "fit", str(err)
+        return "fit" if loc == "model" else loc.removesuffix(".model"), str(err)
     value = getattr(err, "value", None)
     reason = err.reason + ("" if value is None else f" (got {value!r})")
+    free = "fit.free" if loc == "model" else f"{loc.removesuffix('.model')}.free"
+    params = "model.params" if loc == "model" else f"{loc}.params"
+    name = f"{loc}.name" if loc.endswith("model") else "model.name"
     match = re.fullmatch(r"(data|free|fixed)\['(.+)'\]", parameter)
     if match:
         kind, key = match.groups()
         if kind == "data":
             return "fit.data", f"{data_path.name}, column {key}: {reason}"
-        return (f"fit.free.{key}" if kind == "free" else f"model.params.{key}"), reason
-    field = {"fixed": "model.params", "model": "model.name", "data": "fit.data"}
+        return (f"{free}.{key}" if kind == "free" else f"{params}.{key}"), reason
+    field = {"fixed": params, "model": name, "data": "fit.data", "free": free}
     return field.get(parameter, f"fit.{parameter}"), reason
 
 
 def run_fit(study, out=None, *, overrides=None, force: bool = False, progress: bool = False):
     """Run the `fit` block of `study` (a path to a YAML file, a dict or a `Study`); write
-    the results to `out` if given. Returns the `FitResult`."""
+    the results to `out` if given. Returns the `FitResult`, or with `candidates` the
+    `Comparison` of the candidates' fits (its `chosen` the chosen one's `FitResult`)."""
     from .._errors import DataError, ParameterError, ResourceError
+    from .._inference.compare import compare_fits
     from .._inference.fit import fit
     from .run import _check_out
 
@@ -260,18 +279,49 @@ def run_fit(study, out=None, *, overrides=None, force: bool = False, progress: b
                 f"{data_path.name} has no '# stickslip cycles' header with the extraction's "
                 "settings (its measurement cannot be modelled)",
             )  # fmt: skip
-    free = {k: tuple(v) for k, v in spec.free.items()}
-    fixed = {k: v for k, v in study.model.params.items() if k not in free}
+    scales = None
+    if spec.scales is not None:
+        if not measured or data.info.get("input") != "force":
+            what = (
+                "per-cycle values" if not measured
+                else f"the cycles of a {data.info.get('input')} trace"
+            )  # fmt: skip
+            raise StudyError(
+                source, "fit.scales", f"applies to the cycles of a force trace only: "
+                f"{data_path.name} holds {what}, in the model's units (remove scales)",
+            )  # fmt: skip
+        # what `Measurement.from_cycles` reads of a `Scales` (or a `Slider`)
+        scales = types.SimpleNamespace(time=float(spec.scales.time), force=float(spec.scales.force))
+    models = spec.models(study.model)
+    results = {}
+    for name, model, boxes, loc in models:
+        free = {k: tuple(v) for k, v in boxes.items()}
+        fixed = {k: v for k, v in model.params.items() if k not in free}
+        if progress and spec.candidates is not None:
+            print(f"fitting candidate {name} ({model.name}: {', '.join(free)} free)",
+                  file=sys.stderr)  # fmt: skip
+        try:
+            results[name] = fit(
+                model.name, data, free, fixed, seed=spec.seed, n_sim=spec.n_sim, dt=spec.dt,
+                t_max=spec.t_max, scales=scales, progress=progress,
+            )  # fmt: skip
+        except (ParameterError, DataError, ResourceError) as err:
+            raise StudyError(source, *_fit_field(err, data_path, loc)) from None
+    if spec.candidates is None:
+        result = results["fit"]
+        if out_dir is not None:
+            write_fit(result, study, out_dir, force, scales)
+        return result
     try:
-        result = fit(
-            study.model.name, data, free, fixed, seed=spec.seed, n_sim=spec.n_sim, dt=spec.dt,
-            t_max=spec.t_max, progress=progress,
-        )  # fmt: skip
-    except (ParameterError, DataError, ResourceError) as err:
-        raise StudyError(source, *_fit_field(err, data_path)) from None
+        # a seed of its own for the replicates, other than the fits' (their simulations)
+        comparison = compare_fits(
+            results, alpha=spec.alpha, n_boot=spec.n_boot, seed=spec.seed + COMPARE_SEED_OFFSET
+        )
+    except (ParameterError, DataError) as err:
+        raise StudyError(source, "fit.candidates", str(err)) from None
     if out_dir is not None:
-        write_fit(result, study, out_dir, force)
-    return result
+        write_comparison(comparison, study, out_dir, force, scales)
+    return comparison
 
 
 def _jsonable(value):
@@ -310,51 +360,230 @@ def _verdict(result) -> str:
     )
 
 
-def write_fit(result, study, out: pathlib.Path, force: bool):
+def _record(result, params: dict, model_name: str) -> dict:
+    """What fit.json says of one fit: `params` are the fitted model's settings (its fixed
+    parameters are those not estimated)."""
+    d = result.diagnostics
+    return dict(
+        model=model_name,
+        estimate=result.estimate,
+        ci95={k: list(v) for k, v in result.ci.items()},
+        log_likelihood=result.log_likelihood,
+        p_values=result.p_values,
+        rejected=None if result.goodness is None else bool(result.goodness.rejected),
+        method=result.method,
+        goodness_method=None if result.goodness is None else result.goodness.method,
+        fixed=_jsonable({k: v for k, v in params.items() if k not in result.estimate}),
+        settings={k: d[k] for k in ("n_sim", "dt", "t_max", "seed", "n_data")},
+        measurement=_jsonable(d.get("measurement")),
+        covariance=d["covariance"],
+        evaluations=d["evaluations"],
+        optimizer=_jsonable(d["optimizer"]),
+        mc_noise=_jsonable(d["mc_noise"]),
+        seconds=d["seconds"],
+        warnings=d["warnings"],
+    )
+
+
+# A parameter's unit in SI, for a force trace fitted with `scales` (the model's time unit
+# `time` = 1/omega0 s, force unit `force` = k x0 N, as `Slider.to_model` makes the model:
+# omega0 = 1, lengths in x0): its factor as a function of (time, force), and its unit.
+# A threshold (x0, a law's location) is a force above the sliding level F_k + c V; the
+# noise intensity D is S / (m^2 omega0^3 x0^2), and m^2 omega0^3 x0^2 = (k x0)^2 / omega0.
+_ABOVE = "N above the sliding force"
+_SI = {
+    "D": (lambda t, f: f * f * t, "N^2 s"),
+    "tau": (lambda t, f: t, "s"),
+    "x0": (lambda t, f: f, _ABOVE),
+    "threshold_params.mean": (lambda t, f: f, _ABOVE),
+    "threshold_params.median": (lambda t, f: f, _ABOVE),
+    "threshold_params.low": (lambda t, f: f, _ABOVE),
+    "threshold_params.high": (lambda t, f: f, _ABOVE),
+    "threshold_params.scale": (lambda t, f: f, _ABOVE),
+    "threshold_params.sd": (lambda t, f: f, "N"),
+}
+
+
+def _in_data_units(name: str, value: float, scales) -> tuple[float, str] | None:
+    """`value` of the parameter `name` in the data's SI units, and the unit; `None` where
+    the data are in the model's units (no `scales`) or the parameter has no SI form here
+    (a rate ratio such as zeta; v_b, which needs the length unit)."""
+    if scales is None or name not in _SI:
+        return None
+    factor, unit = _SI[name]
+    return value * factor(scales.time, scales.force), unit
+
+
+def _parameter_table(result, scales) -> list[str]:
+    """The estimates with their 95 % intervals, in the model's units and, for a force
+    trace with `scales`, in SI."""
+    si = scales is not None
+    head = "| parameter | estimate | 95 % interval |" + (
+        " in SI | 95 % interval (SI) |" if si else ""
+    )
+    lines = [head, "|---|---|---|" + ("---|---|" if si else "")]
+    for k, v in result.estimate.items():
+        lo, hi = result.ci[k]
+        row = f"| {k} | {v:.4g} | [{lo:.4g}, {hi:.4g}] |"
+        if si:
+            got = _in_data_units(k, v, scales)
+            if got is None:
+                row += " (model units) | |"
+            else:
+                value, unit = got
+                a, b = (_in_data_units(k, x, scales)[0] for x in (lo, hi))
+                row += f" {value:.4g} {unit} | [{a:.4g}, {b:.4g}] {unit} |"
+        lines.append(row)
+    return lines
+
+
+def _units_sentence(scales) -> str:
+    if scales is None:
+        return (
+            "Units: the model's (the data are in the model's time and length units; no `scales`)."
+        )
+    return (
+        f"Units: the data are a force trace's in seconds and newtons; the model's time unit "
+        f"is {scales.time:.4g} s and its force unit {scales.force:.4g} N (`fit.scales`); the "
+        "SI columns assume the model is Slider.to_model's (omega0 = 1, lengths in x0)."
+    )
+
+
+def _fit_lines(result, scales) -> list[str]:
+    """The body of a summary for one fit: parameters, p-values, verdict, cost, warnings."""
+    d = result.diagnostics
+    lines = [result.method, "", *_parameter_table(result, scales), "", _units_sentence(scales), ""]
+    if result.p_values is not None:
+        lines += ["| observable | goodness-of-fit p-value |", "|---|---|"]
+        lines += [f"| {k} | {p:.3g} |" for k, p in result.p_values.items()]
+        lines += [""]
+    lines += [_verdict(result), ""]
+    lines += [f"log-likelihood {result.log_likelihood:.2f}; {d['evaluations']} points "
+              f"evaluated in {d['seconds']:.1f} s; data: "
+              + ", ".join(f"{n} {k}" for k, n in d["n_data"].items()), ""]  # fmt: skip
+    return lines
+
+
+def write_fit(result, study, out: pathlib.Path, force: bool, scales=None):
     from .write import _replace
 
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = pathlib.Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
-        d = result.diagnostics
-        record = dict(
-            model=study.model.name,
-            estimate=result.estimate,
-            ci95={k: list(v) for k, v in result.ci.items()},
-            log_likelihood=result.log_likelihood,
-            p_values=result.p_values,
-            rejected=None if result.goodness is None else bool(result.goodness.rejected),
-            method=result.method,
-            goodness_method=None if result.goodness is None else result.goodness.method,
-            fixed={k: v for k, v in study.model.params.items() if k not in result.estimate},
-            settings={k: d[k] for k in ("n_sim", "dt", "t_max", "seed", "n_data")},
-            measurement=_jsonable(d.get("measurement")),
-            covariance=d["covariance"],
-            evaluations=d["evaluations"],
-            optimizer=_jsonable(d["optimizer"]),
-            mc_noise=_jsonable(d["mc_noise"]),
-            seconds=d["seconds"],
-            warnings=d["warnings"],
-        )
+        record = _record(result, study.model.params, study.model.name)
         (tmp / "fit.json").write_text(json.dumps(record, indent=2, default=float) + "\n")
         result.plot(tmp / "fit.png")
         title = study.title or f"Fit of {study.model.name}"
-        lines = [f"# {title}", "", result.method, "", "| parameter | estimate | 95 % interval |",
-                 "|---|---|---|"]  # fmt: skip
-        for k, v in result.estimate.items():
-            lo, hi = result.ci[k]
-            lines.append(f"| {k} | {v:.4g} | [{lo:.4g}, {hi:.4g}] |")
-        lines += [""]
-        if result.p_values is not None:
-            lines += ["| observable | goodness-of-fit p-value |", "|---|---|"]
-            lines += [f"| {k} | {p:.3g} |" for k, p in result.p_values.items()]
-            lines += [""]
-        lines += [_verdict(result), ""]
-        lines += [f"log-likelihood {result.log_likelihood:.2f}; {d['evaluations']} points "
-                  f"evaluated in {d['seconds']:.1f} s; data: "
-                  + ", ".join(f"{n} {k}" for k, n in d["n_data"].items()), ""]  # fmt: skip
-        lines += [f"- warning: {w}" for w in d["warnings"]]
+        lines = [f"# {title}", "", *_fit_lines(result, scales)]
+        lines += [f"- warning: {w}" for w in result.diagnostics["warnings"]]
         lines += ["", "![fit](fit.png)", ""]
+        (tmp / "summary.md").write_text("\n".join(lines))
+        _replace(tmp, out, force)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+def plot_candidates(comparison, path: pathlib.Path, seed: int | None = None) -> None:
+    """candidates.png: per fitted column, the data's histogram against each candidate's
+    simulated cycles at its estimate (`FitResult.simulated`, through the data's
+    measurement), labelled with its goodness-of-fit p-value; the chosen one drawn
+    thicker. `seed`: the simulations' (default each fit's own)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    best = comparison.chosen
+    kinds = list(best.data)
+    fig, axes = plt.subplots(1, len(kinds), figsize=(4.2 * len(kinds), 3.4), squeeze=False)
+    sims = {name: r.simulated(seed=seed) for name, r in comparison.fits.items()}
+    for ax, k in zip(axes[0], kinds, strict=True):
+        x = np.asarray(best.data[k], float)
+        edges = np.histogram_bin_edges(x, bins=min(60, max(10, x.size // 50)))
+        ax.hist(x, edges, density=True, alpha=0.4, color="0.5", label=f"data ({x.size})")
+        for name, r in comparison.fits.items():
+            p = r.p_values
+            chosen = r is best
+            label = name + ("" if p is None else f" (p = {p[k]:.2g})")
+            label += ", chosen" if chosen else ""
+            lw = 2.2 if chosen else 1.0
+            ax.hist(sims[name][k], edges, density=True, histtype="step", lw=lw, label=label)
+        ax.set_xlabel(k)
+        ax.legend(fontsize=7)
+    fig.suptitle(f"candidates against the data: {comparison.chosen_name} chosen", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def write_comparison(comparison, study, out: pathlib.Path, force: bool, scales=None):
+    """The results of a fit with candidates: fit.json (the chosen one's record at the top,
+    as a single fit writes it, then `chosen`, every candidate's record and the comparison),
+    fit.png (the chosen one), fit_<name>.png (each candidate) and candidates.png (every
+    candidate against the data), summary.md (the chosen
+    model, its parameters with their intervals, in SI for a force trace with `scales`, its
+    p-values and verdict, the comparison's table, and every warning)."""
+    from .write import _replace
+
+    specs = {name: model for name, model, _, _ in study.fit.models(study.model)}
+    chosen = comparison.chosen_name
+    best = comparison.chosen
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = pathlib.Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        records = {
+            name: _record(r, specs[name].params, specs[name].name)
+            for name, r in comparison.fits.items()
+        }
+        record = {
+            **records[chosen],
+            "chosen": chosen,
+            "candidates": records,
+            "comparison": dict(
+                table=_jsonable(comparison.table), tests=_jsonable(comparison.tests),
+                alpha=comparison.alpha, n_boot=comparison.n_boot, method=comparison.method,
+                warnings=comparison.warnings,
+            ),
+        }  # fmt: skip
+        (tmp / "fit.json").write_text(json.dumps(record, indent=2, default=float) + "\n")
+        best.plot(tmp / "fit.png")
+        for name, r in comparison.fits.items():
+            r.plot(tmp / f"fit_{name}.png")
+        plot_candidates(comparison, tmp / "candidates.png")
+        title = study.title or f"Model choice for {study.fit.data}"
+        row = comparison.table[0]
+        free = ", ".join(best.estimate)
+        lines = [
+            f"# {title}", "",
+            f"**Chosen model: {chosen}** ({specs[chosen].name}, {free} free). Why: "
+            f"{row['verdict'].removeprefix('chosen: ')}.",
+            "", *_fit_lines(best, scales), "## Candidates", "", comparison.method, "",
+            "| rank | candidate | model | free | log-likelihood | 2 dlogL | p | verdict |",
+            "|---|---|---|---|---|---|---|---|",
+        ]  # fmt: skip
+        for r in comparison.table:
+            stat = "" if r["statistic"] is None else f"{r['statistic']:.2f}"
+            p = "" if r["p_value"] is None else f"{r['p_value']:.3g}"
+            lines.append(
+                f"| {r['rank']} | {r['name']} | {r['model']} | {', '.join(r['free'])} | "
+                f"{r['log_likelihood']:.2f} | {stat} | {p} | {r['verdict']} |"
+            )
+        lines += [""]
+        for name, r in comparison.fits.items():
+            est = ", ".join(
+                f"{k} = {v:.4g} [{r.ci[k][0]:.4g}, {r.ci[k][1]:.4g}]" for k, v in r.estimate.items()
+            )
+            lines.append(f"- {name}: {est}")
+        lines += ["", "## Warnings", ""]
+        said = [f"- model choice: {w}" for w in comparison.warnings]
+        for name, r in comparison.fits.items():
+            said += [f"- {name}: {w}" for w in r.diagnostics["warnings"]]
+        lines += said or ["none"]
+        lines += ["", "![candidates against the data](candidates.png)", ""]
+        lines += [f"![{chosen}](fit.png)", ""]
+        lines += [f"![{name}](fit_{name}.png)" for name in comparison.fits if name != chosen]
+        lines += [""]
         (tmp / "summary.md").write_text("\n".join(lines))
         _replace(tmp, out, force)
     finally:

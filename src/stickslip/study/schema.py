@@ -335,10 +335,75 @@ class Sweep(Base):
         return [dict(zip(paths, c, strict=True)) for c in combos]
 
 
+FreeBoxes = dict[str, Annotated[list[float], Field(min_length=2, max_length=2)]]
+CANDIDATE_NAME = r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,39}$"  # also a file name: fit_<name>.png
+
+
+def _check_boxes(loc: str, free: dict) -> None:
+    for name, (low, high) in free.items():
+        if not low < high:
+            raise fail(f"{loc}.{name}", f"must be [low, high] with low < high (got {[low, high]})")
+
+
+class Scales(Base):
+    """The model's units in SI, for the cycles of a force trace (`stickslip cycles` on a
+    trace in seconds and newtons): the model's time unit in seconds and its force unit in
+    newtons, as `stickslip.units.Slider(...).scales` gives them (`time` = 1/omega0, `force`
+    = k x0). The trace's sampling interval, noise and removed mains lines are divided by
+    them (`Measurement.from_cycles`), and the summary states the estimates in SI."""
+
+    time: PositiveFloat = Field(
+        description="Seconds per model time unit: 1/omega0 = sqrt(m/k) (`Slider.scales.time`)."
+    )
+    force: PositiveFloat = Field(
+        description="Newtons per model force unit: k x0, the spring force from the sliding "
+        "level to the static threshold (`Slider.scales.force`)."
+    )
+
+
+class Candidate(Base):
+    """One candidate model of a fit with several (`fit.candidates`): fitted to the fit's
+    data with the fit's settings, then `compare_fits` chooses the simplest one the data do
+    not reject."""
+
+    name: str = Field(
+        pattern=CANDIDATE_NAME,
+        description="A short name (letters, digits, '_', '.', '-'; up to 40): the table's row "
+        "and the figure fit_<name>.png.",
+    )
+    model: ModelSpec | None = Field(
+        None,
+        description="Its own model block (name and params), e.g. a random-threshold model "
+        "against the study's langevin (default: the study's model with `params` changed).",
+    )
+    params: dict[str, Any] | None = Field(
+        None,
+        description="Changes to the study's model parameters for this candidate, e.g. "
+        "`{tau: 0.03}` (null keeps a parameter's default); not with `model`.",
+    )
+    free: FreeBoxes = Field(
+        min_length=1,
+        description="Parameter -> [low, high]: this candidate's parameters to estimate and "
+        "their boxes (log scale where low > 0); its other parameters are held.",
+    )
+
+    @model_validator(mode="after")
+    def _boxes(self):
+        if self.model is not None and self.params is not None:
+            raise fail(
+                "params", "give either model (a whole model block) or params (changes to the "
+                "study's model), not both",
+            )  # fmt: skip
+        _check_boxes("free", self.free)
+        return self
+
+
 class Fit(Base):
     """Estimate model parameters from measured per-cycle data (`stickslip fit STUDY.yaml`):
     the parameters in `free` are estimated, the model's other parameters are held at their
-    values in `model.params` (those of the free ones there are not used)."""
+    values in `model.params` (those of the free ones there are not used). With
+    `candidates` instead of `free`, each candidate model is fitted to the same data and
+    `compare_fits` chooses the simplest one the data do not reject."""
 
     data: str = Field(
         description="CSV file of cycles: as `stickslip cycles` writes them (its '# stickslip "
@@ -350,10 +415,33 @@ class Fit(Base):
     columns: list[Literal["slip_time", "slip_distance", "stick_time", "period"]] | None = Field(
         None, description="The columns to fit (default: every known column in the file)."
     )
-    free: dict[str, Annotated[list[float], Field(min_length=2, max_length=2)]] = Field(
+    free: FreeBoxes | None = Field(
+        None,
         min_length=1,
         description="Parameter -> [low, high]: the parameters to estimate and the box searched "
-        "(log scale where low > 0).",
+        "(log scale where low > 0). Required unless `candidates` are listed.",
+    )
+    candidates: list[Candidate] | None = Field(
+        None,
+        description="Two or more candidate models, each fitted to the data (instead of `free`); "
+        "`compare_fits` chooses the simplest the data do not reject (docs/compare.md).",
+    )
+    alpha: Annotated[float, Field(gt=0, lt=1)] = Field(
+        0.01,
+        description="Level of the model choice: a simpler candidate is kept unless rejected at "
+        "it (with `candidates`).",
+    )
+    n_boot: int | None = Field(
+        None,
+        ge=1,
+        le=100_000,
+        description="Parametric-bootstrap replicates per test of the model choice (default: "
+        "enough that the smallest p-value is alpha / 2; with `candidates`).",
+    )
+    scales: Scales | None = Field(
+        None,
+        description="The model's units in SI (time in s, force in N), required for the cycles "
+        "of a force trace, refused for any other data.",
     )
     trace: bool | None = Field(
         None,
@@ -382,12 +470,46 @@ class Fit(Base):
     def _boxes(self):
         if self.t_max is not None and self.dt is not None:
             _check_steps("t_max", self.t_max, self.dt)
-        for name, (low, high) in self.free.items():
-            if not low < high:
+        if self.candidates is None:
+            if self.free is None:
+                raise fail("free", "is required: the parameters to estimate (or candidates)")
+            for name in ("alpha", "n_boot"):
+                if name in self.model_fields_set:
+                    raise fail(name, "applies to a choice between candidates only")
+            _check_boxes("free", self.free)
+            return self
+        if self.free is not None:
+            raise fail(
+                "free", "goes inside each candidate when candidates are listed (remove it here)"
+            )
+        if len(self.candidates) < 2:
+            raise fail(
+                "candidates", "must list at least two models to choose from"
+                + (" (got an empty list)" if not self.candidates else " (for one, use free)"),
+            )  # fmt: skip
+        names = [c.name for c in self.candidates]
+        for i, name in enumerate(names):
+            if name in names[:i]:
                 raise fail(
-                    f"free.{name}", f"must be [low, high] with low < high (got {[low, high]})"
+                    f"candidates.{i}.name",
+                    f"'{name}' is already the name of candidates.{names.index(name)}",
                 )
         return self
+
+    def models(self, study_model: ModelSpec) -> list[tuple[str, ModelSpec, dict, str]]:
+        """The models to fit: `[(name, model, free, loc), ...]`, `loc` where the model's
+        settings lie in the study (`model` for the study's own block)."""
+        if self.candidates is None:
+            return [("fit", study_model, self.free, "model")]
+        out = []
+        for i, c in enumerate(self.candidates):
+            if c.model is not None:
+                out.append((c.name, c.model, c.free, f"fit.candidates.{i}.model"))
+                continue
+            params = {**study_model.params, **(c.params or {})}
+            spec = ModelSpec.model_validate({"name": study_model.name, "params": params})
+            out.append((c.name, spec, c.free, f"fit.candidates.{i}"))
+        return out
 
 
 class Study(Base):
@@ -458,23 +580,7 @@ class Study(Base):
         if self.fit is not None:
             if chain:
                 raise fail("fit", f"needs a single-block model; {self.model.name} is a chain")
-            names = list(type(model).parameters())
-            for name in self.fit.free:
-                head, _, tail = name.partition(".")  # "threshold_params.sd": a nested entry
-                nested = self.model.params.get(head)
-                if tail and head in names and not (isinstance(nested, dict) and tail in nested):
-                    have = ", ".join(nested) if isinstance(nested, dict) else "none"
-                    raise fail(
-                        f"fit.free.{name}",
-                        f"is not an entry of model.params.{head} (its entries: {have})"
-                        + (suggest(tail, list(nested)) if isinstance(nested, dict) else ""),
-                    )
-                if head not in names:
-                    raise fail(
-                        f"fit.free.{name}",
-                        f"is not a parameter of {self.model.name} (parameters: "
-                        f"{', '.join(names)})" + suggest(name, names),
-                    )
+            self._check_fit()
         lg = None if chain else model.linear_gaussian()
         if lg is not None and self.simulation is not None and self.simulation.solver != "euler":
             self._check_step(lg)
@@ -511,6 +617,43 @@ class Study(Base):
                     )
             self._check_sweep()
         return self
+
+    def _check_fit(self):
+        """Each model of the fit (the study's, or each candidate's) can be built, is a
+        single block, and has the parameters its `free` names."""
+        from .._model import ChainModel
+
+        fixed = self.fit.candidates is None
+        for i, c in enumerate(self.fit.candidates or ()):
+            if c.params is not None:  # the study's model with changes: built here
+                params = {**self.model.params, **c.params}
+                try:
+                    ModelSpec.model_validate({"name": self.model.name, "params": params})
+                except ValidationError as err:
+                    loc, reason = locate(first_error(err))
+                    raise fail(f"fit.candidates.{i}.{loc}", reason) from None
+        for _, spec, free, loc in self.fit.models(self.model):
+            where = "fit.free" if fixed else f"{loc.removesuffix('.model')}.free"
+            if isinstance(spec.instance, ChainModel):
+                raise fail(loc, f"needs a single-block model; {spec.name} is a chain")
+            names = list(type(spec.instance).parameters())
+            params = f"{loc}.params" if loc != "model" else "model.params"
+            for key in free:
+                head, _, tail = key.partition(".")  # "threshold_params.sd": a nested entry
+                nested = spec.params.get(head)
+                if tail and head in names and not (isinstance(nested, dict) and tail in nested):
+                    have = ", ".join(nested) if isinstance(nested, dict) else "none"
+                    raise fail(
+                        f"{where}.{key}",
+                        f"is not an entry of {params}.{head} (its entries: {have})"
+                        + (suggest(tail, list(nested)) if isinstance(nested, dict) else ""),
+                    )
+                if head not in names:
+                    raise fail(
+                        f"{where}.{key}",
+                        f"is not a parameter of {spec.name} (parameters: "
+                        f"{', '.join(names)})" + suggest(key, names),
+                    )
 
     def _check_step(self, lg):
         """A step the exact solver cannot follow (dt far past the slip's time scale, e.g.
@@ -692,6 +835,11 @@ def describe_error(e: dict) -> str:
         msg = f"must be a list (got {_yaml_type(e.get('input'))})"
     elif e["type"] == "too_short":
         msg = "must not be empty"
+    elif e["type"] == "string_pattern_mismatch" and e["ctx"]["pattern"] == CANDIDATE_NAME:
+        msg = (
+            "must be up to 40 letters, digits, '_', '.' or '-', the first a letter or digit "
+            f"(it names a file; got {short(e.get('input'))})"
+        )
     elif "input" in e:
         value = e["input"]
         if not isinstance(value, dict | list):
