@@ -65,7 +65,11 @@ def test_the_measurement_is_read_back_from_the_extracted_cycles(signal):
     truth = Measurement(sampling_interval=h, signal=signal, noise_sd=sd)
     trace = measured_trace(model, truth, 400, seed=5)
     (signals,) = trace.traces
-    assert np.allclose(np.diff(signals["t"]), h, rtol=1e-9, atol=0)
+    # every step h, but one in each long stick, where the grid is re-anchored at the next
+    # release (its keyed phase): between h and 2h
+    step = np.diff(signals["t"])
+    assert np.all(step >= h * (1 - 1e-9)) and np.all(step < 2 * h)
+    assert np.mean(np.isclose(step, h, rtol=1e-9, atol=0)) > 0.95
     cycles = ss.extract_cycles(**signals, v_b=CLEAN["v_b"])
     got = Measurement.from_cycles(cycles)
     assert got.signal == signal and got.tol is None
@@ -207,3 +211,32 @@ def test_a_measurement_too_coarse_for_the_model_is_a_data_error():
     meas = Measurement(sampling_interval=2.0, signal="x")
     with pytest.raises(ss.DataError, match="shows no cycles through this measurement"):
         measured_cycles(langevin(PUBLIC), meas, 200, seed=0)
+
+
+def test_each_cycle_keeps_its_sampling_phase_when_a_parameter_moves():
+    """Common random numbers through the measurement: D 2 % apart moves every later release
+    by the sum of earlier changes (many sampling intervals after a few hundred cycles), yet
+    a cycle after a stick of 10 intervals or more is sampled at the same phase from its own
+    release at both values (on one uniform grid the phase would be the accumulated time
+    over h: unrelated). The phases are uniform on [0, h) (KS test at 0.01)."""
+    h = 0.1
+    meas = Measurement(sampling_interval=h, signal="x", noise_sd=1e-3)
+    phases, releases = [], []
+    for D in (0.4, 0.4 * math.exp(0.02)):
+        trace = measured_trace(langevin({**PUBLIC, "D": D}), meas, 400, seed=5)
+        (signals,) = trace.traces
+        truth = trace.truth
+        release, stick = truth["release_time"], truth["stick_time"]
+        after_long = np.flatnonzero(np.r_[False, stick[:-1] >= 10 * h])
+        after_long = after_long[release[after_long] < signals["t"][-1] - 1.0]
+        first = np.searchsorted(signals["t"], release[after_long])
+        phase = (signals["t"][first] - release[after_long]) / h
+        phases.append(dict(zip(after_long.tolist(), phase, strict=True)))
+        releases.append(release)
+    both = sorted(set(phases[0]) & set(phases[1]))  # (a stick may cross 10 h)
+    assert len(both) > 100
+    np.testing.assert_allclose([phases[0][c] for c in both], [phases[1][c] for c in both],
+                               rtol=0, atol=1e-9)  # fmt: skip
+    assert stats.kstest(list(phases[0].values()), "uniform").pvalue > 0.01
+    # the releases themselves moved by many sampling intervals by the end
+    assert abs(releases[0][both[-1]] - releases[1][both[-1]]) > 5 * h

@@ -36,7 +36,7 @@ from .params import (
     _to_fit,
 )
 from .result import FitResult
-from .surface import _evaluate, _local_surface, _polynomial_vertex, _search
+from .surface import DESIGN_STEP, _evaluate, _local_surface, _polynomial_vertex, _search
 
 # warnings point at the line that called `fit` (fit -> _estimate -> warnings.warn)
 STACKLEVEL = 3
@@ -46,6 +46,15 @@ STACKLEVEL = 3
 # after the joins) keep one evaluation near a second and a fit of ~100 points near minutes.
 N_SIM_PER_CYCLE = 100_000
 N_SIM_MEASURED = 4000
+# The polynomial's design step through a measurement (fit coordinates; per-cycle data take
+# surface.DESIGN_STEP, 0.1). The measured surface is rough whatever the common random
+# numbers: the extraction's joins come and go with the parameters, and a datum in a sparse
+# stretch of the simulated law (a rare short cycle) moves by 2-4 log-likelihood units when
+# one simulated cycle near it does (measured: 5 of 320 data made 13 of a 15-unit jump
+# between D 0.4 % apart). Against that noise (sd ~4 units a point at n_sim 4000) the
+# curvature over steps of 0.1 (~1-2 units, SE of log D ~0.06) gave a vertex whose Monte
+# Carlo sd was 2-6 standard errors (3 sets); over steps of 0.3 it was 0-1.1 (3 sets).
+MEASURED_DESIGN_STEP = 0.3
 
 
 def _estimate(
@@ -105,11 +114,26 @@ def _estimate(
     n_data = max(x.size for x in data.values())
     bandwidth = {k: _bandwidth(_transform(k, data[k]), n_sim) for k in data}
     points: list = []
+    # The best point so far is kept, not simulated again: Nelder-Mead starts at the best
+    # grid point, the surface's design at Nelder-Mead's best point (the same simulation:
+    # common random numbers make the value a function of the point and the seed; only the
+    # best, for memory: its per-cycle terms are a data set's size).
+    best: dict = {}
 
     def loglik(u, at_seed=seed):
         """The log-likelihood at `u` (clipped to the box) and its per-cycle terms (`None`
         where the model refuses `u`: a joint constraint inside the box)."""
         u = np.clip(u, lo, hi)
+        key = u.tobytes()
+        kept = best.get(at_seed)
+        if kept is not None and kept[0] == key:
+            return kept[1]
+        out = _loglik(u, at_seed)
+        if kept is None or out[0] > kept[1][0]:
+            best[at_seed] = (key, out)
+        return out
+
+    def _loglik(u, at_seed):
         try:
             m = Model(**_kwargs(fixed, params(u)))
         except (ValueError, ArithmeticError):
@@ -133,17 +157,19 @@ def _estimate(
     # 1. a coarse grid over the box, Nelder-Mead from its best point
     u_best, optimizer, caught = _search(loglik, lo, hi, free)
     # 2. a polynomial around it: the vertex and the Hessian
-    surface = _local_surface(loglik, u_best, lo, hi, data, names)
+    step = DESIGN_STEP if measured is None else MEASURED_DESIGN_STEP
+    surface = _local_surface(loglik, u_best, lo, hi, data, names, step)
     caught += surface.warnings
-    cov, said = _sandwich(surface, names)
-    caught += said
     # 3. the simulation's own noise: the same design with a second, independent seed. The
     # simulator's draws move with the parameters (see `surface._search`), so the surface
     # carries Monte Carlo noise that common random numbers do not cancel: measured, the two
     # seeds' vertices differed by 1-1.5 standard errors at n_sim = 2e4 for two columns, far
-    # above the sqrt(n / n_sim) widening alone assumes.
+    # above the sqrt(n / n_sim) widening alone assumes. The two seeds' per-cycle scores
+    # also give the sandwich's J without the simulation's noise (`_sandwich`).
     seed2 = (seed + 0x9E3779B97F4A7C15) % 2**64  # far from seed: an independent stream
-    values2, _ = _evaluate(surface.design, lambda u: loglik(u, seed2), data)
+    values2, scores2 = _evaluate(surface.design, lambda u: loglik(u, seed2), data)
+    cov, said = _sandwich(surface, names, scores2)
+    caught += said
     shift2, _ = _polynomial_vertex(surface.design - surface.centre, np.array(values2),
                                    surface.steps)  # fmt: skip
     se = np.sqrt(np.maximum(np.diag(cov), 0.0))

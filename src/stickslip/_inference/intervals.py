@@ -1,11 +1,12 @@
 r"""The estimate's uncertainty: 95 % Wald intervals in fit coordinates (so asymmetric in the
 parameter) with the sandwich covariance $H^{-1} J H^{-1}$ (`_sandwich`: per-cycle scores
-summed over the columns, `_score_outer`; the smoothed likelihood is not a likelihood, and
+summed over the columns, `_score_matrix`; the smoothed likelihood is not a likelihood, and
 the columns of one cycle are dependent), widened by $\sqrt{1 + n/n_{sim}}$ for the
 simulation's own noise; and the Monte Carlo noise check (`_mc_noise`): the surface's design
 evaluated again with a second seed, the estimate the mean of the two vertices, the square
 of their half difference, the Monte Carlo covariance of that mean, added to the covariance
-(`_combine_seeds`).
+(`_combine_seeds`). The two seeds' per-cycle scores also give $J$ free of the simulation's
+noise (their cross product, `_sandwich`).
 """
 
 from __future__ import annotations
@@ -26,9 +27,19 @@ MC_RATIO_WARN = 0.5
 MC_RATIO_GOAL = 0.3
 
 
-def _sandwich(surface, names) -> tuple[np.ndarray, list[str]]:
-    """The sandwich covariance $H^{-1} J H^{-1}$ from the surface's Hessian and per-cycle
-    scores (the Hessian's inverse alone if a design point failed), with its warnings."""
+def _sandwich(surface, names, scores2=None) -> tuple[np.ndarray, list[str]]:
+    r"""The sandwich covariance $H^{-1} J H^{-1}$ from the surface's Hessian and per-cycle
+    scores (the Hessian's inverse alone if a design point failed), with its warnings.
+
+    With `scores2`, the per-cycle terms of the same design under a second, independent
+    seed, $J$ is the symmetrised cross product of the two seeds' scores,
+    $(G_1^T G_2 + G_2^T G_1)/2$: each seed's scores are the data's own plus the
+    simulation's noise, independent between seeds, so the cross product holds the data's
+    $G^T G$ without the noise's $\sum_i \operatorname{var}$, which one seed's $G^T G$ adds
+    (through a measurement, where a simulated cycle near a sparse datum comes and goes
+    with the sampling's joins, one seed's $J$ made a standard error up to 20 % larger:
+    0.084 against 0.069 on one set). Where the cross product is not positive definite (the
+    noise dominates), one seed's $J$ is kept."""
     said = []
     info = -surface.hessian
     if not np.all(np.linalg.eigvalsh(info) > 0):
@@ -39,7 +50,13 @@ def _sandwich(surface, names) -> tuple[np.ndarray, list[str]]:
         info = info + np.eye(len(names)) * max(1e-9, -np.min(np.linalg.eigvalsh(info)) + 1e-9)
     cov = np.linalg.inv(info)
     if all(s is not None for s in surface.scores):
-        J = _score_outer(surface.nominal, surface.design, surface.centre, surface.scores)
+        G = _score_matrix(surface.nominal, surface.design, surface.centre, surface.scores)
+        J = G.T @ G
+        if scores2 is not None and all(s is not None for s in scores2):
+            G2 = _score_matrix(surface.nominal, surface.design, surface.centre, scores2)
+            cross = 0.5 * (G.T @ G2 + G2.T @ G)
+            if np.all(np.linalg.eigvalsh(cross) > 0):
+                J = cross
         cov = cov @ J @ cov
     else:
         said.append("a design point failed: intervals from the Hessian alone")
@@ -75,10 +92,10 @@ def _wald(u_hat, cov, names, scales, lo, hi, free) -> tuple[dict, list[str]]:
     return ci, said
 
 
-def _score_outer(nominal, design, u_hat, scores):
-    """J = sum over cycles of the outer product of per-cycle scores (differences between
-    the design's +-1 step points along each axis, over their distance where they were
-    evaluated: clipped at the box, a point is nearer), centred."""
+def _score_matrix(nominal, design, u_hat, scores):
+    """The per-cycle scores, one row a cycle (differences between the design's +-1 step
+    points along each axis, over their distance where they were evaluated: clipped at the
+    box, a point is nearer), centred."""
     p = u_hat.size
     grads = []
     for i in range(p):
@@ -93,8 +110,7 @@ def _score_outer(nominal, design, u_hat, scores):
             continue
         grads.append((scores[plus] - scores[minus]) / width)
     G = np.stack(grads, axis=1)
-    G = G - G.mean(axis=0)
-    return G.T @ G
+    return G - G.mean(axis=0)
 
 
 def _mc_noise(names, shift, shift2, se, n_sim) -> dict[str, Any]:

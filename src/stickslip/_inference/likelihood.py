@@ -145,9 +145,17 @@ def _log_density(kind, x, sim, h):
     of the positive values, with $p_0$ the simulated fraction of zeros (`_zero_fraction`).
     Dropping the zeros instead biased D to 0.227 for a truth of 0.4 from stick times."""
     x = np.asarray(x, float)
-    out = np.empty(x.size)
-    positive = x > 0 if kind in LOG_KINDS else np.ones(x.size, bool)
     y = _transform(kind, x)
+    lo, hi = y.min() - 8 * h, y.max() + 8 * h
+    table = _density_table(kind, sim, h, lo, hi, KDE_BINS, np.mean(y), 3.0 * max(np.std(y), h))
+    return _log_density_at(kind, x, table)
+
+
+def _density_table(kind, sim, h, lo, hi, bins, mu, sd):
+    """The smoothed log-density of `sim` (`_log_density`) tabulated on `bins` bins over
+    `[lo, hi]` (the kind's scale), its defensive normal of centre `mu` and sd `sd`, and the
+    zero fraction: `(centres, smoothed log-density, p0)`, for `_log_density_at`. One table
+    serves any data inside `[lo + 8h, hi - 8h]` (the goodness check's replicates)."""
     s = _transform(kind, sim[np.isfinite(sim)])
     n = max(s.size, 1)
     # The grid spans the data (fixed for every theta): simulated values past it count in n
@@ -155,23 +163,33 @@ def _log_density(kind, x, sim, h):
     # spanned the simulated values moved with the smallest of them (a stick of 1e-6 is -14
     # on the log scale) and the binning with it: the surface jumped ~10 units between
     # parameters 1e-4 apart, and Nelder-Mead ran into its cap.
-    lo, hi = y.min() - 8 * h, y.max() + 8 * h
-    edges = np.linspace(lo, hi, KDE_BINS + 1)
+    edges = np.linspace(lo, hi, bins + 1)
     dx = edges[1] - edges[0]
     half = max(1, int(math.ceil(6 * h / dx)))
     k = np.arange(-half, half + 1) * dx
     kernel = np.exp(-0.5 * (k / h) ** 2)
     kernel /= kernel.sum()
-    counts = np.histogram(s, edges)[0].astype(float)
+    # equal bins by range: numpy bins them arithmetically (given the edges it sorts the
+    # sample, twice the time; the counts are the same)
+    counts = np.histogram(s, bins, range=(lo, hi))[0].astype(float)
     f = np.convolve(counts, kernel, mode="same") / (n * dx)
     centres = 0.5 * (edges[1:] + edges[:-1])
-    mu, sd = np.mean(y), 3.0 * max(np.std(y), h)
     broad = np.exp(-0.5 * ((centres - mu) / sd) ** 2) / (sd * math.sqrt(2 * math.pi))
     eps = 1.0 / n
     smoothed_log = np.convolve(np.log((1 - eps) * f + eps * broad), kernel, mode="same")
+    p0 = _zero_fraction(sim) if kind in LOG_KINDS else None
+    return centres, smoothed_log, p0
+
+
+def _log_density_at(kind, x, table) -> np.ndarray:
+    """Per-datum terms of `_log_density` from a `_density_table`."""
+    centres, smoothed_log, p0 = table
+    x = np.asarray(x, float)
+    out = np.empty(x.size)
+    positive = x > 0 if kind in LOG_KINDS else np.ones(x.size, bool)
+    y = _transform(kind, x)
     logf = np.interp(y, centres, smoothed_log)
     if kind in LOG_KINDS:
-        p0 = _zero_fraction(sim)
         logf = logf - y + math.log1p(-p0)  # the density of x = exp(y), given x > 0
         out[~positive] = math.log(p0)
     out[positive] = logf

@@ -99,7 +99,7 @@ class _Surface:
         return self.centre if self.shift is None else np.clip(self.centre + self.shift, lo, hi)
 
 
-def _local_surface(loglik, u_hat, lo, hi, data, names) -> _Surface:
+def _local_surface(loglik, u_hat, lo, hi, data, names, step=DESIGN_STEP) -> _Surface:
     """The maximum and the observed information from a polynomial fitted to the surface
     around `u_hat`: quadratic, plus a cubic term along each axis, on steps of DESIGN_STEP
     (wide against the surface's Monte Carlo roughness; on steps of one standard error it
@@ -107,7 +107,7 @@ def _local_surface(loglik, u_hat, lo, hi, data, names) -> _Surface:
     `intervals._mc_noise`). The cubic terms take the surface's skew out of the vertex: a
     quadratic alone put it 3-4 % low. Points past the box are evaluated at the box (`loglik`
     clips) and so regressed where they were evaluated."""
-    design_steps = np.full(len(names), DESIGN_STEP)
+    design_steps = np.full(len(names), step)
     for attempt in range(2):
         nominal = _quadratic_design(u_hat, design_steps)
         design = np.clip(nominal, lo, hi)
