@@ -631,10 +631,10 @@ def _environment(sources: bool = True) -> str:
     return "\n".join(parts)
 
 
-# Parts of the package that no traced function of the simulator imports (an edit there keeps
-# the traces on disk); everything else counts.
+# Parts of the package that no traced function (the simulator's, the estimator's kernels)
+# imports: an edit there keeps the traces on disk; everything else counts.
 _UNTRACED = (
-    "study", "cli", "_estimate", "_inference", "_extract", "selection.py", "stability.py",
+    "study", "cli", "_inference", "_extract", "selection.py", "stability.py",
     "__init__.py", "extract.py", "units.py", "_background.py", "_output.py", "_ship.py",
 )  # fmt: skip
 

@@ -11,7 +11,8 @@ make, and ignored elsewhere (a new library version, an edited source: the run tr
 
 This command makes them: it runs the built-in Langevin model's usual configurations (OU
 friction noise, the exact detector, with every buffer size; white noise, the Brownian-bridge
-detector) in a new process with an empty cache directory, then replaces
+detector) and the README's main job (`examples/public_reference.yaml`: its estimator kernels
+too) in a new process with an empty cache directory, then replaces
 `src/stickslip/_data/traces/` with the traces that process wrote. Run it after editing a
 traced source (`tests/test_cold_start.py` says when the shipped ones are stale).
 """
@@ -26,12 +27,19 @@ import subprocess
 import sys
 import tempfile
 
+# The README's main job (its simulation, cycles and estimator kernels, at its shapes), when run
+# from a checkout of the repository.
+MAIN_JOB = pathlib.Path(__file__).resolve().parents[2] / "examples" / "public_reference.yaml"
+
 RUNS = """
+import pathlib, sys
 import stickslip as ss
 base = dict(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0)
 ss.simulate(ss.get_model("langevin")(**base, tau=0.1), 100_000, 0.8, 50.0, seed=1)
 ss.simulate(ss.get_model("langevin")(**base, tau=0.1), 2_000, 0.1, 50.0, seed=1)
 ss.simulate(ss.get_model("langevin")(**base), 20_000, 0.1, 50.0, seed=1)
+if pathlib.Path(sys.argv[1]).exists():
+    ss.run_study(sys.argv[1], progress=False, figures=False)
 """
 
 
@@ -47,7 +55,7 @@ def main() -> int:
 
     with tempfile.TemporaryDirectory() as cache:
         env = dict(os.environ, STICKSLIP_CACHE_DIR=cache, STICKSLIP_COMPILE="eager")
-        subprocess.run([sys.executable, "-c", RUNS], env=env, check=True)
+        subprocess.run([sys.executable, "-c", RUNS, str(MAIN_JOB)], env=env, check=True)
         made = sorted((pathlib.Path(cache) / "stickslip-exported").glob("*.bin"))
         if SHIPPED.exists():
             shutil.rmtree(SHIPPED)

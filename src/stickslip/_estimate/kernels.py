@@ -2,14 +2,32 @@
 
 from __future__ import annotations
 
+import functools
+
 import equinox as eqx
 import numpy as np
 
+from .. import _compile
 from .._jax import jax, jnp
 from .._linear import _taylor, propagators
 from . import gaussian as G
 
 _PAIR_CHUNK = 1 << 15  # pairs evaluated at once (bounds the memory of the n2 kernels)
+
+
+def _kept(fn):
+    """`eqx.filter_jit(fn)` whose trace and executable are kept on disk (`_compile.call`,
+    one per shape: a new process loads them instead of tracing the formulas again, which
+    was most of a warm study's estimator time) and, for the configurations `_ship` runs,
+    shipped with the package."""
+    jitted = eqx.filter_jit(fn)
+
+    @functools.wraps(fn)
+    def run(*args):
+        return _compile.call(jitted, *args, paths=0)
+
+    run.jitted = jitted
+    return run
 
 
 def _step(h):
@@ -24,7 +42,7 @@ def grid_moments(cr, m0s, P0s, h, n):
     return _grid_moments(cr, m0s, P0s, _step(h), n)
 
 
-@eqx.filter_jit
+@_kept
 def _grid_moments(cr, m0s, P0s, h, n):
     Phi, _, c, Sig = G.grid_propagators(cr.A, cr.b, cr.B, h, n)
     return jax.vmap(
@@ -32,7 +50,7 @@ def _grid_moments(cr, m0s, P0s, h, n):
     )(m0s, P0s)
 
 
-@eqx.filter_jit
+@_kept
 def moments_at(cr, m0s, P0s, t):
     """Moments of every component at arbitrary times `t` (n,)."""
     Phi, _, c, Sig = jax.vmap(lambda s: propagators(cr.A, cr.b, cr.B, s))(t)
@@ -46,19 +64,19 @@ def step_moments(cr, ms, Ps, s):
     return _step_moments(cr, ms, Ps, _step(s))
 
 
-@eqx.filter_jit
+@_kept
 def _step_moments(cr, ms, Ps, s):
     Phi, _, c, Sig = propagators(cr.A, cr.b, cr.B, s)
     return jax.vmap(jax.vmap(lambda m, P: G.moments(m, P, Phi, c, Sig)))(ms, Ps)
 
 
-@eqx.filter_jit
+@_kept
 def n1_from(cr, ms, Ps):
     """n1 for moments of shape (K, n, ...): (K, n)."""
     return jax.vmap(jax.vmap(lambda m, P: G.n1(cr, m, P)))(ms, Ps)
 
 
-@eqx.filter_jit
+@_kept
 def n1_joint_from(cr, ms, Ps, xs):
     """n1(x, t) for moments (K, n, ...) and positions xs (K, nx): (K, nx, n)."""
 
@@ -68,7 +86,7 @@ def n1_joint_from(cr, ms, Ps, xs):
     return jax.vmap(one)(ms, Ps, xs)
 
 
-@eqx.filter_jit
+@_kept
 def n1_joint_nodes(cr, ms, Ps, X):
     """n1(x, t) at per-time positions: moments (K, n, ...), positions X (K, J, n): (K, J, n)."""
 
@@ -80,7 +98,7 @@ def n1_joint_nodes(cr, ms, Ps, X):
     return jax.vmap(one)(ms, Ps, X)
 
 
-@eqx.filter_jit
+@_kept
 def lag_propagators(cr, taus):
     return jax.vmap(lambda s: propagators(cr.A, cr.b, cr.B, s))(taus)
 
@@ -100,7 +118,7 @@ def _chunked(fn, n_pairs, *arrays):
     return out.reshape((size,) + out.shape[2:])[:n_pairs]
 
 
-@eqx.filter_jit
+@_kept
 def n2_pairs(cr, m1, P1, Phi, Phi1, c, Sig, tau):
     """n2 for a flat list of pairs: moments at the earlier time and propagators over the lag
     (all with leading axis n_pairs)."""
@@ -114,7 +132,7 @@ def short_lag_propagators(cr, h, taus):
     return _short_lag_propagators(cr, _step(h), taus)
 
 
-@eqx.filter_jit
+@_kept
 def _short_lag_propagators(cr, h, taus):
     norm = jnp.max(jnp.sum(jnp.abs(cr.A), axis=0)) * h
 
@@ -133,7 +151,7 @@ def grid_lag_propagators(cr, h, n):
     return _grid_lag_propagators(cr, _step(h), n)
 
 
-@eqx.filter_jit
+@_kept
 def _grid_lag_propagators(cr, h, n):
     return G.grid_propagators(cr.A, cr.b, cr.B, h, n)
 
@@ -212,7 +230,7 @@ def table_pairs(cr, ms, Ps, table, rows, tau, positions=None):
     return value.reshape(shape)
 
 
-@eqx.filter_jit
+@_kept
 def product_chunk(m1, m2, s1, s2, rho, branch):
     """E[a1^+ a2^+] for a chunk, by one formula of the bivariate normal (`bvn_upper`)."""
     from .bvn import positive_product_mean
@@ -220,7 +238,7 @@ def product_chunk(m1, m2, s1, s2, rho, branch):
     return positive_product_mean(m1, m2, s1, s2, rho, branch)
 
 
-@eqx.filter_jit
+@_kept
 def n2_parts_chunk(cr, ms, Ps, table, rows, tau):
     """`gaussian.n2_parts` for a chunk of pairs given by table rows: density, means (2) and
     (s1, s2, rho), each (chunk,)."""
@@ -232,7 +250,7 @@ def n2_parts_chunk(cr, ms, Ps, table, rows, tau):
     return jax.vmap(one)(rows, tau)
 
 
-@eqx.filter_jit
+@_kept
 def n2_joint_parts_chunk(cr, ms, Ps, table, rows, tau, xs, k):
     """`gaussian.n2_joint_parts` for a chunk of pairs given by table rows, at the positions
     xs[k] (J,) of each pair's later time: density and means (chunk, J), and

@@ -22,20 +22,21 @@ def fit(study, out, overrides, force, quiet):
     from .._inference.compare import Comparison
     from ..study.fitting import run_fit
 
-    with warnings.catch_warnings(record=True) as caught:
-        # a fit's warnings (UserWarning) each time, also when two candidates say the same;
-        # other categories keep their filters (a DeprecationWarning stays hidden)
-        warnings.simplefilter("always", UserWarning)
-        try:
+    caught = []
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            # a fit's warnings (UserWarning) each time, also when two candidates say the
+            # same; other categories keep their filters (a DeprecationWarning stays hidden)
+            warnings.simplefilter("always", UserWarning)
             result = run_fit(study, out, overrides=list(overrides), force=force,
                              progress=not quiet)  # fmt: skip
-        finally:
-            ours = [w for w in caught if _ours(w.filename)]
-            for text in dict.fromkeys(one_line(w.message) for w in ours):  # in order, once
-                click.echo(f"warning: {text}", err=True)
-    for w in caught:  # another library's: as Python shows it (its filters apply)
-        if not _ours(w.filename):
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    finally:
+        ours = [w for w in caught if _ours(w.filename) and issubclass(w.category, UserWarning)]
+        for text in dict.fromkeys(one_line(w.message) for w in ours):  # in order, once
+            click.echo(f"warning: {text}", err=True)
+        for w in caught:  # another library's, or a deprecation: as Python shows it
+            if w not in ours:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     if not quiet:
         click.echo(result.summary())
         more = ", fit_<candidate>.png, candidates.png" if isinstance(result, Comparison) else ""
