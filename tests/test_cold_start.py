@@ -158,6 +158,7 @@ def test_a_long_run_on_few_paths_compiles_its_small_sizes(empty_cache, monkeypat
     assert ss.cache_info()["compiles"] > 4
 
 
+@pytest.mark.slow  # traces every shipped configuration in a new process (~10 s; CI runs it)
 def test_the_shipped_traces_are_current(tmp_path):
     """A first run of the built-in model on a new machine traces nothing: the traces shipped
     with the package (`stickslip._ship`) are the ones it would make. Fails after an edit of a

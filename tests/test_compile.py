@@ -256,6 +256,7 @@ def test_other_xla_options_compile_again_with_the_same_numbers(tmp_path):
     assert other["slip_time"] == first["slip_time"]
 
 
+@pytest.mark.slow  # two new processes compiling from scratch (~10 s)
 def test_executables_are_kept_whatever_jax_own_cache_holds(tmp_path):
     """With the executables gone but JAX's own persistent cache left (where an executable
     JAX loads cannot be serialised again), a new process compiles and keeps them once more,

@@ -14,8 +14,10 @@ BLOCK = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
 
 # Pages whose blocks start a Dask cluster (worker processes that each compile the simulator
 # on a cold cache: 16 s of the default tier) run in the slow tier; tests/test_distributed.py
-# runs a cluster in the default one.
-SLOW = {"distributed.md"}
+# runs a cluster in the default one. So do the pages whose examples take 7-12 s each from an
+# empty cache (the estimator, the models, fitting and model choice: what they call is tested
+# in the default tier by their own test files); the README's run in the default tier.
+SLOW = {"distributed.md", "estimator.md", "models.md", "compare.md", "fit.md"}
 
 
 @pytest.mark.parametrize(

@@ -132,12 +132,18 @@ def test_jackknife_of_n1_is_batch_means(Langevin):
 
 
 def test_exact_sources_have_no_sampling_error(Langevin):
-    """The exact formulas report zero errors; their n2_integral is the integral of n2."""
+    """The exact formulas report zero errors."""
     est = ss.CrossingEstimator(Langevin(**PUBLIC), dt=0.05)
     assert est.error_groups == 0
     t = np.array([0.5, 3.0, 6.0])
     np.testing.assert_array_equal(est.n1_se(t), 0.0)
     np.testing.assert_array_equal(est.first_passage_se(t), 0.0)
+
+
+@pytest.mark.slow  # n2 on 3001 lags, twice: ~15 s from an empty cache
+def test_exact_n2_integral_is_the_integral_of_n2(Langevin):
+    """The exact source's n2_integral against the trapezoid rule on a fine row of n2."""
+    est = ss.CrossingEstimator(Langevin(**PUBLIC), dt=0.05)
     for tt in (3.0, 6.0):
         s = np.linspace(0.0, tt, 3001)
         row = est.n2(np.array([tt]), s)[0]

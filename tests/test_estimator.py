@@ -437,7 +437,11 @@ def test_white_noise_closure_second_order(Langevin):
 
 
 # -- the fast evaluation paths against direct ones --------------------------------------------
-@pytest.mark.parametrize("params", [PUBLIC, WHITE], ids=["ou", "white-closure"])
+@pytest.mark.parametrize(
+    "params",
+    [PUBLIC, pytest.param(WHITE, marks=pytest.mark.slow)],  # (the closure: 15 s more, slow)
+    ids=["ou", "white-closure"],
+)
 def test_grid_K2_equals_the_lag_rule_evaluated_directly(Langevin, params):
     """K2(t) = int n2(t, s) ds on the grid, where the moments and propagators of the pairs
     are composed from shared tables, against the same quadrature (`lag_rule`) with every

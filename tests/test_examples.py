@@ -103,6 +103,7 @@ def _load_benchmark(name):
     return module
 
 
+@pytest.mark.slow  # ~10 s from an empty cache
 def test_accuracy_cost_pipeline_end_to_end(tmp_path, monkeypatch):
     """A tiny accuracy-cost run (small reference, two methods) writes a table and chart that
     the method selection reads back."""
