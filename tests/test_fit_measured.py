@@ -76,6 +76,8 @@ def log_se(result, name):
     return math.log(hi / lo) / (2 * Z95)
 
 
+@pytest.mark.slow  # a whole fit through the measurement, ~17 s CPU; the
+# default tier keeps the measured route's own checks below
 def test_cycles_of_a_noisy_trace_give_D_with_an_interval_around_the_truth(data):
     """D free in a box whose log-centre (0.45) is not the truth: the truth inside the 99 %
     interval (a miss 1 % of the time at the stated coverage), and an interval that says

@@ -62,6 +62,7 @@ def test_anderson_darling_is_the_weighted_distance_of_its_definition():
     assert _anderson_darling(u) == pytest.approx(want, rel=1e-3)
 
 
+@pytest.mark.slow  # a fit and its p-value check, ~10 s CPU; the default tier checks p-values below
 def test_exponential_slip_times_are_rejected_with_a_warning_and_a_figure(tmp_path):
     """Exponential 'slip times' of the model's own mean slip time: no stick-slip model
     makes them, yet they get an estimate and an interval; `fit`'s check and
@@ -221,6 +222,7 @@ def test_fit_checks_itself_and_data_from_the_truth_pass():
         cycle_log_likelihood(r, {"Q": 1.0})
 
 
+@pytest.mark.slow  # 200 replicates evaluated both ways, ~20 s
 def test_the_tabulated_one_step_matches_the_kernel_estimate_per_replicate():
     """The linearised bootstrap's one-step estimates from the shifted references' densities
     tabulated once for all replicates (`gradient_tables`) against the same Newton step from
