@@ -319,3 +319,29 @@ def test_example_runs():
         timeout=300, check=True,
     ).stdout  # fmt: skip
     assert "V/(omega0 x0)" in out and "50 simulated cycles" in out and "force_drop" in out
+
+
+def test_a_fitted_natural_frequency_in_si():
+    """The model in this slider's units with omega0 = w is the model of a slider of mass
+    m / w^2 in its own units (time rescaled by w): a Slider built from `si_parameters`
+    with that mass has the dimensionless numbers zeta / w, D / w^3, v_b / w, tau w."""
+    slider = Slider(M, K, 45e-6, 0.098, 0.093, damping=2e-3)
+    w, zeta, D, tau = 1.37, 0.02, 0.3, 0.1
+    p = slider.dimensionless()
+    si = slider.si_parameters({"omega0": w, "zeta": zeta, "D": D, "tau": tau})
+    assert si["mass"] == pytest.approx(K / (w * slider.scales.omega0) ** 2, rel=1e-12)
+    rebuilt = Slider(
+        mass=si["mass"], stiffness=K, v_b=45e-6, static_friction=0.098,
+        kinetic_friction=0.093 - si["damping"] * 45e-6 + 2e-3 * 45e-6,
+        damping=si["damping"], noise=si["noise"], noise_time=si["noise_time"],
+    )  # fmt: skip
+    q = rebuilt.dimensionless()
+    assert rebuilt.scales.length == pytest.approx(slider.scales.length, rel=1e-12)
+    assert q["zeta"] == pytest.approx(zeta / w, rel=1e-12)
+    assert q["D"] == pytest.approx(D / w**3, rel=1e-12)
+    assert q["v_b"] == pytest.approx(p["v_b"] / w, rel=1e-12)
+    assert q["tau"] == pytest.approx(tau * w, rel=1e-12)
+    # omega0 = 1 leaves the slider's own mass; the map is decreasing in omega0
+    assert slider.si_parameters({"omega0": 1.0})["mass"] == pytest.approx(M, rel=1e-12)
+    with pytest.raises(ss.ParameterError, match="omega0"):
+        slider.si_parameters({"omega0": -1.0})

@@ -417,11 +417,18 @@ class Slider:
 
     def si_parameters(self, params: dict[str, Any]) -> dict[str, Any]:
         r"""The SI values of model parameters (e.g. a fit's estimates, or the ends of its
-        intervals: each map is increasing): `zeta` -> `damping` (kg/s), `D` -> `noise`
+        intervals: each map is monotone): `zeta` -> `damping` (kg/s), `D` -> `noise`
         (N² s), `tau` -> `noise_time` (s), `v_b` -> `v_b` (m/s), `x0` -> `static_friction`
         (N), `threshold_params` -> `threshold` (N), in this slider's units ($\omega_0$,
-        $x_0$, $k$, $m$ fixed; the force offset $F_k + cV$ from `damping` and `v_b` given
-        here or this slider's own). Unknown names raise a `ParameterError`."""
+        $x_0$, $k$ fixed; the force offset $F_k + cV$ from `damping` and `v_b` given
+        here or this slider's own).
+
+        `omega0` other than 1 is a natural frequency $\omega_0\sqrt{k/m}$ other than this
+        slider's (a fitted one): it maps to the effective `mass` $m/\omega_0^2$ (kg, at
+        this stiffness; decreasing in `omega0`), which then also sets `damping`
+        ($\zeta m_{eff}\omega_0$ of this slider) and `noise` ($D m_{eff}^2 \omega_0^3
+        x_0^2$): the model's time unit stays this slider's $1/\omega_0$. Unknown names
+        raise a `ParameterError`."""
         s = self.scales
         out: dict[str, Any] = {}
         known = {"omega0", "zeta", "D", "tau", "v_b", "x0", "threshold", "threshold_params"}
@@ -430,15 +437,17 @@ class Slider:
                 raise ParameterError(
                     "Slider.si_parameters", key, f"is not a parameter of {self.model_name}"
                 )
-        if "omega0" in params and params["omega0"] != 1.0:
-            raise ParameterError(
-                "Slider.si_parameters", "omega0", "must be 1 (the time unit is 1/omega0)",
-                params["omega0"],
-            )  # fmt: skip
+        mass = self.mass
+        if "omega0" in params:
+            omega0 = check_positive("Slider.si_parameters", "omega0", params["omega0"])
+            # the model's dv/dt = -omega0^2 x - zeta v + eta in this slider's units: the
+            # spring's k over an effective mass m / omega0^2
+            mass = self.mass / omega0**2
+            out["mass"] = mass
         if "zeta" in params:
-            out["damping"] = params["zeta"] * self.mass * s.omega0
+            out["damping"] = params["zeta"] * mass * s.omega0
         if "D" in params:
-            out["noise"] = params["D"] * s.noise
+            out["noise"] = params["D"] * s.noise * (mass / self.mass) ** 2
         if "tau" in params:
             out["noise_time"] = None if params["tau"] is None else params["tau"] * s.time
         if "v_b" in params:

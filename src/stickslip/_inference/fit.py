@@ -72,6 +72,12 @@ def fit(
         `sampling_interval` attribute, or release times with no stick of zero length, as
         an extracted table has) gets a warning: pass the `Cycles` instead.
 
+      A force trace's `Cycles` (in s, m and N, with `scales`) is put in the model's units
+      (as `Slider.to_model` does): its `force_drop` is its `slip_distance` times k, one
+      column in the model's units (fit `slip_distance`); `peak_force`, the absolute force
+      level, is not fitted. A fixed `v_b` more than 2 % off the sticks' loading speed in
+      the data (`info["v_b_estimated"]`) gets a warning.
+
       Data that cannot be fitted raise a `DataError` with the evidence: a `nan` or `inf`
       (the rows named: drop them yourself, knowing why they are there), columns of
       different lengths, fewer than 10 cycles or 10 distinct values in a column (a
@@ -118,11 +124,48 @@ def fit(
     wall0 = time.perf_counter()
     if not isinstance(check, (bool, np.bool_)):
         raise ParameterError("fit", "check", "must be True or False", check)
+    loading = _loading_speed_mismatch(data, fixed, scales)
+    if loading is not None:  # said now: the fit may take minutes
+        warnings.warn(f"fit: {loading}", stacklevel=2)
     result = _estimate(
         model, data, free, fixed, seed=seed, n_sim=n_sim, dt=dt, t_max=t_max, scales=scales,
         trace=trace, sampling=sampling, progress=progress,
     )  # fmt: skip
+    if loading is not None:
+        result.diagnostics["warnings"].insert(0, loading)
     return _checked(result, seed, wall0) if check else result
+
+
+# A model driven this far from the data's loading speed loads its sticks visibly faster or
+# slower (stick times scale as 1/v_b): extract_cycles warns at the same 2 % (_force._VB_WARN).
+LOADING_TOLERANCE = 0.02
+
+
+def _loading_speed_mismatch(data, fixed, scales) -> str | None:
+    """A warning when the cycles of a force trace were loaded at a speed (the sticks' slope,
+    `info["v_b_estimated"]`, in SI) other than the fixed `v_b` of the model (in the model's
+    units: times `scales.velocity`): a nominal driving speed where the rig's spring or
+    speed is off by a few per cent puts every stick time off by as much."""
+    info = getattr(data, "info", None)
+    if not hasattr(info, "get") or not hasattr(fixed, "get") or scales is None:
+        return None
+    info = info.get("si", info) if hasattr(info.get("si"), "get") else info
+    measured, v_b = info.get("v_b_estimated"), fixed.get("v_b")
+    velocity = getattr(getattr(scales, "scales", scales), "velocity", None)
+    if info.get("input") != "force" or velocity is None:
+        return None
+    try:
+        ratio = float(v_b) * float(velocity) / float(measured)
+    except (TypeError, ValueError, ZeroDivisionError):
+        return None
+    if not np.isfinite(ratio) or abs(ratio - 1.0) <= LOADING_TOLERANCE:
+        return None
+    return (
+        f"the model's v_b = {float(v_b):.4g} ({float(v_b) * float(velocity):.4g} m/s) is "
+        f"{100 * (ratio - 1):+.0f} % off the speed the data's sticks were loaded at "
+        f"({float(measured):.4g} m/s, cycles.info['v_b_estimated']): stick times scale as "
+        "1/v_b; fix v_b at the measured loading speed (over scales.velocity)"
+    )
 
 
 # Replicates of the goodness-of-fit check for a fit through a measurement: the fewest that

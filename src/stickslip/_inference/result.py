@@ -65,6 +65,19 @@ class FitResult:
         lines += [f"warning: {w}" for w in self.diagnostics.get("warnings", ())]
         return "\n".join(lines)
 
+    def simulated(self, n_sim: int | None = None, seed: int | None = None) -> dict:
+        """Cycles of the fitted model (at the estimate) as the data see them: through the
+        data's measurement for a `Cycles` (sampled, noisy, extracted with its settings),
+        per-cycle values otherwise; in the units the fit worked in (the model's), with the
+        data's columns. `n_sim` (default the fit's) simulated cycles, `seed` (default the
+        fit's) their seed: for a predictive check take one other than the fit's, so that
+        the comparison does not reuse the draws the estimate was tuned on."""
+        d = self.diagnostics
+        sim = _simulate(self.model, d["n_sim"] if n_sim is None else int(n_sim), d["dt"],
+                        d["t_max"], d["seed"] if seed is None else int(seed),
+                        d["measurement"])  # fmt: skip
+        return {k: np.asarray(sim[k], float) for k in self.data}
+
     def plot(self, path=None, n_sim: int | None = None):
         """Data against the fitted model (a histogram per quantity and the simulated
         density at the estimate, its goodness-of-fit p-value in the title), and the
@@ -83,9 +96,7 @@ class FitResult:
         )
         axes = np.atleast_1d(axes)
         d = self.diagnostics
-        sim = _simulate(
-            self.model, n_sim or d["n_sim"], d["dt"], d["t_max"], d["seed"], d["measurement"]
-        )
+        sim = self.simulated(n_sim)
         for ax, k in zip(axes, kinds, strict=False):
             x = self.data[k]
             edges = np.histogram_bin_edges(x, bins=min(60, max(10, x.size // 50)))
