@@ -106,6 +106,7 @@ def test_event_statistics_converge_in_dt(BK):
     assert na > 1000 and abs(na - nb) < 4 * np.sqrt(na + nb)
 
 
+@pytest.mark.slow  # a second chain run at other segment lengths (~7 s CPU)
 def test_segments_do_not_change_the_events(BK, monkeypatch):
     """Events are streamed out segment by segment; the segment length changes nothing."""
     from stickslip._simulate import chain

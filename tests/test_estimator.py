@@ -291,7 +291,7 @@ def test_normalisation(exact):
     assert exact.diagnostics(30.0, "truncation", 1, normalized=True)["t_n"] < 30
 
 
-@pytest.mark.parametrize("tau", [0.01, 0.003])
+@pytest.mark.parametrize("tau", [0.01, pytest.param(0.003, marks=pytest.mark.slow)])  # (7 s: slow)
 def test_first_order_mass_follows_a_short_correlation_time(Langevin, tau):
     """The onset transient is as short as tau: on a grid of dt = 0.01 the
     trapezoid rule gave int_0^0.5 n1 = 1.22 for 1.82 at tau = 0.01 and the mass of F_g^(1)
@@ -477,6 +477,7 @@ def test_shared_panels_are_those_of_the_graded_rule():
             np.testing.assert_array_equal(np.r_[w_sh[: used[i]], w_last[i]], w)
 
 
+@pytest.mark.slow  # compiles every branch (~8 s CPU)
 def test_bivariate_normal_branches_equal_the_full_formula():
     """E[a1+ a2+] with only the branch of the bivariate normal each correlation needs
     (Genz's 6-, 12-, 20-node rules, the expansion near |r| = 1) against both evaluated and

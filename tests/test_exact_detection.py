@@ -203,7 +203,7 @@ def _rice_exact(A, B, c, h, Xa, Xb, level, nodes=500):
     return total
 
 
-@pytest.mark.parametrize("h", [0.1, 0.4])
+@pytest.mark.parametrize("h", [0.1, pytest.param(0.4, marks=pytest.mark.slow)])
 def test_certified_steps_have_small_rice_counts(Langevin, h):
     """On steps drawn from the slip's own law near the level, a step the tables certify
     (bound <= tol) has Rice's exact expected upcrossing count, which bounds its crossing

@@ -113,6 +113,7 @@ def test_no_method_meets_a_tolerance_below_the_bias_floor(tmp_path):
         select_method(langevin(), 0.01, table=table)
 
 
+@pytest.mark.slow  # a pilot simulation of its own (~7 s CPU)
 def test_nothing_measured_elsewhere_is_borrowed():
     """v_b = 1.24 is within 25 % of the public set's v_b = 1 but beyond the critical speed
     1.2335: no measured error is carried over (the old rule chose F_g^(1) with the public

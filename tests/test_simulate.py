@@ -63,9 +63,12 @@ def test_noise_free_euler_converges_at_first_order(Langevin):
     "params, solver, monitor",
     [
         (PUBLIC, "exact", "continuous"),
-        (PUBLIC, "euler", "grid"),
+        # (two in the default tier; the others compile their own programs: slow)
+        pytest.param(PUBLIC, "euler", "grid", marks=pytest.mark.slow),
         (PUBLIC | {"tau": None}, "euler", "continuous"),  # bridge test draws uniforms too
-        (PUBLIC | {"eta0": "stationary"}, "exact", "continuous"),
+        pytest.param(
+            PUBLIC | {"eta0": "stationary"}, "exact", "continuous", marks=pytest.mark.slow
+        ),
     ],
 )
 def test_results_do_not_depend_on_chunk_size(Langevin, params, solver, monitor):

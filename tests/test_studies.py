@@ -234,9 +234,13 @@ REDUCED = {
 # Slow tier (8-18 s each from a cold cache, the default tier's budget): the random-threshold
 # example (its model and mixtures are tested in test_random_threshold.py), the exact theory
 # (test_estimator.py) and fig. 6C (a Langevin run as in the other examples).
-# In `slow`: the long ones, and public_reference and fig6d (10-14 s each on a cold cache; the
-# main job runs in the default tier through tests/test_examples.py and the README's snippets).
-SLOW_EXAMPLES = {"random_threshold", "ou_exact_theory", "fig6c", "public_reference", "fig6d"}
+# In `slow`: the long ones, and public_reference, fig6d and the sweep (10-14 s each on a cold
+# cache; the main job runs in the default tier through tests/test_examples.py and the README's
+# snippets, a sweep through test_sweep_dataset and tests/test_distributed.py).
+SLOW_EXAMPLES = {
+    "random_threshold", "ou_exact_theory", "fig6c", "public_reference", "fig6d",
+    "sweep_driving_speed",
+}  # fmt: skip
 
 
 @pytest.mark.parametrize(

@@ -308,6 +308,7 @@ def test_bad_use_names_the_argument():
         d.density("stick_time", [0.1])
 
 
+@pytest.mark.slow  # runs examples/units.py in a new process (~8 s CPU)
 def test_example_runs():
     import pathlib
     import subprocess
