@@ -17,16 +17,15 @@ _PAIR_CHUNK = 1 << 15  # pairs evaluated at once (bounds the memory of the n2 ke
 
 def _kept(fn):
     """`eqx.filter_jit(fn)` whose trace and executable are kept on disk (`_compile.call`,
-    one per shape: a new process loads them instead of tracing the formulas again, which
-    was most of a warm study's estimator time) and, for the configurations `_ship` runs,
-    shipped with the package."""
+    one per shape: a new process loads them instead of tracing the formulas again, a few
+    seconds of a warm study) and, for the configurations `_ship` runs, shipped with the
+    package."""
     jitted = eqx.filter_jit(fn)
 
     @functools.wraps(fn)
     def run(*args):
         return _compile.call(jitted, *args, paths=0)
 
-    run.jitted = jitted
     return run
 
 
