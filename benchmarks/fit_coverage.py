@@ -44,24 +44,19 @@ Z95 = 1.959963984540054
 H, NOISE = 0.1, 1e-3  # the measured case's sampling interval and position noise
 
 
-def _sampled(series, path, t_max, h, v_b):
-    """One path's position on a grid of spacing `h`: each slip's recorded states
-    interpolated, each stick in closed form (x grows at v_b from the stick position)."""
-    t, states, slipping = series.trajectory(path)
-    rows = series.cycles["path"] == path
-    cyc = {k: series.cycles[k][rows] for k in ("release_time", "slip_time", "period")}
-    grid = np.arange(0.0, t_max, h)
-    x = np.full(grid.size, np.nan)
-    ends = np.nonzero(~slipping)[0]
-    starts = np.concatenate([[0], ends[:-1] + 1])
-    for c, (s, e) in enumerate(zip(starts, ends, strict=False)):
-        t0, t_sl, period = cyc["release_time"][c], cyc["slip_time"][c], cyc["period"][c]
-        slip = (grid >= t0) & (grid < t0 + t_sl)
-        x[slip] = np.interp(grid[slip], t[s : e + 1], states[s : e + 1, 0])
-        stick = (grid >= t0 + t_sl) & (grid < t0 + period)
-        x[stick] = states[e, 0] + v_b * (grid[stick] - (t0 + t_sl))
-    ok = np.isfinite(x)
-    return grid[ok], x[ok]
+def _load_example(name):
+    """A module of examples/ (the trace-sampling of `fit_trace.py`, shared, not copied)."""
+    import importlib.util
+
+    path = pathlib.Path(__file__).resolve().parents[1] / "examples" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+# One path's position on a grid of spacing h: slips interpolated, sticks in closed form.
+_sampled = _load_example("fit_trace").sampled_trace
 
 
 def measured_data(seed, n_paths=4, t_max=600.0) -> Cycles:
