@@ -7,6 +7,7 @@ import json
 import subprocess
 import sys
 import time
+import warnings
 
 import numpy as np
 import pytest
@@ -177,3 +178,36 @@ def test_intervals_cover_the_truth_over_20_data_sets():
     print(f"coverage over 20 data sets: {cover}")
     for k in TRUTH:
         assert 17 <= cover[k] <= 20, cover
+
+
+def test_a_model_that_makes_no_positive_slip_time_is_refused_not_fitted():
+    """The white-noise langevin (tau=None) ends its slips at once (docs/simulator.md): its
+    likelihood of positive slip times is the same at every D. fit said nothing and returned
+    an interval of zero width; now one line names the column and the way out."""
+    data = {"slip_time": np.random.default_rng(42).exponential(1.0, 300)}
+    with pytest.raises(ss.DataError) as err:
+        ss.fit("langevin", data, {"D": (0.1, 1.0)}, BASE | {"tau": None}, n_sim=1000,
+               check=False)  # fmt: skip
+    text = str(err.value)
+    assert "do not constrain D" in text and "no slip_time above zero" in text
+    assert "tau=None" in text and "\n" not in text
+
+
+def test_a_fit_result_pickles(tmp_path):
+    """A FitResult crosses to and from worker processes (examples/slider_fit.py fits its
+    candidates side by side): no closures in it; the copy's plot draws its points."""
+    import pickle
+
+    rng = np.random.default_rng(5)
+    truth = ss.get_model("langevin")(**BASE, D=0.4, tau=0.1)
+    ens = ss.simulate(truth, 1500, 0.2, 60.0, seed=int(rng.integers(1 << 30)))
+    slip = np.asarray(ens.slip_time)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = ss.fit("langevin", {"slip_time": slip[np.isfinite(slip)][:400]}, {"D": (0.1, 2.0)},
+                   BASE | {"tau": 0.1}, n_sim=2000, check=False)  # fmt: skip
+    copy = pickle.loads(pickle.dumps(r))
+    assert copy.estimate == r.estimate and copy.ci == r.ci
+    assert copy.diagnostics["to_fit"]("D", 1.0) == 0.0  # log coordinates: the box is positive
+    copy.plot(tmp_path / "fit.png")
+    assert (tmp_path / "fit.png").stat().st_size > 0

@@ -20,12 +20,13 @@ import warnings
 
 import numpy as np
 
-from .._errors import ParameterError, check_int, check_positive
+from .._errors import DataError, ParameterError, check_int, check_positive
 from .data import LOG_KINDS, _check_data, _looks_sampled, _measurement, _transform
-from .forward import _simulation_settings
+from .forward import _simulate, _simulation_settings
 from .intervals import _combine_seeds, _mc_noise, _sandwich, _wald
 from .likelihood import _bandwidth, _per_cycle
 from .params import (
+    ToFit,
     _check_box,
     _check_fixed,
     _check_free,
@@ -156,6 +157,7 @@ def _estimate(
 
     # 1. a coarse grid over the box, Nelder-Mead from its best point
     u_best, optimizer, caught = _search(loglik, lo, hi, free)
+    _check_informative(points, names, data, centre, n_sim, dt, t_max, seed, measured)
     # 2. a polynomial around it: the vertex and the Hessian
     step = DESIGN_STEP if measured is None else MEASURED_DESIGN_STEP
     surface = _local_surface(loglik, u_best, lo, hi, data, names, step)
@@ -210,7 +212,7 @@ def _estimate(
         hessian=surface.hessian.tolist(), evaluations=len(points), points=points,
         seconds=time.perf_counter() - wall0,
         warnings=([sampled] if sampled else []) + caught,
-        to_fit=lambda name, x: _to_fit(scales[name], np.asarray(x)),
+        to_fit=ToFit(scales),
         optimizer=optimizer,
         design=dict(clipped=surface.clipped, vertex=surface.shift is not None),
         mc_noise=mc_noise,
@@ -219,3 +221,28 @@ def _estimate(
         estimate=estimate, ci=ci, log_likelihood=ll_hat, method=method,
         diagnostics=diagnostics, data=data, model=Model(**_kwargs(fixed, estimate)),
     )  # fmt: skip
+
+
+def _check_informative(points, names, data, centre, n_sim, dt, t_max, seed, measured):
+    """A `DataError` where the log-likelihood is the same at every point of the search (a
+    flat surface has no maximum and no curvature: the fit would return the box's first
+    point with an interval of zero width), naming a column the model at the box's centre
+    never makes a positive value of (a white-noise `langevin`, `tau=None`, ends its slips
+    at once) where there is one."""
+    values = np.array([v for _, v in points if np.isfinite(v)])
+    if values.size < 3 or np.ptp(values) > 1e-9 * max(1.0, float(np.abs(values).max())):
+        return
+    sim = _simulate(centre, n_sim, dt, t_max, seed, measured)
+    none = [k for k in data if k in LOG_KINDS and np.any(data[k] > 0)
+            and not np.any(np.asarray(sim[k]) > 0)]  # fmt: skip
+    why = (
+        f": at the box's centre the model makes no {' or '.join(none)} above zero in "
+        f"{n_sim} cycles (a white-noise langevin, tau=None, does so: its slips end at "
+        "once; hold tau at a small value instead; docs/simulator.md, 'The white-noise "
+        "degeneracy')"
+        if none else f": the model's simulated {', '.join(data)} do not change with them"
+    )  # fmt: skip
+    raise DataError(
+        f"fit: the log-likelihood is {values[0]:.6g} at all {values.size} points evaluated "
+        f"in the box, so the data do not constrain {', '.join(names)}{why}"
+    )

@@ -6,6 +6,7 @@ and the memory one evaluation needs.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -169,6 +170,18 @@ def _check_memory(n_sim: int, model) -> None:
 
 def _to_fit(scale, x):
     return np.log(x) if scale == "log" else x
+
+
+@dataclasses.dataclass(frozen=True)
+class ToFit:
+    """`(name, x) -> u`: a free parameter's values in fit coordinates (log for a box with
+    a positive lower end), as `FitResult.diagnostics["to_fit"]`; picklable (a fit crosses
+    to and from worker processes)."""
+
+    scales: dict[str, str]
+
+    def __call__(self, name: str, x):
+        return _to_fit(self.scales[name], np.asarray(x))
 
 
 def _from_fit(scale, u):
