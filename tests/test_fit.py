@@ -7,7 +7,6 @@ import json
 import subprocess
 import sys
 import time
-import warnings
 
 import numpy as np
 import pytest
@@ -192,22 +191,3 @@ def test_a_model_that_makes_no_positive_slip_time_is_refused_not_fitted():
     assert "do not constrain D" in text and "no slip_time above zero" in text
     assert "tau=None" in text and "\n" not in text
 
-
-def test_a_fit_result_pickles(tmp_path):
-    """A FitResult crosses to and from worker processes (examples/slider_fit.py fits its
-    candidates side by side): no closures in it; the copy's plot draws its points."""
-    import pickle
-
-    rng = np.random.default_rng(5)
-    truth = ss.get_model("langevin")(**BASE, D=0.4, tau=0.1)
-    ens = ss.simulate(truth, 1500, 0.2, 60.0, seed=int(rng.integers(1 << 30)))
-    slip = np.asarray(ens.slip_time)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        r = ss.fit("langevin", {"slip_time": slip[np.isfinite(slip)][:400]}, {"D": (0.1, 2.0)},
-                   BASE | {"tau": 0.1}, n_sim=2000, check=False)  # fmt: skip
-    copy = pickle.loads(pickle.dumps(r))
-    assert copy.estimate == r.estimate and copy.ci == r.ci
-    assert copy.diagnostics["to_fit"]("D", 1.0) == 0.0  # log coordinates: the box is positive
-    copy.plot(tmp_path / "fit.png")
-    assert (tmp_path / "fit.png").stat().st_size > 0

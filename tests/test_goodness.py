@@ -201,7 +201,13 @@ def test_fit_checks_itself_and_data_from_the_truth_pass():
     assert min(r.p_values.values()) >= 0.01, r.summary()
     assert not [w for w in caught if "reject" in str(w.message)]
     assert f"stick_time p = {r.p_values['stick_time']:.3g}" in r.summary()
-    fig = r.plot()
+    # a FitResult pickles (fits cross to and from worker processes: no closures in it),
+    # and the copy draws the same figure
+    import pickle
+
+    copy = pickle.loads(pickle.dumps(r))
+    assert copy.estimate == r.estimate and copy.p_values == r.p_values
+    fig = copy.plot()
     titles = [ax.get_title() for ax in fig.axes]
     assert f"slip_time: p = {r.p_values['slip_time']:.3g}" in titles, titles
     import matplotlib.pyplot as plt
