@@ -54,11 +54,13 @@ from slider_trace import MASS, STIFFNESS, extract, load  # noqa: E402
 COLUMNS = ("slip_time", "stick_time", "slip_distance")  # a force trace's d is its drop / k
 ZETA = 1e-3  # viscous damping c / (m omega0): negligible (no velocity-dependent friction)
 TAU = 0.1  # the friction noise's correlation time, in units of 1/omega0 (1.35 ms)
-BOX = {  # model units of the reference slider (time 1/omega0, length x0)
-    "omega0": (0.8, 2.5),  # an effective natural frequency of 59 to 185 rad/s
+BOX = {  # model units of the reference slider (time 1/omega0, length x0); wide enough that
+    # the polynomial's design (+-2 steps of 0.3 about the estimate, log for a positive end)
+    # stays inside it
+    "omega0": (0.5, 3.0),  # an effective natural frequency of 37 to 222 rad/s
     "D": (0.02, 3.0),
-    "threshold": (0.5, 2.0),  # x0, or the random threshold's mean
-    "sd": (0.0, 1.0),  # the random threshold's sd
+    "threshold": (0.3, 2.0),  # x0, or the random threshold's mean
+    "sd": (0.0, 1.5),  # the random threshold's sd
 }
 ALPHA = 0.01  # the verdict's level, as fit's and compare_fits'
 # fit's warnings that its intervals are not to be used (no vertex, or not concave)
@@ -107,9 +109,7 @@ def fitted(data, slider, spec, n_sim, seed):
         warnings.simplefilter("always")
         r = ss.fit(model, data, free, fixed, n_sim=n_sim, seed=seed, scales=slider,
                    check=False)  # fmt: skip
-    # the diagnostics' coordinate map is a closure (not picklable): rebuilt by the caller
-    d = {k: v for k, v in r.diagnostics.items() if k != "to_fit"}
-    return dataclasses.replace(r, diagnostics=d), _ours(caught)
+    return r, _ours(caught)
 
 
 def _ours(caught) -> list[str]:
@@ -117,16 +117,6 @@ def _ours(caught) -> list[str]:
     those caught; the libraries' (a subprocess left running, ...) are not the verdict's."""
     prefixes = ("fit:", "compare_fits:", "goodness_of_fit:")
     return [str(w.message) for w in caught if str(w.message).startswith(prefixes)]
-
-
-def _with_coordinates(r):
-    """The fit coordinates' map the diagnostics carry (log for a positive box)."""
-    scales = r.diagnostics["scales"]
-
-    def to_fit(name, x):
-        return np.log(x) if scales[name] == "log" else np.asarray(x)
-
-    return dataclasses.replace(r, diagnostics={**r.diagnostics, "to_fit": to_fit})
 
 
 def si_parameters(r, slider):
@@ -268,7 +258,7 @@ def fit_candidates(data, slider, n_sim, seed, workers):
                 for name, spec in specs.items()}  # fmt: skip
         for name, job in jobs.items():
             r, said[name] = job.result()
-            fits[name] = _with_coordinates(r)
+            fits[name] = r
             print(f"\n{name}:\n{r.summary()}", flush=True)
     return fits, said
 

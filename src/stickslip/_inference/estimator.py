@@ -191,7 +191,8 @@ def _estimate(
     # 4. the estimate, its intervals
     ll_hat, _ = loglik(u_hat)
     estimate = params(u_hat)
-    ci, said = _wald(u_hat, cov, names, scales, lo, hi, free)
+    concave = bool(np.all(np.linalg.eigvalsh(-surface.hessian) > 0))
+    ci, said = _wald(u_hat, cov, names, scales, lo, hi, free, concave)
     caught += said
     for text in caught:
         warnings.warn(f"fit: {text}", stacklevel=STACKLEVEL)

@@ -45,7 +45,8 @@ def _sandwich(surface, names, scores2=None) -> tuple[np.ndarray, list[str]]:
     if not np.all(np.linalg.eigvalsh(info) > 0):
         said.append(
             "the log-likelihood is not concave around the estimate (the data do not pin the "
-            "free parameters down, or the box holds no maximum): intervals unreliable"
+            "free parameters down, the simulation noise hides the curvature, or the box holds "
+            "no maximum): no intervals (nan); a larger n_sim or fewer free parameters"
         )
         info = info + np.eye(len(names)) * max(1e-9, -np.min(np.linalg.eigvalsh(info)) + 1e-9)
     cov = np.linalg.inv(info)
@@ -78,13 +79,18 @@ def _combine_seeds(surface, shift2, cov, n_data, n_sim, lo, hi):
     return u_hat, cov
 
 
-def _wald(u_hat, cov, names, scales, lo, hi, free) -> tuple[dict, list[str]]:
+def _wald(u_hat, cov, names, scales, lo, hi, free, concave=True) -> tuple[dict, list[str]]:
     """95 % Wald intervals in fit coordinates, and a warning for each estimate on an edge
-    of its box."""
+    of its box. Where the surface is not `concave` there is no interval: `(nan, nan)`
+    (its regularised inverse gave (0, inf) or +-1e10, which read as intervals)."""
     ci, said = {}, []
     for i, k in enumerate(names):
         half = Z95 * math.sqrt(max(cov[i, i], 0.0))
-        ci[k] = (_from_fit(scales[k], u_hat[i] - half), _from_fit(scales[k], u_hat[i] + half))
+        if concave:
+            ci[k] = (_from_fit(scales[k], u_hat[i] - half),
+                     _from_fit(scales[k], u_hat[i] + half))  # fmt: skip
+        else:
+            ci[k] = (math.nan, math.nan)
         edge = min(u_hat[i] - lo[i], hi[i] - u_hat[i]) < 0.01 * (hi[i] - lo[i])
         if edge:
             value = _from_fit(scales[k], u_hat[i])

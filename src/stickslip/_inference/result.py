@@ -58,7 +58,8 @@ class FitResult:
         lines = [f"{self.method}", f"log-likelihood {self.log_likelihood:.2f}"]
         for k, v in self.estimate.items():
             lo, hi = self.ci[k]
-            lines.append(f"  {k} = {v:.4g}   95 % interval [{lo:.4g}, {hi:.4g}]")
+            shown = f"[{lo:.4g}, {hi:.4g}]" if np.isfinite([lo, hi]).all() else "none (warnings)"
+            lines.append(f"  {k} = {v:.4g}   95 % interval {shown}")
         if self.p_values is not None:
             shown = ", ".join(f"{k} p = {p:.3g}" for k, p in self.p_values.items())
             lines.append(f"goodness of fit ({self.goodness.n_rep} replicates): {shown}")

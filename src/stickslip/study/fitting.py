@@ -24,6 +24,7 @@ import codecs
 import dataclasses
 import difflib
 import json
+import math
 import os
 import pathlib
 import re
@@ -367,7 +368,10 @@ def _record(result, params: dict, model_name: str) -> dict:
     return dict(
         model=model_name,
         estimate=result.estimate,
-        ci95={k: list(v) for k, v in result.ci.items()},
+        # none where the fit has no interval (its surface not concave: nan)
+        ci95={
+            k: [float(x) if math.isfinite(x) else None for x in v] for k, v in result.ci.items()
+        },  # fmt: skip
         log_likelihood=result.log_likelihood,
         p_values=result.p_values,
         rejected=None if result.goodness is None else bool(result.goodness.rejected),
@@ -424,6 +428,13 @@ def _parameter_table(result, scales) -> list[str]:
     lines = [head, "|---|---|---|" + ("---|---|" if si else "")]
     for k, v in result.estimate.items():
         lo, hi = result.ci[k]
+        if not (math.isfinite(lo) and math.isfinite(hi)):
+            row = f"| {k} | {v:.4g} | none (warnings) |"
+            if si:
+                got = _in_data_units(k, v, scales)
+                row += " (model units) | |" if got is None else f" {got[0]:.4g} {got[1]} | |"
+            lines.append(row)
+            continue
         row = f"| {k} | {v:.4g} | [{lo:.4g}, {hi:.4g}] |"
         if si:
             got = _in_data_units(k, v, scales)
