@@ -7,6 +7,7 @@ import functools
 import math
 import os
 import sys
+import threading
 import time
 import warnings
 
@@ -332,6 +333,19 @@ def _nodes_for(A, dt: float, warn: bool) -> int:
     return min(_MAX_NODES, _next_pow2(m))
 
 
+def _scheduler(owner: str, scheduler: str, detect: str) -> str:
+    """The scheduler a run takes (`simulate`'s `scheduler`): `"device"` runs the bridge
+    detector only; `"auto"` takes it on an accelerator (on a CPU the host one is faster)."""
+    if scheduler == "device" and detect != "bridge":
+        raise ParameterError(
+            owner, "scheduler", f"'device' runs the exact bridge detector only; this run "
+            f"uses the {detect!r} detector (take solver 'exact', monitor 'continuous')", scheduler,
+        )  # fmt: skip
+    if scheduler == "auto":
+        return "device" if detect == "bridge" and jax.default_backend() != "cpu" else "host"
+    return scheduler
+
+
 def _validate(owner, model, n_paths, dt, t_max, seed, solver, monitor, chunk_size):  # noqa: C901
     """Check the arguments of `owner` (`simulate` or `simulate_cycles`); one-line errors."""
     if not isinstance(model, FrictionModel):
@@ -375,6 +389,7 @@ def simulate(
     record_upcrossings: int = 0,
     crossing_tol: float = DEFAULT_CROSSING_TOL,
     client=None,
+    scheduler: str = "auto",
 ) -> Ensemble:
     r"""Simulate one slip-stick cycle for each of `n_paths` paths.
 
@@ -418,6 +433,13 @@ def simulate(
       a scheduler address, or `"local"` (a local cluster, one worker process per core). The
       numbers are identical to a local run with the same seed (docs/distributed.md); the
       blocks hold about four per worker thread, at most `chunk_size` paths each.
+    - `scheduler`: how a chunk is run. `"host"`: a sequence of short compiled calls with
+      the compaction and refinement batches cut on the host (the fastest on a CPU);
+      `"device"`: one compiled program per chunk, stepping, refinement and resolution on
+      the device, one copy to the host at the end (for accelerators; the exact bridge
+      detector only); `"auto"`: the device scheduler on an accelerator where the detector
+      allows it, else the host one. The same sticks either way (`stats["dispatches"]`
+      and `stats["transfers"]` count a run's compiled calls and arrays handed back).
 
     **Returns:** an `Ensemble`.
     """
@@ -426,6 +448,7 @@ def simulate(
     )
     record_upcrossings = check_int("simulate", "record_upcrossings", record_upcrossings, minimum=0)
     crossing_tol = check_positive("simulate", "crossing_tol", crossing_tol)
+    check_choice("simulate", "scheduler", scheduler, ("auto", "device", "host"))
     if crossing_tol >= 1.0:
         raise ParameterError("simulate", "crossing_tol", "must be < 1", crossing_tol)
     check_memory(
@@ -441,7 +464,7 @@ def simulate(
         progress = n_paths >= 20000 and sys.stderr.isatty()
     opts = dict(
         solver=solver, monitor=monitor, chunk_size=chunk_size, crossing_tol=crossing_tol,
-        record_upcrossings=record_upcrossings,
+        record_upcrossings=record_upcrossings, scheduler=scheduler,
     )  # fmt: skip
     if client is None:
         bar = None
@@ -469,7 +492,7 @@ def _simulate_block(model, dt, t_max, seed, opts, start, stop, bar=None) -> dict
     """`simulate` for the paths `start` .. `stop` - 1 (a task of a distributed run)."""
     run = _Run(
         "simulate", model, opts["solver"], opts["monitor"], dt, t_max, _rng.seed_key(seed), bar,
-        opts["crossing_tol"],
+        opts["crossing_tol"], scheduler=opts.get("scheduler", "host"),
     )  # fmt: skip
     paths = np.arange(start, stop, dtype=np.uint32)
     X0, stick_state, t_stick, located = run.first_passages(paths, opts["chunk_size"])
@@ -543,9 +566,12 @@ class _Run:
 
     def __init__(
         self, owner, model, solver, monitor, dt, t_max, root, bar=None,
-        crossing_tol=DEFAULT_CROSSING_TOL,
+        crossing_tol=DEFAULT_CROSSING_TOL, scheduler="host",
     ):  # fmt: skip
         self.timer = _compile.Timer()
+        # Compiled calls made and arrays they handed back (`count_call`).
+        self.stats = {"dispatches": 0, "transfers": 0}
+        self._count_lock = threading.Lock()
         self.model = _to_arrays(model)
         self._fixed: dict = {}  # `call`'s executables with the model as first argument
         # The slip's linear-Gaussian description on the host (one compiled call: evaluated
@@ -612,13 +638,15 @@ class _Run:
         self.advance_past = _compile.Fixed(
             _advance, self.model, self.solver, self.cfg, PAST_SLOTS, timer=self.timer
         )
-        self.stats = {"path_steps": 0, "buffers": 0}
+        self.stats.update(path_steps=0, buffers=0)
         if detect == "bridge":
             self.stats.update(candidates=0, refined_nodes=0, unresolved=0)
         self.miss = None  # per-path miss bounds of the stepping of the last `first_passages`
         self.onset_positions = None  # and the positions at onset
         self.refined_miss = 0.0  # the summed miss bounds of every exact refinement
         self._refiner = None  # the exact refinement (compiled), made on first use
+        self.scheduler = _scheduler(owner, scheduler, detect)
+        self._programs: dict = {}  # the device scheduler's programs, by buffer size
 
     def info(self, model, **extra):
         """How the run was made, for the result's `info`."""
@@ -644,14 +672,43 @@ class _Run:
             fixed = self._fixed.get(fn)
             if fixed is None:
                 fixed = self._fixed[fn] = _compile.Fixed(fn, self.model, timer=self.timer)
-            return fixed(*args[1:], paths=paths)
-        return _compile.call(fn, *args, timer=self.timer, paths=paths)
+            return self._counted(fixed(*args[1:], paths=paths))
+        return self._counted(_compile.call(fn, *args, timer=self.timer, paths=paths))
+
+    def count_call(self, transfers: int) -> None:
+        """Count one compiled call (`stats["dispatches"]`) and the arrays read back from it
+        (`stats["transfers"]`: on an accelerator each is a copy to the host)."""
+        with self._count_lock:  # (the refinement's two threads)
+            self.stats["dispatches"] += 1
+            self.stats["transfers"] += transfers
+
+    def _counted(self, out):
+        """`out`, a compiled call's result, counted with all its arrays (an upper bound of
+        the copies: the host scheduler leaves some on the device for its next call)."""
+        self.count_call(len(jax.tree_util.tree_leaves(out)))
+        return out
+
+    def device_program(self, size: int) -> _compile.Fixed:
+        """The device scheduler's program for a chunk buffer of `size` paths."""
+        program = self._programs.get(size)
+        if program is None:
+            from . import device
+
+            program = self._programs[size] = device.program_for(self, size)
+        return program
 
     def first_passages(self, paths, chunk_size):
         """Onset state, stick state, stick time (`nan` if none by the last step) and whether
         the stick was located, for the paths with counters `paths`, chunk by chunk."""
         self.refined_miss = 0.0
-        parts = [self._chunk(paths[i : i + chunk_size]) for i in range(0, paths.size, chunk_size)]
+        chunk = self._chunk
+        if self.scheduler == "device":
+            from . import device
+
+            # (one program for all the chunks of the run: its buffer holds the largest)
+            size = _buffer_size(min(paths.size, chunk_size))
+            chunk = functools.partial(device.first_passages, self, size)
+        parts = [chunk(paths[i : i + chunk_size]) for i in range(0, paths.size, chunk_size)]
         if len(parts) == 1:  # as they are (the onset states: a read-only view; callers copy)
             self.miss, self.onset_positions = parts[0][4:]
             return parts[0][:4]
@@ -728,8 +785,10 @@ class _Run:
             stick = np.zeros((len(self.model.state_names), size))
         else:
             stick = _pad_paths(np.asarray(stick_state, dtype=np.float64), size)
-        return self.onset(
-            self.keys["onset"], _pad_paths(paths, size), np.uint32(counter), stick, paths=size
+        return self._counted(
+            self.onset(
+                self.keys["onset"], _pad_paths(paths, size), np.uint32(counter), stick, paths=size
+            )
         )
 
     def _chunk(self, paths):
@@ -801,7 +860,7 @@ class _Run:
                 )
             first = False
             start = time.perf_counter()
-            out = loop(*args, paths=size)
+            out = self._counted(loop(*args, paths=size))
             # The states stay where the loop left them for its next call (read here through
             # zero-copy views; copying them in and out cost ~3 ms a call at 131072 paths).
             X_dev, X_prev_dev, miss_dev = out[0], out[1], out[3]
@@ -983,6 +1042,10 @@ class _Run:
                 self.solver.bridge, self.model.stick_level, self.keys["tree"], self.depths,
                 self.tol, self.timer,
             )  # fmt: skip
+            # Its compiled calls counted as the run's (the class's `_call`, looked up at
+            # each call).
+            refiner = self._refiner
+            refiner._call = lambda *a, **k: self._counted(type(refiner)._call(refiner, *a, **k))
         return self._refiner
 
     def _locate_chunk(self, X_end, X_prev_end, k_end, path, count, t_stick, stick_state, located):
