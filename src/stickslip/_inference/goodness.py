@@ -237,7 +237,17 @@ def goodness_of_fit(
         else:
             tables = setting.gradient_tables(shifted, reps, data)
             steps = np.array([setting.one_step(rep, tables, newton) for rep in reps])
-        noise = setting.simulation_noise(steps)
+        if np.all(np.linalg.eigvalsh(-0.5 * (setting.hessian + setting.hessian.T)) > 0):
+            noise = setting.simulation_noise(steps)
+        else:
+            # the fit's covariance is then a regularised inverse (sds of 1e5-1e10): as the
+            # simulation noise it threw every replicate to MAX_STEP, and every p-value to 1
+            noise = np.zeros((p, p))
+            said.append(
+                "the fit's log-likelihood is not concave at the estimate: the replicates "
+                "leave out the fit's own simulation noise (its covariance is not usable), "
+                "so these p-values are rough, somewhat small"
+            )
         steps = steps + rng.multivariate_normal(np.zeros(p), noise, size=n_rep)
         # sorted once, not per replicate (a quarter of the time at 3000 cycles, 2 free)
         ordered = [({k: _sorted(plus[k]) for k in kinds}, {k: _sorted(minus[k]) for k in kinds},
