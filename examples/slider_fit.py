@@ -231,9 +231,11 @@ def verdict(chosen_name, chosen, comparison, p_values, data_si, sims_si):
     said = chosen.diagnostics["warnings"]
     if any(w.startswith(UNUSABLE) for w in said):
         lines.append(
-            "Its fit's surface has no usable curvature at this n_sim (its warnings): the "
-            "estimates stand, but its intervals are not available and its goodness-of-fit "
-            "p-values are rough, either way (docs/goodness.md); a larger n_sim settles both."
+            "Its fit's surface has no usable curvature (its warnings): the estimates stand, "
+            "but its intervals are not available and its goodness-of-fit p-values are rough "
+            "(docs/goodness.md). Four times the model cycles (--n-sim 4000) did not settle "
+            "it: the measured surface is rough, and the noise and the threshold's spread "
+            "trade off (docs/slider_fit.md)."
         )
     sim = sims_si[chosen_name]
     for name, label, scale in PANELS:
