@@ -345,9 +345,10 @@ def pay(key) -> None:
 
 
 def _count_compile(fn, elapsed: float) -> None:
-    seconds["compile_seconds"] += elapsed
-    total, count = _compiled_seconds.get(fn, (0.0, 0))
-    _compiled_seconds[fn] = (total + elapsed, count + 1)
+    with _rent_lock:  # (threads compile at once: the study's theory, the refinement's)
+        seconds["compile_seconds"] += elapsed
+        total, count = _compiled_seconds.get(fn, (0.0, 0))
+        _compiled_seconds[fn] = (total + elapsed, count + 1)
 
 
 def remembered(key):
@@ -435,12 +436,23 @@ def _fresh(lowered):
     an entry there without one here would be loaded from JAX's cache by every new process
     (about 0.25 s each). So this compile neither reads JAX's cache (its options give it a
     key of its own) nor writes it (the executable is kept here instead)."""
-    min_time = jax.config.jax_persistent_cache_min_compile_time_secs
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", float("inf"))
+    with _fresh_lock:  # (threads compile at once: the first sets the limit, the last resets it)
+        if not _fresh_open:
+            _fresh_saved[:] = [jax.config.jax_persistent_cache_min_compile_time_secs]
+            jax.config.update("jax_persistent_cache_min_compile_time_secs", float("inf"))
+        _fresh_open.append(None)
     try:
         return lowered.compile(compiler_options=_OWN_KEY)
     finally:
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", min_time)
+        with _fresh_lock:
+            _fresh_open.pop()
+            if not _fresh_open:
+                jax.config.update("jax_persistent_cache_min_compile_time_secs", _fresh_saved[0])
+
+
+_fresh_lock = threading.Lock()
+_fresh_open: list = []  # the compilations under way in `_fresh`
+_fresh_saved: list = []  # the limit they replaced
 
 
 def _poly_specs(leaves, paths):

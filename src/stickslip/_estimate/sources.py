@@ -120,6 +120,22 @@ def _padded(a):
     return np.pad(a, (0, size - a.size), mode="edge") if 0 < a.size < size else a
 
 
+def _n1_blocked(cr, ms, Ps):
+    """`kernels.n1_from` for moments `(K, n, ...)` on a grid, in blocks of `N1_BLOCK` times
+    (when they divide n): the one compiled shape of the point evaluations (`_n1_at`) serves
+    the grids too (a first run compiled n1 twice). n1 is computed time by time: the same
+    numbers. A NumPy array `(K, n)`."""
+    n = ms.shape[1]
+    if n % N1_BLOCK:
+        return np.array(kernels.n1_from(cr, ms, Ps))
+    ms, Ps = np.asarray(ms), np.asarray(Ps)
+    blocks = [
+        np.asarray(kernels.n1_from(cr, ms[:, lo : lo + N1_BLOCK], Ps[:, lo : lo + N1_BLOCK]))
+        for lo in range(0, n, N1_BLOCK)
+    ]
+    return np.concatenate(blocks, axis=1)
+
+
 class GaussianSource:
     """Closed-form densities of a linear-Gaussian slip (see `gaussian.py`)."""
 
@@ -234,7 +250,7 @@ class GaussianSource:
             return have
         n = max(8192, 1 << (n - 1).bit_length())
         ms, Ps = kernels.grid_moments(self.cr, jnp.asarray(self.m0s), jnp.asarray(self.P0s), h, n)
-        n1 = np.array(kernels.n1_from(self.cr, ms, Ps))
+        n1 = _n1_blocked(self.cr, ms, Ps)
         n1[:, 0] = 0.0
         cells, unresolved = self._cell_integrals(n1, h, ms, Ps)
         I1 = np.concatenate([np.zeros((n1.shape[0], 1)), np.cumsum(cells, axis=1)], axis=1)
@@ -253,7 +269,7 @@ class GaussianSource:
         1.82). Returns the integrals (K, n - 1) and the number of sub-intervals still
         unresolved at the finest level (their last estimate is kept)."""
         mm, Pm = kernels.step_moments(self.cr, ms, Ps, 0.5 * h)
-        mid = np.asarray(kernels.n1_from(self.cr, mm, Pm))[:, :-1]
+        mid = _n1_blocked(self.cr, mm, Pm)[:, :-1]
         f0, f1 = n1[:, :-1], n1[:, 1:]
         simpson = h / 6.0 * (f0 + 4.0 * mid + f1)
         # Simpson's error, by Richardson over pairs of cells: the pair's rule of step h

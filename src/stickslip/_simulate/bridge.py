@@ -573,6 +573,8 @@ class Refiner:
             return
         if _compile.policy() != "eager":
             C = min(C, COLD_CAPACITY)
+            if any(self._ready(c, d) for c in CAPACITIES if C < c <= COLD_CAPACITY):
+                return  # a larger capacity at hand stands in (`_choose`): nothing to compile
         elif not exact:
             return  # (a loose bound: an eager run compiles what it meets)
 

@@ -246,10 +246,12 @@ def _traces(run, table, path_ids):
             [np.where(table["immediate"][idx], INACTIVE, SLIPPING), np.full(pad, INACTIVE)]
         )
         path = np.concatenate([slots[idx], np.zeros(pad, dtype=np.uint32)])
+        # `paths`: kept on disk, as the stepping's programs (without it every process
+        # compiled it again, 0.5-3 s)
         ys = np.asarray(
             run.call(
                 _record, run.model, run.solver, run.cfg, X0, ks, path, run.dt_arr,
-                run.keys["step"], run.keys["bridge"], n_rec,
+                run.keys["step"], run.keys["bridge"], n_rec, paths=n,
             )
         )  # fmt: skip
         for col, row in enumerate(idx):

@@ -89,7 +89,7 @@ def run_study(
             label = ", ".join(f"{k}={v!r}" for k, v in point.values.items())
             if label:
                 say(f"[{i + 1}/{len(points)}] {label}")
-            _compute(point, progress, say, client)
+            _compute(point, progress, say, client, grid_of=study)
     t0 = time.perf_counter()
     grids = _grids(study, points)
     from .dataset import assemble
@@ -191,7 +191,10 @@ def _compute_task(point: Point) -> Point:
     return point
 
 
-def _compute(point: Point, progress: bool, say, client=None):
+def _compute(point: Point, progress: bool, say, client=None, grid_of: Study | None = None):
+    """Simulate one point and set up its estimators; `grid_of`: the study whose grids the
+    results use (`run_study`'s), to compute the theory on them while the point simulates
+    (`_theory_ahead`)."""
     from .._model import ChainModel
 
     point.done = True
@@ -203,9 +206,33 @@ def _compute(point: Point, progress: bool, say, client=None):
     import stickslip as ss
 
     outs = s.resolved_outputs()
-    sim = s.simulation
     sources = [estimator_source(s, a) for a in s.analytic]
     lg = model.linear_gaussian() is not None
+    opts = s.estimator
+    if lg and ("exact" in sources or "n1" in outs or "n2" in outs):
+        t0 = time.perf_counter()
+        point.exact = ss.CrossingEstimator(
+            model, dt=opts.dt, horizon=opts.horizon, mixing=opts.mixing, progress=progress
+        )
+        point.timings["estimator_setup"] = time.perf_counter() - t0
+    ahead = _theory_ahead(point, grid_of) if grid_of is not None else None
+    _simulate(point, progress, say, client, outs, sources)
+    if ahead is not None:  # (on an error it is left to finish alone: a daemon thread)
+        ahead.join()
+    if "empirical" in sources:
+        mixing = None if opts.mixing == "components" else opts.mixing
+        point.empirical = ss.CrossingEstimator(
+            model, ensemble=point.ensemble, dt=opts.dt, horizon=opts.horizon, mixing=mixing
+        )
+
+
+def _simulate(point: Point, progress: bool, say, client, outs, sources):
+    """The simulations of one point: the ensemble, and the cycles of the time series."""
+    import stickslip as ss
+
+    s = point.study
+    model = s.model.instance
+    sim = s.simulation
     if sim is not None and any(q in outs for q in (*DENSITIES, "n1", "n2")):
         record = sim.upcrossings if ("n1" in outs or "n2" in outs or "empirical" in sources) else 0
         say(f"simulate: {sim.n_paths} paths, dt={sim.dt:g}, solver={sim.solver}")
@@ -239,18 +266,53 @@ def _compute(point: Point, progress: bool, say, client=None):
             client=client,
         )
         point.timings["cycles"] = time.perf_counter() - t0
-    opts = s.estimator
-    if lg and ("exact" in sources or "n1" in outs or "n2" in outs):
-        t0 = time.perf_counter()
-        point.exact = ss.CrossingEstimator(
-            model, dt=opts.dt, horizon=opts.horizon, mixing=opts.mixing, progress=progress
-        )
-        point.timings["estimator_setup"] = time.perf_counter() - t0
-    if "empirical" in sources:
-        mixing = None if opts.mixing == "components" else opts.mixing
-        point.empirical = ss.CrossingEstimator(
-            model, ensemble=point.ensemble, dt=opts.dt, horizon=opts.horizon, mixing=mixing
-        )
+
+
+def _theory_ahead(point: Point, study: Study):
+    """Start computing, in a thread, the exact estimator's densities that `dataset.assemble`
+    will ask for (`theory_density`, kept in `point.theory`), while the point simulates: on a
+    first run most of the theory's time is compiling its kernels, which XLA does without
+    Python's lock, so on 2 cores it overlaps the simulations. The calls are `assemble`'s own,
+    in its order, and the estimator computes the same numbers; so only where every grid is
+    given (none waits for the simulated data). `None` where there is nothing to compute
+    ahead; else the thread (an error is left for `assemble` to meet again and raise)."""
+    import threading
+
+    from .measure import THEORY_DENSITIES, theory_density
+
+    s, outs, grid = point.study, study.resolved_outputs(), study.grid
+    if point.exact is None or not s.analytic:
+        return None
+    # A grid left open may be read off the theory itself (`_theory_range`, before `assemble`):
+    # the estimator would see its calls in another order.
+    given = all(
+        getattr(grid, q).start is not None and getattr(grid, q).stop is not None
+        for q in DENSITIES
+        if q in outs
+    ) and all(
+        getattr(grid, q).stop is not None or "slip_time" in outs for q in ("n1", "n2") if q in outs
+    )
+    if not given:
+        return None
+    calls = []
+    for q in DENSITIES:  # (`dataset._one`'s order)
+        if q in outs and q in THEORY_DENSITIES:
+            edges = _edges(getattr(grid, q), q, [])
+            calls += [(a, q, edges) for a in s.analytic if estimator_source(s, a) == "exact"]
+    if not calls:
+        return None
+
+    def compute():
+        for a, q, edges in calls:
+            try:
+                result = theory_density(point, a, q, edges)
+            except Exception:  # (met again, and raised, where `assemble` asks for it)
+                return
+            point.theory[(a.key, q, edges.tobytes())] = result
+
+    thread = threading.Thread(target=compute, name="stickslip-theory", daemon=True)
+    thread.start()
+    return thread
 
 
 def _compute_chain(point: Point, say, client=None):
