@@ -34,13 +34,14 @@ trace itself, and recorded in `Cycles.info`.
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Mapping
 
 import numpy as np
 
 from .._errors import DataError, ParameterError, check_positive
 from ._cycles import Cycles
-from ._input import OWNER, as_series, check_length, check_times, power_of_two, runs, warn
+from ._input import OWNER, as_series, check_length, check_times, power_of_two, runs
 
 # In noise sd. A noise excursion beyond 5 sd: probability 6e-7 per independent value.
 THRESHOLDS = {
@@ -177,7 +178,7 @@ def extract_force(t, force, stiffness, v_b, window, thresholds=None) -> Cycles:
                 f"given v_b={v_b:.6g}: check the units of force, stiffness and v_b"
             )
         if abs(ratio - 1) > _VB_WARN:
-            warn(
+            warnings.warn(
                 f"extract_cycles: the sticks' loading slope gives v_b = {v_b_est:.4g}, "
                 f"{100 * (ratio - 1):+.2g}% from the given v_b = {v_b:.6g}; the slope is used",
                 stacklevel=3,

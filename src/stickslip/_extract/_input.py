@@ -2,35 +2,11 @@
 
 from __future__ import annotations
 
-import contextlib
-import contextvars
-import warnings
-
 import numpy as np
 
 from .._errors import ParameterError
 
 OWNER = "extract_cycles"
-# Set by `quiet()`: the readers' warnings (a v_b off the sticks' speed) are not issued. A
-# context variable, not `warnings.catch_warnings` (which swaps process-wide state): the
-# measurement inside `fit` extracts simulated traces in several threads at once.
-_QUIET = contextvars.ContextVar("stickslip_extract_quiet", default=False)
-
-
-@contextlib.contextmanager
-def quiet():
-    """Within it (this thread only), `extract_cycles` issues no warnings."""
-    token = _QUIET.set(True)
-    try:
-        yield
-    finally:
-        _QUIET.reset(token)
-
-
-def warn(text: str, stacklevel: int) -> None:
-    """`warnings.warn(text)` unless within `quiet()`; `stacklevel` as the caller's."""
-    if not _QUIET.get():
-        warnings.warn(text, stacklevel=stacklevel + 1)
 
 
 def as_series(name: str, value, *, required: bool = False) -> np.ndarray | None:

@@ -3,11 +3,13 @@ $x - v_b t$ are the sticks (docs/simulator.md, "Semantics of one cycle")."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from .._errors import DataError, ParameterError, check_int, check_positive
 from ._cycles import Cycles
-from ._input import OWNER, as_series, check_length, check_times, power_of_two, runs, warn
+from ._input import OWNER, as_series, check_length, check_times, power_of_two, runs
 
 _NOISE_SIGMAS = 5.0  # a stuck value is noise beyond 5 sd with probability 6e-7
 _ROUNDING = 1e-9  # relative floor of tol: differenced positions carry rounding error
@@ -87,7 +89,7 @@ def extract_velocity(t, x, v, v_b, tol, min_stick) -> Cycles:
             min_stick = max(min_stick, window)
     # the sticks' own speed: v_b as given is off by `center` (a few % at most is expected)
     if abs(center) > _VB_WARN * vb:
-        warn(
+        warnings.warn(
             f"extract_cycles: the sticks move at {(vb + center) * s_v:.6g}, "
             f"{100 * center / vb:+.2g}% from the given v_b = {v_b:.6g}; using the sticks' speed",
             stacklevel=3,

@@ -66,7 +66,6 @@ from .._errors import DataError, ParameterError, check_int
 from .goodness import ALPHA as GOODNESS_ALPHA
 from .goodness import _replicates, _Setting
 from .likelihood import _per_cycle
-from .surface import _map
 
 # The level of each choice: a simpler model is kept unless p < ALPHA. The issue asks that a
 # model which holds be kept in >= 90 % of data sets: at 0.05 a calibrated test keeps it in
@@ -368,14 +367,11 @@ class _Candidate:
         value over the design's region (`_quadratic_max`)."""
         s = self.setting
         models, offsets = design
-
-        def at(m):
+        values = np.empty((len(models), n_sets))
+        for i, m in enumerate(models):
             terms = _per_cycle(m, pooled, s.bandwidth, s.n_sim, s.dt, s.t_max, seed, s.observe)
             per_row = np.sum([terms[k] for k in pooled], axis=0)
-            return per_row.reshape(n_sets, -1).sum(axis=1)
-
-        # through a measurement the points go in threads, as fit's (`surface._map`)
-        values = np.array(_map(at, models, threaded=s.observe is not None))
+            values[i] = per_row.reshape(n_sets, -1).sum(axis=1)
         return _quadratic_max(offsets, values)
 
 

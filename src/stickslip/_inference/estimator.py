@@ -15,7 +15,6 @@ subpackage's pieces:
 
 from __future__ import annotations
 
-import threading
 import time
 import warnings
 
@@ -121,23 +120,18 @@ def _estimate(
     # common random numbers make the value a function of the point and the seed; only the
     # best, for memory: its per-cycle terms are a data set's size).
     best: dict = {}
-    lock = threading.Lock()  # points are evaluated in threads through a measurement
-    threaded = measured is not None
 
     def loglik(u, at_seed=seed):
         """The log-likelihood at `u` (clipped to the box) and its per-cycle terms (`None`
         where the model refuses `u`: a joint constraint inside the box)."""
         u = np.clip(u, lo, hi)
         key = u.tobytes()
-        with lock:
-            kept = best.get(at_seed)
+        kept = best.get(at_seed)
         if kept is not None and kept[0] == key:
             return kept[1]
         out = _loglik(u, at_seed)
-        with lock:
-            kept = best.get(at_seed)
-            if kept is None or out[0] > kept[1][0]:
-                best[at_seed] = (key, out)
+        if kept is None or out[0] > kept[1][0]:
+            best[at_seed] = (key, out)
         return out
 
     def _loglik(u, at_seed):
@@ -162,11 +156,11 @@ def _estimate(
         return value, terms
 
     # 1. a coarse grid over the box, Nelder-Mead from its best point
-    u_best, optimizer, caught = _search(loglik, lo, hi, free, threaded)
+    u_best, optimizer, caught = _search(loglik, lo, hi, free)
     _check_informative(points, names, data, centre, n_sim, dt, t_max, seed, measured)
     # 2. a polynomial around it: the vertex and the Hessian
     step = DESIGN_STEP if measured is None else MEASURED_DESIGN_STEP
-    surface = _local_surface(loglik, u_best, lo, hi, data, names, step, threaded)
+    surface = _local_surface(loglik, u_best, lo, hi, data, names, step)
     caught += surface.warnings
     # 3. the simulation's own noise: the same design with a second, independent seed. The
     # simulator's draws move with the parameters (see `surface._search`), so the surface
@@ -175,7 +169,7 @@ def _estimate(
     # above the sqrt(n / n_sim) widening alone assumes. The two seeds' per-cycle scores
     # also give the sandwich's J without the simulation's noise (`_sandwich`).
     seed2 = (seed + 0x9E3779B97F4A7C15) % 2**64  # far from seed: an independent stream
-    values2, scores2 = _evaluate(surface.design, lambda u: loglik(u, seed2), data, threaded)
+    values2, scores2 = _evaluate(surface.design, lambda u: loglik(u, seed2), data)
     cov, said = _sandwich(surface, names, scores2)
     caught += said
     shift2, _ = _polynomial_vertex(surface.design - surface.centre, np.array(values2),

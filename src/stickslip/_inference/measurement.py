@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import threading
+import warnings
 from collections.abc import Mapping
 from typing import Any
 
@@ -402,19 +402,15 @@ def _keyed_grid(release, slip, stick, end, h, seed, path):
 _POOLS: dict[int, np.ndarray] = {}
 
 
-_POOLS_LOCK = threading.Lock()  # (points are evaluated in threads: `surface._evaluate`)
-
-
 def _pool(seed: int) -> np.ndarray:
     """`_NOISE_POOL` standard normals of `seed`'s noise stream (kept for the last few seeds:
     a fit evaluates ~100 points with one seed)."""
-    with _POOLS_LOCK:
-        if seed not in _POOLS:
-            while len(_POOLS) >= 4:
-                _POOLS.pop(next(iter(_POOLS)))
-            rng = np.random.default_rng([seed, _NOISE_STREAM, 2**32 - 1])
-            _POOLS[seed] = rng.standard_normal(_NOISE_POOL)
-        return _POOLS[seed]
+    if seed not in _POOLS:
+        while len(_POOLS) >= 4:
+            _POOLS.pop(next(iter(_POOLS)))
+        rng = np.random.default_rng([seed, _NOISE_STREAM, 2**32 - 1])
+        _POOLS[seed] = rng.standard_normal(_NOISE_POOL)
+    return _POOLS[seed]
 
 
 def _record(m: Measurement, t, x, v, unit_noise, rng) -> dict[str, np.ndarray]:
@@ -464,26 +460,21 @@ def measured_cycles(model, measurement: Measurement, n_cycles: int, seed: int, *
     """
     trace = measured_trace(model, measurement, n_cycles, seed, dt=dt)
     from .._extract import extract_cycles
-    from .._extract._input import quiet
-    from .surface import _map
 
     settings = measurement.extract_settings(float(model.v_b))
-
-    def extract(path):
-        p, signals = path
+    tables = []
+    for p, signals in enumerate(trace.traces):
         try:
             # the simulated sticks move at exactly v_b and the noise is the data's: a warning
             # here is about the simulation, which the fit reports in its own terms
-            with quiet():
-                return extract_cycles(**signals, **settings).table
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                tables.append(extract_cycles(**signals, **settings).table)
         except StickSlipError as err:
             raise DataError(
                 f"measured_cycles: the simulated trace (path {p}) shows no cycles through "
                 f"this measurement: {err}"
             ) from None
-
-    # the paths' traces are extracted in threads (`surface._map`: NumPy releases the GIL)
-    tables = _map(extract, enumerate(trace.traces), threaded=len(trace.traces) > 1)
     return {k: np.concatenate([tb[k] for tb in tables]) for k in measurement.columns}
 
 

@@ -10,8 +10,6 @@ the vertex): the vertex is the estimate, its Hessian the information.
 from __future__ import annotations
 
 import dataclasses
-import os
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -22,30 +20,13 @@ GRID_POINTS = 5  # per free parameter, for the coarse start (p <= 2; 8 p points 
 # Nelder-Mead's cap a free parameter: converged on the simplex's size it took 22 evaluations
 # for one parameter and 35 for two (measured, slip and stick times); the cap is 4-5 x that.
 MAXFEV_PER_PARAMETER = 100
-# Independent points (the grid, a design) through a measurement are evaluated this many at
-# a time, in threads: a point is mostly NumPy (the extraction of a sampled trace), which
-# releases the GIL in its large operations (measured: 4 points 1.3x faster in 2 threads,
-# 2 cores under load). Per-cycle data go one at a time (the simulator uses the cores).
-THREADS = max(1, min(4, os.cpu_count() or 1))
 
 
-def _map(fn, items, threaded: bool = False) -> list:
-    """`[fn(x) for x in items]`, in `THREADS` threads where `threaded` (the results, and
-    their order, the same: each point's simulation is keyed by its seed alone)."""
-    items = list(items)
-    n = min(THREADS, len(items)) if threaded else 1
-    if n <= 1:
-        return [fn(x) for x in items]
-    with ThreadPoolExecutor(n, thread_name_prefix="stickslip-fit") as pool:
-        return list(pool.map(fn, items))
-
-
-def _search(loglik, lo, hi, free, threaded=False) -> tuple[np.ndarray, dict, list[str]]:
-    """The coarse grid over the box (its points in threads where `threaded`), then
-    Nelder-Mead from its best point. Returns the best point (fit coordinates, inside the
-    box), the optimiser's record and its warnings."""
+def _search(loglik, lo, hi, free) -> tuple[np.ndarray, dict, list[str]]:
+    """The coarse grid over the box, then Nelder-Mead from its best point. Returns the best
+    point (fit coordinates, inside the box), the optimiser's record and its warnings."""
     start = _design(lo, hi)
-    values = [v for v, _ in _map(loglik, start, threaded)]
+    values = [loglik(u)[0] for u in start]
     if not np.any(np.isfinite(values)):
         raise ParameterError(
             "fit",
@@ -118,8 +99,7 @@ class _Surface:
         return self.centre if self.shift is None else np.clip(self.centre + self.shift, lo, hi)
 
 
-def _local_surface(loglik, u_hat, lo, hi, data, names, step=DESIGN_STEP,
-                   threaded=False) -> _Surface:  # fmt: skip
+def _local_surface(loglik, u_hat, lo, hi, data, names, step=DESIGN_STEP) -> _Surface:
     """The maximum and the observed information from a polynomial fitted to the surface
     around `u_hat`: quadratic, plus a cubic term along each axis, on steps of DESIGN_STEP
     (wide against the surface's Monte Carlo roughness; on steps of one standard error it
@@ -131,7 +111,7 @@ def _local_surface(loglik, u_hat, lo, hi, data, names, step=DESIGN_STEP,
     for attempt in range(2):
         nominal = _quadratic_design(u_hat, design_steps)
         design = np.clip(nominal, lo, hi)
-        values, scores = _evaluate(design, loglik, data, threaded)
+        values, scores = _evaluate(design, lambda u: loglik(u), data)
         shift, H = _polynomial_vertex(design - u_hat, np.array(values), design_steps)
         best_point = int(np.argmax(values))
         if shift is not None or attempt == 1 or best_point == 0:
@@ -205,12 +185,12 @@ def _polynomial_vertex(du, values, steps):
     return x, Q + np.diag(6 * k * x)
 
 
-def _evaluate(design, loglik, data, threaded=False):
-    """The log-likelihood at each design point (in threads where `threaded`) and its
-    per-cycle terms summed over the columns (a cycle's score: the columns of one cycle
-    are dependent)."""
+def _evaluate(design, loglik, data):
+    """The log-likelihood at each design point and its per-cycle terms summed over the
+    columns (a cycle's score: the columns of one cycle are dependent)."""
     values, scores = [], []
-    for v, terms in _map(loglik, design, threaded):
+    for u in design:
+        v, terms = loglik(u)
         values.append(v)
         scores.append(None if terms is None else np.sum([terms[k] for k in data], axis=0))
     return values, scores
