@@ -28,9 +28,9 @@ measured slope, 7 % above the nominal 42 um/s), a negligible viscous damping (ze
 drift of the absolute force level over the run is outside the model: `peak_force` is not
 fitted). The rig's 30.7 g only sets the units: an effective mass is fitted (omega0).
 
-`--out DIR`, then copy slider_fit.png to docs/img to refresh docs/slider_fit.md. About 16
-minutes of CPU, some 12 minutes on 2 quiet cores (docs/slider_fit.md, "Cost"): a point of
-a fit through this measurement is 1000 model cycles as a 2 kHz trace, ~2 s.
+`--out DIR`, then copy slider_fit.png to docs/img to refresh docs/slider_fit.md. About 13
+minutes of CPU, 10 minutes on 2 quiet cores (docs/slider_fit.md, "Cost"): a point of a fit
+through this measurement is 1000 model cycles as a 2 kHz trace, ~1-1.5 s.
 """
 
 from __future__ import annotations

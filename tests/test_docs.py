@@ -16,8 +16,11 @@ BLOCK = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
 # on a cold cache: 16 s of the default tier) run in the slow tier; tests/test_distributed.py
 # runs a cluster in the default one. So do the pages whose examples take 7-12 s each from an
 # empty cache (the estimator, the models, fitting and model choice: what they call is tested
-# in the default tier by their own test files); the README's run in the default tier.
-SLOW = {"distributed.md", "estimator.md", "models.md", "compare.md", "fit.md"}
+# in the default tier by their own test files); the README's run in the default tier. And
+# (5-7 s each cold) extending.md and goodness.md: tests/test_plugin_package.py and
+# tests/test_goodness.py run what they show in the default tier.
+SLOW = {"distributed.md", "estimator.md", "models.md", "compare.md", "fit.md", "extending.md",
+        "goodness.md"}  # fmt: skip
 
 
 @pytest.mark.parametrize(

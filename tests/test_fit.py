@@ -190,4 +190,3 @@ def test_a_model_that_makes_no_positive_slip_time_is_refused_not_fitted():
     text = str(err.value)
     assert "do not constrain D" in text and "no slip_time above zero" in text
     assert "tau=None" in text and "\n" not in text
-

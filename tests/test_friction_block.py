@@ -110,7 +110,8 @@ def test_empirical_estimator(noisy):
     assert upper[-1] > 2.0 and P[-1] == 1.0
 
 
-@pytest.mark.parametrize("monitor", ["grid", "continuous"])
+# continuous monitoring in the slow tier (5 s cold): the grid variant checks the same law
+@pytest.mark.parametrize("monitor", ["grid", pytest.param("continuous", marks=pytest.mark.slow)])
 def test_linear_viscous_block_is_langevin(Langevin, monitor):
     """With F(V) = F_k + mu V the slip is `langevin` (omega0^2 = k, zeta = mu) with x shifted
     by (F_k + mu v_b) / k. Same seed and Euler-Maruyama on both: the same noise drives the

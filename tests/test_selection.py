@@ -268,6 +268,7 @@ def check_promise(model, tol, output="slip_time", n_ref=100_000, seed=3):
     return res.choice
 
 
+@pytest.mark.slow  # 6 s cold; test_first_passage_density_runs_the_choice runs a choice by default
 def test_the_promise_holds_on_a_parameter_set_never_measured():
     """omega0 = 1.5, tau = 0.03, D = 0.3: not in the table; its choice, run, is within the
     tolerance of a converged run."""

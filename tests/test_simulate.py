@@ -155,7 +155,8 @@ def test_stationary_noise_onset_gives_immediate_resticks(Langevin):
     """eta0 = 'stationary': the slip ends at once when a(0) >= 0, with probability
     p0 = P(eta0 >= w^2 x0 + zeta v_b)."""
     m = Langevin(**PUBLIC, eta0="stationary")
-    e = ss.simulate(m, 20_000, 0.005, 30.0, seed=9)
+    # (decided at the onset, whatever the step: dt 0.1, not 0.005, 10 s cold -> 2 s)
+    e = ss.simulate(m, 20_000, 0.1, 30.0, seed=9)
     p0 = norm.sf((1.0 + 0.1) / math.sqrt(0.4 / 0.1))
     assert abs(e.fraction_immediate - p0) < 4 * math.sqrt(p0 * (1 - p0) / 20_000)
     imm = e.immediate

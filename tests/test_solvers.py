@@ -105,7 +105,8 @@ def test_euler_maruyama_step(Langevin):
     np.testing.assert_array_equal(again, dw)
 
 
-@pytest.mark.parametrize("nodes", [2, 8])
+# 2 nodes in the slow tier (7 s cold): 8 nodes runs the same check in the default one
+@pytest.mark.parametrize("nodes", [pytest.param(2, marks=pytest.mark.slow), 8])
 def test_bridge_mean_nodes(Langevin, nodes):
     """Node values are E[X(s) | X_k, X_{k+1}], checked against Gaussian conditioning written
     out independently in NumPy; with no noise they are the exact flow."""
