@@ -7,6 +7,7 @@ Both use grid monitoring and linear interpolation of the stick time, the classic
 from __future__ import annotations
 
 import os
+import time
 
 import numpy as np
 import scipy.linalg
@@ -91,3 +92,10 @@ def euler_dropping(n_paths, dt, t_max, seed, *, omega0, zeta, D, v_b, x0, tau):
         else:
             x, v, e = xn, vn, en
     return T, steps
+
+
+def timed(fn):
+    """`(fn(), seconds it took)`."""
+    start = time.perf_counter()
+    out = fn()
+    return out, time.perf_counter() - start

@@ -121,15 +121,20 @@ def run_main_job(runs):
             digests.add(digest)
     print(f"stickslip run examples/public_reference.yaml; {runs} runs, each from an empty cache "
           "(whole processes, seconds)")  # fmt: skip
-    for name, values in rows.items():
-        values = sorted(values)
-        print(f"  {name:5s} median {values[len(values) // 2]:6.2f}  "
-              f"(min {values[0]:.2f}, max {values[-1]:.2f})")  # fmt: skip
+    _print_rows(rows, 5)
     for info in infos:
         print(f"  cold process: {info['compiles']} compilations, {info['traces']} traces, "
               f"{info['compile_seconds']:.2f} s compiling (summed over threads), "
               f"{info['trace_seconds']:.2f} s tracing")  # fmt: skip
     print(f"  the same results.nc in every process: {len(digests) == 1}")
+
+
+def _print_rows(rows: dict, width: int) -> None:
+    """Each row's median, min and max (seconds)."""
+    for name, values in rows.items():
+        values = sorted(values)
+        print(f"  {name:{width}s} median {values[len(values) // 2]:6.2f}  "
+              f"(min {values[0]:.2f}, max {values[-1]:.2f})")  # fmt: skip
 
 
 def main(argv=None):
@@ -163,10 +168,7 @@ def main(argv=None):
             digests.add(got["digest"])
     print(f"{args.n_paths} paths of the public set at dt = {args.dt}; {args.runs} runs, each "
           "from an empty cache (whole processes, seconds)")  # fmt: skip
-    for name, values in rows.items():
-        values = sorted(values)
-        print(f"  {name:11s} median {values[len(values) // 2]:6.2f}  "
-              f"(min {values[0]:.2f}, max {values[-1]:.2f})")  # fmt: skip
+    _print_rows(rows, 11)
     first = infos[0]
     print(f"  first process: {first['compiles']} compilations, {first['traces']} traces, "
           f"{first['compile_seconds']:.2f} s compiling, {first['trace_seconds']:.2f} s tracing, "

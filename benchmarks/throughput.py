@@ -28,23 +28,18 @@ import os
 import pathlib
 import platform
 import sys
-import time
 
 import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).parent))
 import _baselines  # noqa: E402
 
+_timed = _baselines.timed
+
 PUBLIC = dict(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=0.1)
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 PASS_LADDER = (1.6, 0.8, 0.4, 0.2, 0.1, 0.05)  # steps tried, largest first
 BASELINE_DT = 0.005
-
-
-def _timed(fn):
-    start = time.perf_counter()
-    out = fn()
-    return out, time.perf_counter() - start
 
 
 def main(argv=None):
