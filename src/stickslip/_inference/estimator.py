@@ -23,7 +23,7 @@ import numpy as np
 from .._errors import DataError, ParameterError, check_int, check_positive
 from .data import LOG_KINDS, _check_data, _looks_sampled, _measurement, _transform
 from .forward import _simulate, _simulation_settings
-from .intervals import _combine_seeds, _mc_noise, _sandwich, _wald
+from .intervals import _combine_seeds, _mc_noise, _sandwich, _wald, concave
 from .likelihood import _bandwidth, _per_cycle
 from .params import (
     ToFit,
@@ -185,8 +185,7 @@ def _estimate(
     # 4. the estimate, its intervals
     ll_hat, _ = loglik(u_hat)
     estimate = params(u_hat)
-    concave = bool(np.all(np.linalg.eigvalsh(-surface.hessian) > 0))
-    ci, said = _wald(u_hat, cov, names, scales, lo, hi, free, concave)
+    ci, said = _wald(u_hat, cov, names, scales, lo, hi, free, concave(surface.hessian))
     caught += said
     for text in caught:
         warnings.warn(f"fit: {text}", stacklevel=STACKLEVEL)

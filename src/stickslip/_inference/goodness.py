@@ -48,6 +48,7 @@ import numpy as np
 from .._errors import DataError, ParameterError, ResourceError, check_int
 from .data import _transform
 from .forward import _simulate
+from .intervals import concave
 from .likelihood import KDE_BINS, _density_table, _log_density_at
 from .params import SIM_BYTES_PER_STATE, _from_fit, _memory_limit, _to_fit, model_kwargs
 
@@ -237,7 +238,7 @@ def goodness_of_fit(
         else:
             tables = setting.gradient_tables(shifted, reps, data)
             steps = np.array([setting.one_step(rep, tables, newton) for rep in reps])
-        if np.all(np.linalg.eigvalsh(-0.5 * (setting.hessian + setting.hessian.T)) > 0):
+        if concave(setting.hessian):
             noise = setting.simulation_noise(steps)
         else:
             # the fit's covariance is then a regularised inverse (sds of 1e5-1e10): as the

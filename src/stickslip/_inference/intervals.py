@@ -27,6 +27,13 @@ MC_RATIO_WARN = 0.5
 MC_RATIO_GOAL = 0.3
 
 
+def concave(hessian) -> bool:
+    """Whether a log-likelihood surface of this Hessian is concave (a maximum with usable
+    curvature: intervals, and the goodness check's simulation noise, depend on it)."""
+    H = np.asarray(hessian, float)
+    return bool(np.all(np.linalg.eigvalsh(-0.5 * (H + H.T)) > 0))
+
+
 def _sandwich(surface, names, scores2=None) -> tuple[np.ndarray, list[str]]:
     r"""The sandwich covariance $H^{-1} J H^{-1}$ from the surface's Hessian and per-cycle
     scores (the Hessian's inverse alone if a design point failed), with its warnings.
@@ -42,7 +49,7 @@ def _sandwich(surface, names, scores2=None) -> tuple[np.ndarray, list[str]]:
     noise dominates), one seed's $J$ is kept."""
     said = []
     info = -surface.hessian
-    if not np.all(np.linalg.eigvalsh(info) > 0):
+    if not concave(surface.hessian):
         said.append(
             "the log-likelihood is not concave around the estimate (the data do not pin the "
             "free parameters down, the simulation noise hides the curvature, or the box holds "
