@@ -44,6 +44,7 @@ from .._jax import jax, jnp
 from .._solver import PathwiseBrownian, SlipTerm
 from .._solver.base import over_paths
 from . import bridge
+from .hybrid import onset_states
 
 _NONE = np.iinfo(np.int32).max  # "no stick found" (a step index no run reaches)
 MIN_STEPPING = 128  # smallest stepping buffer of the ladder (`driver.MIN_BUFFER`)
@@ -83,11 +84,8 @@ def interval_sizes(n: int) -> tuple[int, ...]:
 
 def _onset(model, smooth, key, path):
     """The onset states of the paths' first cycle, their positions and the crossing
-    variable's rate there (`driver._onset`, the same draws)."""
-    X = jax.vmap(model.onset_state, out_axes=-1)(_rng.path_keys(key, path, jnp.uint32(0)))
-    position = over_paths(model.position)(X)
-    rate = over_paths(model.crossing_rate)(X) if smooth else jnp.zeros_like(position)
-    return X, position, rate
+    variable's rate there (as `driver._onset`: the same draws)."""
+    return onset_states(model, smooth, _rng.path_keys(key, path, jnp.uint32(0)))
 
 
 def _step(model, solver, dt, step_key, X, k, p):

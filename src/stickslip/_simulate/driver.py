@@ -23,7 +23,14 @@ from .._solver import EulerMaruyama, ExactGaussian
 from .._solver.base import over_paths
 from . import bridge, localise
 from .ensemble import Ensemble
-from .hybrid import INACTIVE, PASSED, SLIPPING, SteppingPastHybrid, StickSlipHybrid
+from .hybrid import (
+    INACTIVE,
+    PASSED,
+    SLIPPING,
+    SteppingPastHybrid,
+    StickSlipHybrid,
+    onset_states,
+)
 from .loop import HORIZON, solve
 
 MIN_BUFFER = 128  # smallest buffer; below it a step costs the same whatever the size
@@ -199,10 +206,7 @@ def _onset(model, smooth: bool, key, path, counter, stick_state):
     crossing variable, its rate there; and the stick times from `stick_state` to the
     release at `X` (the next cycle's onset) with the positions of `stick_state`. The
     first call of a run has no stick states yet: what it computes from them is unused."""
-    keys = _rng.path_keys(key, path, counter)
-    X = jax.vmap(model.onset_state, out_axes=-1)(keys)
-    position = over_paths(model.position)(X)
-    rate = over_paths(model.crossing_rate)(X) if smooth else jnp.zeros_like(position)
+    X, position, rate = onset_states(model, smooth, _rng.path_keys(key, path, counter))
     T_st = over_paths(model.stick_duration)(stick_state, X)
     return X, position, rate, T_st, over_paths(model.position)(stick_state)
 

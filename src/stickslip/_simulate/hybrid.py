@@ -181,3 +181,13 @@ class SteppingPastHybrid(StickSlipHybrid):
         k1 = jnp.where((k1 == k_here) & below & (count < self.slots), PASSED, k1)
         y1 = (X1, (X_prev1, k1, miss1, count, steps, misses, starts, ends))
         return y1, None, dict(y0=y0, y1=y1), state, result
+
+
+def onset_states(model, smooth: bool, keys):
+    """The onset states `X` of the paths whose onset keys are `keys` (one a path), their
+    positions and, for a smooth crossing variable, its rate there (zeros otherwise): where
+    every slip starts, for the host and the device scheduler alike."""
+    X = jax.vmap(model.onset_state, out_axes=-1)(keys)
+    position = over_paths(model.position)(X)
+    rate = over_paths(model.crossing_rate)(X) if smooth else jnp.zeros_like(position)
+    return X, position, rate
