@@ -22,7 +22,6 @@ import math
 import equinox as eqx
 
 from .._jax import jax, jnp
-from .._linear import propagators
 from .bvn import positive_part_mean, positive_product_mean
 
 _LOG_TWO_PI = math.log(2.0 * math.pi)
@@ -46,23 +45,6 @@ class Crossing(eqx.Module):
     @property
     def beta(self):
         return self.g @ self.b
-
-
-def grid_propagators(A, b, B, h, n):
-    """`propagators` at the lags `j h`, j = 0..n-1, by exact recursion from one step:
-    e^{A(j+1)h} = e^{Ah} e^{Ajh}, Phi1_{j+1} = Phi1_j + e^{Ajh} Phi1_h,
-    Sigma_{j+1} = e^{Ah} Sigma_j e^{A^T h} + Sigma_h."""
-    P1, F1, c1, S1 = propagators(A, b, B, h)
-    d = A.shape[0]
-
-    def step(carry, _):
-        Phi, Phi1, Sig = carry
-        out = (Phi, Phi1, Phi1 @ b, Sig)
-        return (P1 @ Phi, Phi1 + Phi @ F1, P1 @ Sig @ P1.T + S1), out
-
-    init = (jnp.eye(d), jnp.zeros((d, d)), jnp.zeros((d, d)))
-    _, out = jax.lax.scan(step, init, None, length=n)
-    return out
 
 
 def moments(m0, P0, Phi, c, Sig):

@@ -9,7 +9,7 @@ import numpy as np
 
 from .. import _compile
 from .._jax import jax, jnp
-from .._linear import _taylor, propagators
+from .._linear import propagators_host
 from . import gaussian as G
 
 _PAIR_CHUNK = 1 << 15  # pairs evaluated at once (bounds the memory of the n2 kernels)
@@ -29,44 +29,55 @@ def _kept(fn):
     return run
 
 
-def _step(h):
-    """A step or lag as a traced scalar: under `eqx.filter_jit` a Python float is a static
-    argument, and every new step size was a new compilation of the kernel (~1 s each of
-    `grid_moments`, `step_moments`, `grid_lag_propagators` and `short_lag_propagators`)."""
-    return jnp.asarray(h, dtype=jnp.float64)
+def _host(cr):
+    """The drift and diffusion of `cr` as NumPy arrays."""
+    return tuple(np.asarray(x, dtype=np.float64) for x in (cr.A, cr.b, cr.B))
+
+
+def _carried(m0s, P0s, Phi, c, Sig):
+    """Moments from N(m0s, P0s) (K, d), (K, d, d) over the lags of propagators with leading
+    shape S: (K, *S, d), (K, *S, d, d) (`gaussian.moments`, broadcast)."""
+    m0s, P0s = np.asarray(m0s, dtype=np.float64), np.asarray(P0s, dtype=np.float64)
+    lead = (slice(None),) + (None,) * (Phi.ndim - 2)
+    ms = (Phi[None] @ m0s[lead][..., None])[..., 0] + c[None]
+    Ps = Phi[None] @ P0s[lead] @ np.swapaxes(Phi, -1, -2)[None] + Sig[None]
+    return ms, Ps
+
+
+# The propagators and the moments they carry are a few products of d x d matrices per lag:
+# computed in NumPy (`propagators_host`: the same series and doublings as `propagators`),
+# they compile nothing. As jitted kernels they were five XLA programs of ~1 s each to
+# compile (the order-20 series unrolled under `vmap`), a quarter of a cold main job's
+# compiling, for a few milliseconds of arithmetic.
+
+
+def lag_propagators(cr, taus):
+    """(Phi, Phi1, c, Sigma) at the lags `taus` (n,): (n, d, d), (n, d, d), (n, d), (n, d, d)."""
+    return propagators_host(*_host(cr), np.asarray(taus, dtype=np.float64))
+
+
+def grid_lag_propagators(cr, h, n):
+    """`lag_propagators` at the lags j h, j < n."""
+    return lag_propagators(cr, h * np.arange(n))
 
 
 def grid_moments(cr, m0s, P0s, h, n):
     """Moments of every component at t_k = k h, k < n: shapes (K, n, d), (K, n, d, d)."""
-    return _grid_moments(cr, m0s, P0s, _step(h), n)
+    Phi, _, c, Sig = grid_lag_propagators(cr, h, n)
+    return _carried(m0s, P0s, Phi, c, Sig)
 
 
-@_kept
-def _grid_moments(cr, m0s, P0s, h, n):
-    Phi, _, c, Sig = G.grid_propagators(cr.A, cr.b, cr.B, h, n)
-    return jax.vmap(
-        lambda m0, P0: jax.vmap(lambda a, b, s: G.moments(m0, P0, a, b, s))(Phi, c, Sig)
-    )(m0s, P0s)
-
-
-@_kept
 def moments_at(cr, m0s, P0s, t):
     """Moments of every component at arbitrary times `t` (n,)."""
-    Phi, _, c, Sig = jax.vmap(lambda s: propagators(cr.A, cr.b, cr.B, s))(t)
-    return jax.vmap(
-        lambda m0, P0: jax.vmap(lambda a, b, s: G.moments(m0, P0, a, b, s))(Phi, c, Sig)
-    )(m0s, P0s)
+    Phi, _, c, Sig = lag_propagators(cr, t)
+    return _carried(m0s, P0s, Phi, c, Sig)
 
 
 def step_moments(cr, ms, Ps, s):
     """Moments (K, n, ...) carried on by the lag `s` (one propagator for all)."""
-    return _step_moments(cr, ms, Ps, _step(s))
-
-
-@_kept
-def _step_moments(cr, ms, Ps, s):
-    Phi, _, c, Sig = propagators(cr.A, cr.b, cr.B, s)
-    return jax.vmap(jax.vmap(lambda m, P: G.moments(m, P, Phi, c, Sig)))(ms, Ps)
+    Phi, _, c, Sig = propagators_host(*_host(cr), float(s))
+    ms, Ps = np.asarray(ms, dtype=np.float64), np.asarray(Ps, dtype=np.float64)
+    return ms @ Phi.T + c, Phi @ Ps @ Phi.T + Sig
 
 
 @_kept
@@ -97,11 +108,6 @@ def n1_joint_nodes(cr, ms, Ps, X):
     return jax.vmap(one)(ms, Ps, X)
 
 
-@_kept
-def lag_propagators(cr, taus):
-    return jax.vmap(lambda s: propagators(cr.A, cr.b, cr.B, s))(taus)
-
-
 def _chunked(fn, n_pairs, *arrays):
     """Map `fn` over the leading axis of `arrays` in chunks (sequentially), padding the last."""
     n_chunks = -(-n_pairs // _PAIR_CHUNK)
@@ -123,36 +129,6 @@ def n2_pairs(cr, m1, P1, Phi, Phi1, c, Sig, tau):
     (all with leading axis n_pairs)."""
     n_pairs = tau.shape[0]
     return _chunked(lambda *a: G.n2(cr, *a), n_pairs, m1, P1, Phi, Phi1, c, Sig, tau)
-
-
-def short_lag_propagators(cr, h, taus):
-    """`propagators` at lags 0 <= tau <= h: the Taylor series alone (no doublings) when
-    |A| h <= 1/4, where it is exact to rounding (see `_linear`); else `propagators`."""
-    return _short_lag_propagators(cr, _step(h), taus)
-
-
-@_kept
-def _short_lag_propagators(cr, h, taus):
-    norm = jnp.max(jnp.sum(jnp.abs(cr.A), axis=0)) * h
-
-    def taylor(s):
-        Phi, Phi1, Sig = _taylor(cr.A, cr.B, s)
-        return Phi, Phi1, Phi1 @ cr.b, Sig
-
-    def full(s):
-        return propagators(cr.A, cr.b, cr.B, s)
-
-    return jax.lax.cond(norm <= 0.25, lambda: jax.vmap(taylor)(taus), lambda: jax.vmap(full)(taus))
-
-
-def grid_lag_propagators(cr, h, n):
-    """`propagators` at the lags j h, j < n (by the exact recursion of `grid_propagators`)."""
-    return _grid_lag_propagators(cr, _step(h), n)
-
-
-@_kept
-def _grid_lag_propagators(cr, h, n):
-    return G.grid_propagators(cr.A, cr.b, cr.B, h, n)
 
 
 def _table_pair(cr, ms, Ps, table, moment, carry, first, second):

@@ -413,9 +413,7 @@ class GaussianSource:
         d = self._g.size
         ident = (np.eye(d)[None], np.zeros((1, d, d)), np.zeros((1, d)), np.zeros((1, d, d)))
         n_rows = max(_SHORT_ROWS, kernels._bucket(pairs.lags.size))
-        short = kernels.short_lag_propagators(
-            self.cr, h, np.pad(pairs.lags, (0, n_rows - pairs.lags.size))
-        )
+        short = kernels.lag_propagators(self.cr, np.pad(pairs.lags, (0, n_rows - pairs.lags.size)))
         table = tuple(
             np.concatenate([i, np.asarray(a), g])
             for i, a, g in zip(ident, short, entry["lag_props"], strict=True)
