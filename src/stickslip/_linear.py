@@ -89,6 +89,47 @@ def propagators_host(A, b, B, tau):
     return tuple(x.reshape(tau.shape + x.shape[1:]) for x in out)
 
 
+def propagators_many(A, b, B, tau):
+    """`propagators_host` for many lags at once, faster: the series' matrices do not depend on
+    the lag (A^k and Omega_k), so each of Phi, Phi1 and Sigma on the pieces is one product of
+    a (lags x order) table of coefficients with them; the doublings then touch only the lags
+    that need them. The same series and doublings, summed in another order: equal to
+    `propagators_host` to rounding, not to the bit (the simulator, whose host-built tables
+    must equal its traced ones, uses `propagators_host`; the estimator uses this)."""
+    A, b, B = (np.asarray(x, dtype=np.float64) for x in (A, b, B))
+    tau = np.asarray(tau, dtype=np.float64)
+    t = tau.reshape(-1)
+    d = A.shape[0]
+    norm = np.max(np.sum(np.abs(A), axis=0)) * np.abs(t)
+    s = np.ceil(np.log2(np.maximum(norm, 1e-300) / 0.5))
+    s = np.clip(s, 0, _MAX_DOUBLINGS).astype(np.int64)
+    u = t / 2.0**s
+    powers, omegas = [np.eye(d)], [B @ B.T]
+    for _ in range(_ORDER):
+        powers.append(powers[-1] @ A)
+        omegas.append(A @ omegas[-1] + omegas[-1] @ A.T)
+    # u^k / k! and u^(k+1) / (k+1)!, k = 0.._ORDER
+    k = np.arange(1, _ORDER + 2)
+    rising = np.cumprod(u[:, None] / k[None, :], axis=1)
+    plain = np.concatenate([np.ones((t.size, 1)), rising[:, :-1]], axis=1)
+    flat = lambda mats: np.stack(mats).reshape(_ORDER + 1, d * d)
+    Phi = (plain @ flat(powers)).reshape(-1, d, d)
+    Phi1 = (rising @ flat(powers)).reshape(-1, d, d)
+    Sig = (rising @ flat(omegas)).reshape(-1, d, d)
+    Sig = 0.5 * (Sig + np.swapaxes(Sig, -1, -2))
+    T = lambda M: np.swapaxes(M, -1, -2)
+    order = np.argsort(-s, kind="stable")  # the lags doubled i times or more: a prefix
+    Phi, Phi1, Sig, s = Phi[order], Phi1[order], Sig[order], s[order]
+    for i in range(int(s.max(initial=0))):
+        m = int(np.searchsorted(-s, -i, side="left"))  # s > i on [0, m)
+        F, F1, S = Phi[:m], Phi1[:m], Sig[:m]
+        Phi[:m], Phi1[:m], Sig[:m] = F @ F, F1 + F @ F1, S + F @ S @ T(F)
+    back = np.empty_like(order)
+    back[order] = np.arange(order.size)
+    out = (Phi[back], Phi1[back], Phi1[back] @ b, 0.5 * (Sig[back] + T(Sig[back])))
+    return tuple(x.reshape(tau.shape + x.shape[1:]) for x in out)
+
+
 def stationary(A, b, B):
     """Stationary mean and covariance for a stable A: A m + b = 0, A P + P A^T + B B^T = 0."""
     d = A.shape[0]

@@ -9,7 +9,7 @@ import numpy as np
 
 from .. import _compile
 from .._jax import jax, jnp
-from .._linear import propagators_host
+from .._linear import propagators_many
 from . import gaussian as G
 
 _PAIR_CHUNK = 1 << 15  # pairs evaluated at once (bounds the memory of the n2 kernels)
@@ -45,7 +45,7 @@ def _carried(m0s, P0s, Phi, c, Sig):
 
 
 # The propagators and the moments they carry are a few products of d x d matrices per lag:
-# computed in NumPy (`propagators_host`: the same series and doublings as `propagators`),
+# computed in NumPy (`propagators_many`: the same series and doublings as `propagators`),
 # they compile nothing. As jitted kernels they were five XLA programs of ~1 s each to
 # compile (the order-20 series unrolled under `vmap`), a quarter of a cold main job's
 # compiling, for a few milliseconds of arithmetic.
@@ -53,7 +53,7 @@ def _carried(m0s, P0s, Phi, c, Sig):
 
 def lag_propagators(cr, taus):
     """(Phi, Phi1, c, Sigma) at the lags `taus` (n,): (n, d, d), (n, d, d), (n, d), (n, d, d)."""
-    return propagators_host(*_host(cr), np.asarray(taus, dtype=np.float64))
+    return propagators_many(*_host(cr), np.asarray(taus, dtype=np.float64))
 
 
 def grid_lag_propagators(cr, h, n):
@@ -75,7 +75,7 @@ def moments_at(cr, m0s, P0s, t):
 
 def step_moments(cr, ms, Ps, s):
     """Moments (K, n, ...) carried on by the lag `s` (one propagator for all)."""
-    Phi, _, c, Sig = propagators_host(*_host(cr), float(s))
+    Phi, _, c, Sig = propagators_many(*_host(cr), float(s))
     ms, Ps = np.asarray(ms, dtype=np.float64), np.asarray(Ps, dtype=np.float64)
     return ms @ Phi.T + c, Phi @ Ps @ Phi.T + Sig
 
