@@ -93,3 +93,26 @@ def test_warnings_stay_with_the_thread_that_raised_them(monkeypatch):
     assert caught["theory"] == ["note", "note"]
     assert shown == ["simulation"]
     assert warnings.showwarning is hook and warnings.filters[0][2] is ResourceWarning
+
+
+def test_without_the_per_thread_hook_the_theory_runs_after_the_simulation(monkeypatch):
+    """A Python whose `warnings` lacks the private hook `_recorded` sorts warnings with: no
+    theory thread, captures by `catch_warnings`; the numbers and notes of the threaded run."""
+    threaded = ss.run_study(study(), progress=False)
+    monkeypatch.setattr(measure, "PER_THREAD", False)
+    started = []
+    ahead = runner._theory_ahead
+    monkeypatch.setattr(runner, "_theory_ahead", lambda p, s: started.append(ahead(p, s)))
+    plain = ss.run_study(study(), progress=False)
+    assert started == [None]
+    for name in threaded.variables:
+        if not str(name).startswith("seconds_"):
+            assert (
+                np.asarray(threaded[name].values).tobytes()
+                == np.asarray(plain[name].values).tobytes()
+            ), name
+    assert plain.attrs["warnings"] == threaded.attrs["warnings"]
+    with measure._recorded() as caught:
+        warnings.warn("note", UserWarning, stacklevel=1)
+        warnings.warn("note", UserWarning, stacklevel=1)
+    assert [str(w.message) for w in caught] == ["note", "note"]

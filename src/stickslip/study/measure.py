@@ -80,8 +80,14 @@ def theory_density(point: Point, analytic, q: str, edges: np.ndarray):
     return np.asarray(values, float), seconds, notes
 
 
-# `_recorded`: the warnings caught per thread, and what the first capture replaced.
-_SHOW = warnings._showwarnmsg_impl
+# `_recorded` sorts warnings by thread through `warnings`' private display hook (CPython
+# 3.11-3.13 have it). Where a Python lacks it, a capture is a plain `catch_warnings` and a
+# study computes its theory after its simulations, not beside them (`run._theory_ahead`):
+# the same numbers and notes, only later.
+_HOOKS = ("_showwarnmsg_impl", "_filters_mutated", "_showwarning_orig")
+PER_THREAD = all(hasattr(warnings, name) for name in _HOOKS)
+# the warnings caught per thread, and what the first capture replaced
+_SHOW = getattr(warnings, "_showwarnmsg_impl", None)
 _capture_lock = threading.Lock()
 _captured: dict[int, list] = {}
 _replaced: list = []
@@ -133,7 +139,13 @@ def _recorded():
     """`warnings.catch_warnings(record=True)` with every warning recorded ("always"), for
     this thread's warnings only: the theory of a point is computed in a thread while the
     simulations run (`run._theory_ahead`), and `catch_warnings` would record their
-    warnings too, and, entered from two threads, restore the wrong filters."""
+    warnings too, and, entered from two threads, restore the wrong filters. (Without the
+    hook, `PER_THREAD` false: `catch_warnings` itself; no theory thread runs then.)"""
+    if not PER_THREAD:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            yield caught
+        return
     caught: list = []
     with _capture_lock:
         if not _replaced:
