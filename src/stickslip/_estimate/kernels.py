@@ -36,11 +36,14 @@ def _host(cr):
 
 def _carried(m0s, P0s, Phi, c, Sig):
     """Moments from N(m0s, P0s) (K, d), (K, d, d) over the lags of propagators with leading
-    shape S: (K, *S, d), (K, *S, d, d) (`gaussian.moments`, broadcast)."""
+    shape S: (K, *S, d), (K, *S, d, d) (`gaussian.moments`). Phi m0 and Phi P0 are single
+    matrix products over the stacked rows of Phi (BLAS); only (Phi P0) Phi^T is a stack."""
     m0s, P0s = np.asarray(m0s, dtype=np.float64), np.asarray(P0s, dtype=np.float64)
-    lead = (slice(None),) + (None,) * (Phi.ndim - 2)
-    ms = (Phi[None] @ m0s[lead][..., None])[..., 0] + c[None]
-    Ps = Phi[None] @ P0s[lead] @ np.swapaxes(Phi, -1, -2)[None] + Sig[None]
+    K, d = m0s.shape
+    rows = Phi.reshape(-1, d)  # (S d, d)
+    ms = np.moveaxis((rows @ m0s.T).reshape(Phi.shape[:-1] + (K,)), -1, 0) + c[None]
+    PhiT = np.swapaxes(Phi, -1, -2)
+    Ps = np.stack([(rows @ P0).reshape(Phi.shape) @ PhiT for P0 in P0s]) + Sig[None]
     return ms, Ps
 
 
