@@ -242,8 +242,8 @@ class GaussianSource:
     # -- grids -------------------------------------------------------------------------------
     def grid(self, t_end, h):
         """Moments and n1 at t_k = k h for k < n, n >= t_end / h + 1 (rounded up to a power
-        of two: the grid is made by one exact recursion whose values do not depend on its
-        length, and few lengths get compiled)."""
+        of two: each grid time's moments are computed from its own lag, so their values do
+        not depend on the grid's length, and the n1 kernels meet few lengths)."""
         n = int(math.ceil(t_end / h - 1e-9)) + 1
         have = self._grids.get(h)
         if have is not None and have["n"] >= n:
@@ -457,7 +457,7 @@ class GaussianSource:
         computed directly. Here every time is a grid time plus a short lag below h: the
         moments at s are the grid moments at g h <= s carried on over s - g h, and the
         propagator over tau is that of a short lag followed by one of the grid lags j h (the
-        grid moments and grid propagators come from one exact recursion each). Short lags
+        grid moments and grid propagators are computed once per grid, `kernels`). Short lags
         are shared where the rule shares nodes: in the u-half all panels but the last are
         the same for every t (so are their lags tau_j, and s = k h - tau_j is the grid time
         (k - q_j) h plus q_j h - tau_j); in the s-half the nodes s_i of all panels but the
