@@ -47,11 +47,6 @@ class Crossing(eqx.Module):
         return self.g @ self.b
 
 
-def moments(m0, P0, Phi, c, Sig):
-    """Mean and covariance at the lag of (Phi, c, Sig) from N(m0, P0)."""
-    return Phi @ m0 + c, Phi @ P0 @ Phi.T + Sig
-
-
 def _condition(mean, cov, n_obs, obs):
     """Condition a Gaussian on its first `n_obs` components equal to `obs`.
 

@@ -36,8 +36,9 @@ def _host(cr):
 
 def _carried(m0s, P0s, Phi, c, Sig):
     """Moments from N(m0s, P0s) (K, d), (K, d, d) over the lags of propagators with leading
-    shape S: (K, *S, d), (K, *S, d, d) (`gaussian.moments`). Phi m0 and Phi P0 are single
-    matrix products over the stacked rows of Phi (BLAS); only (Phi P0) Phi^T is a stack."""
+    shape S: Phi m0 + c (K, *S, d) and Phi P0 Phi^T + Sigma (K, *S, d, d). Phi m0 and Phi P0
+    are single matrix products over the stacked rows of Phi (BLAS); only (Phi P0) Phi^T is
+    a stack."""
     m0s, P0s = np.asarray(m0s, dtype=np.float64), np.asarray(P0s, dtype=np.float64)
     K, d = m0s.shape
     rows = Phi.reshape(-1, d)  # (S d, d)

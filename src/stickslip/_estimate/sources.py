@@ -200,9 +200,7 @@ class GaussianSource:
 
     # -- point evaluation --------------------------------------------------------------------
     def moments(self, t):
-        return kernels.moments_at(
-            self.cr, jnp.asarray(self.m0s), jnp.asarray(self.P0s), jnp.asarray(t)
-        )
+        return kernels.moments_at(self.cr, self.m0s, self.P0s, t)
 
     def n1(self, t):
         return self.w @ self._n1_at(t)  # in blocks of one shape: any t compiles nothing new
@@ -225,7 +223,7 @@ class GaussianSource:
         ul, li = np.unique(lag, return_inverse=True)
         ul = _padded(ul)
         ms, Ps = self.moments(_padded(ut))
-        prop = kernels.lag_propagators(self.cr, jnp.asarray(ul))
+        prop = kernels.lag_propagators(self.cr, ul)
         n = lo.size
         ti, li = _padded(ti), _padded(li)
         ul = jnp.asarray(ul[li])
@@ -249,7 +247,7 @@ class GaussianSource:
         if have is not None and have["n"] >= n:
             return have
         n = max(8192, 1 << (n - 1).bit_length())
-        ms, Ps = kernels.grid_moments(self.cr, jnp.asarray(self.m0s), jnp.asarray(self.P0s), h, n)
+        ms, Ps = kernels.grid_moments(self.cr, self.m0s, self.P0s, h, n)
         n1 = _n1_blocked(self.cr, ms, Ps)
         n1[:, 0] = 0.0
         cells, unresolved = self._cell_integrals(n1, h, ms, Ps)
@@ -406,22 +404,20 @@ class GaussianSource:
         if pairs.k.size == 0:
             return
         if "lag_props" not in entry:
-            entry["lag_props"] = [
-                np.asarray(a) for a in kernels.grid_lag_propagators(self.cr, h, entry["n"])
-            ]
+            entry["lag_props"] = kernels.grid_lag_propagators(self.cr, h, entry["n"])
         # the propagator table: the identity, the short lags (< h), the grid lags j h
         d = self._g.size
         ident = (np.eye(d)[None], np.zeros((1, d, d)), np.zeros((1, d)), np.zeros((1, d, d)))
         n_rows = max(_SHORT_ROWS, kernels._bucket(pairs.lags.size))
         short = kernels.lag_propagators(self.cr, np.pad(pairs.lags, (0, n_rows - pairs.lags.size)))
         table = tuple(
-            np.concatenate([i, np.asarray(a), g])
+            np.concatenate([i, a, g])
             for i, a, g in zip(ident, short, entry["lag_props"], strict=True)
         )
         second = 1 + n_rows + pairs.grid_lag
         rows = np.stack([pairs.moment, pairs.carry, pairs.first, second], axis=1)
         local = pairs.k - lo
-        ms_all, Ps_all = self._host(entry)
+        ms_all, Ps_all = entry["ms"], entry["Ps"]
         for c in range(self.n_components):
             args = (self.cr, ms_all[c], Ps_all[c], table, rows, pairs.tau)
             if X is None:
@@ -539,7 +535,7 @@ class GaussianSource:
         times (short slips stick on a thin ridge x ~ x0 + v_b t that no fixed grid
         resolves) and wide later; boxes rather than points keep histograms free of
         aliasing at any cell size. `start`: only the grid times from it on."""
-        ms, Ps = (a[:, start:n_t] for a in self._host(entry))
+        ms, Ps = entry["ms"][:, start:n_t], entry["Ps"][:, start:n_t]
         g, p = self._g, self._p
         svv = np.einsum("i,knij,j->kn", g, Ps, g)
         sxv = np.einsum("i,knij,j->kn", p, Ps, g)
@@ -618,7 +614,7 @@ class GaussianSource:
     def _n1_joint(self, entry, X, start):
         """n1(x, t) at the positions X (K, J, n) of the grid times start, start + 1, ...,
         in blocks of grid times of one size (one compiled shape)."""
-        ms, Ps = self._host(entry)
+        ms, Ps = entry["ms"], entry["Ps"]
         n = X.shape[2]
         out = np.empty(X.shape)
         block = 256
@@ -635,12 +631,6 @@ class GaussianSource:
                 :, :, : hi - lo
             ]
         return out
-
-    def _host(self, entry):
-        """The grid moments of `entry` as NumPy arrays (kept)."""
-        if "host" not in entry:
-            entry["host"] = (np.asarray(entry["ms"]), np.asarray(entry["Ps"]))
-        return entry["host"]
 
     def _profile(self, t_end, coarse_h, n_c):
         """K2(x, t) at `_XI_COARSE` positions at the first `n_c` times of the coarse grid
