@@ -240,3 +240,47 @@ def test_each_cycle_keeps_its_sampling_phase_when_a_parameter_moves():
     assert stats.kstest(list(phases[0].values()), "uniform").pvalue > 0.01
     # the releases themselves moved by many sampling intervals by the end
     assert abs(releases[0][both[-1]] - releases[1][both[-1]]) > 5 * h
+
+
+def test_a_force_traces_noise_and_spikes_are_keyed_by_cycle():
+    """Common random numbers on a force trace's one uniform grid: D 2 % apart moves every
+    later release by many sampling intervals, yet after a stick of 10 intervals or more a
+    cycle meets the same noise values and spikes, counted in samples from its release, at
+    both values (on one stream over the grid they would be fresh draws). The noise is
+    recovered as the noisy trace less the noise-free one of the same seed; it is standard
+    normal (KS at 0.01) and uncorrelated from sample to sample, and the spikes take their
+    fraction of the samples."""
+    h, sd, frac = 0.1, 1e-3, 0.02
+    kw = dict(sampling_interval=h, signal="force", window=11)
+    noisy = Measurement(noise_sd=sd, spike_fraction=frac, spike_height=1.0, **kw)
+    clean = Measurement(**kw)
+    seen = []
+    for D in (0.4, 0.4 * math.exp(0.02)):
+        model = langevin({**PUBLIC, "D": D})
+        a = measured_trace(model, noisy, 400, seed=5)
+        b = measured_trace(model, clean, 400, seed=5)
+        (sa,), (sb,) = a.traces, b.traces
+        np.testing.assert_array_equal(sa["t"], sb["t"])
+        e = (sa["force"] - sb["force"]) / sd
+        spike = np.abs(e) > 100  # spikes are 1.0 = 1000 sd; the noise never reaches 100 sd
+        release, stick = a.truth["release_time"], a.truth["stick_time"]
+        after_long = np.flatnonzero(np.r_[False, stick[:-1] >= 10 * h])
+        after_long = after_long[release[after_long] < sa["t"][-1] - 3.0]
+        first = np.searchsorted(sa["t"], release[after_long] - 1e-12)
+        window = first[:, None] + np.arange(-5, 20)[None, :]  # samples about each release
+        seen.append({c: (e[w], spike[w]) for c, w in zip(after_long.tolist(), window)})
+        noise = e[~spike]
+        assert stats.kstest(noise, "norm").pvalue > 0.01
+        assert abs(np.corrcoef(noise[:-1], noise[1:])[0, 1]) < 4 / math.sqrt(noise.size)
+        assert abs(spike.mean() - frac) < 4 * math.sqrt(frac * (1 - frac) / spike.size)
+        assert abs(np.mean(e[spike] > 0) - 0.5) < 4 * math.sqrt(0.25 / spike.sum())
+    both = sorted(set(seen[0]) & set(seen[1]))
+    assert len(both) > 100
+    # the same draws, sample for sample from the first at or after each release
+    for c in both:
+        np.testing.assert_allclose(seen[0][c][0], seen[1][c][0], rtol=0, atol=1e-6)
+        np.testing.assert_array_equal(seen[0][c][1], seen[1][c][1])
+    # ... which a stream over the grid would not give (the releases moved)
+    release = [measured_trace(langevin({**PUBLIC, "D": D}), clean, 400, seed=5).truth[
+        "release_time"] for D in (0.4, 0.4 * math.exp(0.02))]  # fmt: skip
+    assert abs(release[0][both[-1]] - release[1][both[-1]]) > 5 * h

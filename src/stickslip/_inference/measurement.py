@@ -15,9 +15,11 @@ same measurement as the data, so that data and model are compared like with like
    from its release, the grid re-anchored in the middle of the stick before it
    (`_keyed_grid`), so that a parameter change that moves earlier cycles leaves a cycle's
    sampling as it was (common random numbers);
-3. the data's noise model is added (white Gaussian of the measured sd, for position and
-   velocity traces keyed by cycle and sample from its release; for a force trace also
-   spikes and mains lines as `extract_cycles` reported them);
+3. the data's noise model is added (white Gaussian of the measured sd, keyed by cycle and
+   sample from its release: `_keyed_grid` for position and velocity traces,
+   `_keyed_samples` for a force trace, whose one uniform grid cannot be re-anchored; for a
+   force trace also spikes, keyed alike, and mains lines as `extract_cycles` reported
+   them);
 4. `extract_cycles` runs with the data's settings, and its per-cycle columns are returned.
 
 `Measurement.from_cycles` reads the measurement from a `Cycles` (its `info`, also kept in
@@ -345,21 +347,24 @@ def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
         # the slip samples lie at release + k dt, which may pass the stick by rounding
         t = np.maximum.accumulate(np.asarray(t, float))
         rng = np.random.default_rng([seed, _NOISE_STREAM, p])
+        rows = table["path"] == p
+        cycles = (table["release_time"][rows], table["slip_time"][rows],
+                  table["stick_time"][rows])  # fmt: skip
+        uniforms = None
         if measurement.signal == "force":
-            # one uniform grid (`extract_cycles` refuses an uneven force trace)
+            # one uniform grid (`extract_cycles` refuses an uneven force trace), its noise
+            # and spikes keyed by cycle
             grid = h * np.arange(int(np.floor(t[-1] / h)) + 1)
-            noise = rng.standard_normal(grid.size) if measurement.noise_sd > 0 else None
+            noise, uniforms = _keyed_samples(*cycles, grid.size, h, seed, p,
+                                             measurement.noise_sd > 0,
+                                             measurement.spike_fraction > 0)  # fmt: skip
         else:
-            rows = table["path"] == p
-            grid, noise = _keyed_grid(
-                table["release_time"][rows], table["slip_time"][rows],
-                table["stick_time"][rows], t[-1], h, seed, p,
-            )  # fmt: skip
+            grid, noise = _keyed_grid(*cycles, t[-1], h, seed, p)
         # linear between samples: exact along a stick (x grows at v_b from the stick
         # state to the next onset, v = v_b), the slips as in `_STEPS_PER_SAMPLE`
         x = np.interp(grid, t, states[:, ix])
         v = np.interp(grid, t, states[:, iv])
-        traces.append(_record(measurement, grid, x, v, noise, rng))
+        traces.append(_record(measurement, grid, x, v, noise, rng, uniforms))
     return MeasuredTrace(tuple(traces), dict(series.cycles), measurement, dt)
 
 
@@ -376,13 +381,8 @@ def _keyed_grid(release, slip, stick, end, h, seed, path):
     n = release.size
     phase = np.random.default_rng([seed, _PHASE_STREAM, path]).random(n)
     offset = np.random.default_rng([seed, _NOISE_STREAM, path, 1]).integers(0, _NOISE_POOL, n)
-    stuck = release + slip
-    cut = np.isfinite(stuck) & np.isfinite(stick) & (stick >= _REPHASE_INTERVALS * h)
-    anchors = np.r_[0, np.flatnonzero(cut[:-1]) + 1]
-    starts = np.r_[0.0, (stuck + 0.5 * stick)[anchors[1:] - 1]]
+    anchors, starts = _segments(release, slip, stick, end, h)
     stops = np.r_[starts[1:], end]
-    keep = starts < end
-    anchors, starts, stops = anchors[keep], starts[keep], stops[keep]
     origin = release[anchors] + phase[anchors] * h
     j0 = np.ceil((starts - origin) / h).astype(np.int64)
     j1 = np.ceil((stops - origin) / h).astype(np.int64)
@@ -399,6 +399,53 @@ def _keyed_grid(release, slip, stick, end, h, seed, path):
     return grid[keep], noise[keep]
 
 
+def _segments(release, slip, stick, end, h):
+    """The stretches of a path's trace on `[0, end]` that are keyed by one cycle: `(anchors,
+    starts)`, the cycle each belongs to and its start, the middle of the stick before that
+    cycle (sticks of `_REPHASE_INTERVALS` intervals or more; across shorter ones the
+    stretch runs on, keyed by the cycle before)."""
+    stuck = release + slip
+    cut = np.isfinite(stuck) & np.isfinite(stick) & (stick >= _REPHASE_INTERVALS * h)
+    anchors = np.r_[0, np.flatnonzero(cut[:-1]) + 1]
+    starts = np.r_[0.0, (stuck + 0.5 * stick)[anchors[1:] - 1]]
+    keep = starts < end
+    return anchors[keep], starts[keep]
+
+
+def _keyed_samples(release, slip, stick, n, h, seed, path, normals, spikes):
+    """Standard normal noise of the `n` samples `k h` of a uniform grid (a force trace), if
+    `normals`, and, if `spikes`, uniforms that place its spikes (`_record`), both keyed by cycle: a sample in
+    cycle c's stretch (`_segments`) `j` samples from the first at or after c's release takes
+    value `j` of c's own stream (`j >= 0`: forward; `j < 0`: value `-j - 1` of a backward
+    one). A parameter change that moves the cycles before c therefore leaves the noise about
+    c's slip as it was, up to the release's phase within one interval (the grid cannot be
+    re-anchored: `extract_cycles` refuses an uneven force trace). A stream of its own per
+    cycle rather than a shared pool (`_keyed_grid`): a force trace's cycle spans thousands of
+    samples (2900 on the measured slider), so a pool's stretches would overlap often."""
+    anchors, starts = _segments(release, slip, stick, (n - 1) * h, h)
+    first = np.minimum(np.ceil(starts / h - 1e-9), n).astype(np.int64)
+    first[0] = 0
+    bounds = np.r_[first, n]
+    zero = np.ceil(release[anchors] / h - 1e-9).astype(np.int64)
+    noise = np.empty(n) if normals else None
+    uniforms = np.empty(n) if spikes else None
+    kinds = tuple((out, draw, stream) for out, draw, stream in
+                  ((noise, "standard_normal", 0), (uniforms, "random", 2)) if out is not None)
+    for a, lo, hi, z in zip(anchors.tolist(), bounds[:-1].tolist(), bounds[1:].tolist(),
+                            zero.tolist(), strict=True):  # fmt: skip
+        if hi <= lo:
+            continue
+        mid = min(max(z, lo), hi)  # samples lo..mid-1 before the release, mid..hi-1 after
+        for out, draw, stream in kinds:
+            if hi > mid:
+                rng = np.random.default_rng([seed, _NOISE_STREAM, path, a, stream])
+                out[mid:hi] = getattr(rng, draw)(hi - z)[mid - z :]
+            if mid > lo:
+                rng = np.random.default_rng([seed, _NOISE_STREAM, path, a, stream + 1])
+                out[lo:mid] = getattr(rng, draw)(z - lo)[::-1][: mid - lo]
+    return noise, uniforms
+
+
 _POOLS: dict[int, np.ndarray] = {}
 
 
@@ -413,9 +460,10 @@ def _pool(seed: int) -> np.ndarray:
     return _POOLS[seed]
 
 
-def _record(m: Measurement, t, x, v, unit_noise, rng) -> dict[str, np.ndarray]:
+def _record(m: Measurement, t, x, v, unit_noise, rng, uniforms=None) -> dict[str, np.ndarray]:
     """The signal(s) `m` records at times `t`: `unit_noise` (standard normals, one a sample)
-    times the noise sd; a force trace's lines and spikes drawn from `rng`."""
+    times the noise sd; a force trace's lines with phases drawn from `rng`, its spikes where
+    `uniforms` (one a sample) fall below the spike fraction, upwards below half of it."""
     noise = m.noise_sd * unit_noise if m.noise_sd > 0 and unit_noise is not None else 0.0
     if m.signal == "x":
         return dict(t=t, x=x + noise)
@@ -427,8 +475,8 @@ def _record(m: Measurement, t, x, v, unit_noise, rng) -> dict[str, np.ndarray]:
     for f in m.lines:
         force = force + m.line_amplitude * np.sin(2 * np.pi * f * t + rng.uniform(0, 2 * np.pi))
     if m.spike_fraction > 0:
-        at = np.flatnonzero(rng.random(t.size) < m.spike_fraction)
-        force[at] += m.spike_height * rng.choice([-1.0, 1.0], at.size)
+        at = np.flatnonzero(uniforms < m.spike_fraction)
+        force[at] += m.spike_height * np.where(uniforms[at] < 0.5 * m.spike_fraction, 1.0, -1.0)
     return dict(t=t, force=force)
 
 
