@@ -68,9 +68,12 @@ def test_clear_case_chooses_the_random_threshold(clear_case):
     (test,) = c.tests
     assert test["null"] == "fixed" and test["alternative"] == "random"
     # the bootstrap's smallest p-value, 1 / (n_boot + 1), at both simulation seeds: the
-    # likelihood ratio is far beyond every replicate's
+    # likelihood ratio is far beyond every replicate's (2 dlogL 18 and 21 at the two
+    # seeds; a datum where a model puts less than one simulated value per bandwidth is
+    # scored at the floor, `likelihood.FLOOR_POINTS`, so the fixed threshold's misfit
+    # tails add no more than that)
     assert test["p_values"] == [1 / 40, 1 / 40], test
-    assert min(test["statistic"]) > 20, test
+    assert min(test["statistic"]) > 12, test
 
 
 def test_table_shape(clear_case):

@@ -74,6 +74,29 @@ def test_a_zero_datum_contributes_the_log_of_the_simulated_zero_fraction():
     assert 0.9 < mass <= 1.0, mass
 
 
+def test_a_datum_where_the_model_puts_no_value_scores_at_the_floor(monkeypatch):
+    """`likelihood.FLOOR_POINTS`: a datum 12 sd out, where 1000 standard normal simulated
+    values put (almost) nothing, scores the log of the density one simulated value gives at
+    its centre, 1 / (n h sqrt(2 pi)) (closed form), and one further simulated value right
+    on it moves its term by less than log 2, where without the floor (the defensive
+    normal's 1/n alone) it moved by more than 5; data in the bulk score as without it."""
+    rng = np.random.default_rng(3)
+    sim = rng.standard_normal(1000)
+    data = np.r_[12.0, rng.standard_normal(200)]
+    h = likelihood._bandwidth(data[1:], sim.size)
+    floor = -math.log(sim.size * h * math.sqrt(2 * math.pi))
+    terms = likelihood._log_density("slip_distance", data, sim, h)
+    near = likelihood._log_density("slip_distance", data, np.r_[sim, 12.0], h)
+    assert terms[0] == pytest.approx(floor, abs=1e-9)
+    assert abs(near[0] - terms[0]) < math.log(2.0)
+    bulk = np.abs(data) < 2.0
+    monkeypatch.setattr(likelihood, "FLOOR_POINTS", 0.0)
+    bare = likelihood._log_density("slip_distance", data, sim, h)
+    bare_near = likelihood._log_density("slip_distance", data, np.r_[sim, 12.0], h)
+    assert bare_near[0] - bare[0] > 5.0  # what the floor takes out
+    np.testing.assert_allclose(terms[bulk], bare[bulk], rtol=1e-12)
+
+
 def test_stick_times_with_their_zeros_recover_the_noise_intensity(cycles):
     """1500 stick times (about 38 % of them zero): the interval covers D = 0.4 (dropping
     the zeros gave D = 0.227 [0.212, 0.243]), and the estimate lies within 3 standard errors
