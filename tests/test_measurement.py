@@ -268,7 +268,7 @@ def test_a_force_traces_noise_and_spikes_are_keyed_by_cycle():
         after_long = after_long[release[after_long] < sa["t"][-1] - 3.0]
         first = np.searchsorted(sa["t"], release[after_long] - 1e-12)
         window = first[:, None] + np.arange(-5, 20)[None, :]  # samples about each release
-        seen.append({c: (e[w], spike[w]) for c, w in zip(after_long.tolist(), window)})
+        seen.append({c: (e[w], spike[w]) for c, w in zip(after_long.tolist(), window, strict=True)})
         noise = e[~spike]
         assert stats.kstest(noise, "norm").pvalue > 0.01
         assert abs(np.corrcoef(noise[:-1], noise[1:])[0, 1]) < 4 / math.sqrt(noise.size)

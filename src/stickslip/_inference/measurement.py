@@ -414,14 +414,15 @@ def _segments(release, slip, stick, end, h):
 
 def _keyed_samples(release, slip, stick, n, h, seed, path, normals, spikes):
     """Standard normal noise of the `n` samples `k h` of a uniform grid (a force trace), if
-    `normals`, and, if `spikes`, uniforms that place its spikes (`_record`), both keyed by cycle: a sample in
-    cycle c's stretch (`_segments`) `j` samples from the first at or after c's release takes
-    value `j` of c's own stream (`j >= 0`: forward; `j < 0`: value `-j - 1` of a backward
-    one). A parameter change that moves the cycles before c therefore leaves the noise about
-    c's slip as it was, up to the release's phase within one interval (the grid cannot be
-    re-anchored: `extract_cycles` refuses an uneven force trace). A stream of its own per
-    cycle rather than a shared pool (`_keyed_grid`): a force trace's cycle spans thousands of
-    samples (2900 on the measured slider), so a pool's stretches would overlap often."""
+    `normals`, and, if `spikes`, uniforms that place its spikes (`_record`), both keyed by
+    cycle: a sample in cycle c's stretch (`_segments`) `j` samples from the first at or
+    after c's release takes value `j` of c's own stream (`j >= 0`: forward; `j < 0`: value
+    `-j - 1` of a backward one). A parameter change that moves the cycles before c therefore
+    leaves the noise about c's slip as it was, up to the release's phase within one interval
+    (the grid cannot be re-anchored: `extract_cycles` refuses an uneven force trace). A
+    stream of its own per cycle rather than a shared pool (`_keyed_grid`): a force trace's
+    cycle spans thousands of samples (2900 on the measured slider), so a pool's stretches
+    would overlap often."""
     anchors, starts = _segments(release, slip, stick, (n - 1) * h, h)
     first = np.minimum(np.ceil(starts / h - 1e-9), n).astype(np.int64)
     first[0] = 0
@@ -429,8 +430,11 @@ def _keyed_samples(release, slip, stick, n, h, seed, path, normals, spikes):
     zero = np.ceil(release[anchors] / h - 1e-9).astype(np.int64)
     noise = np.empty(n) if normals else None
     uniforms = np.empty(n) if spikes else None
-    kinds = tuple((out, draw, stream) for out, draw, stream in
-                  ((noise, "standard_normal", 0), (uniforms, "random", 2)) if out is not None)
+    kinds = tuple(
+        (out, draw, stream)
+        for out, draw, stream in ((noise, "standard_normal", 0), (uniforms, "random", 2))
+        if out is not None
+    )
     for a, lo, hi, z in zip(anchors.tolist(), bounds[:-1].tolist(), bounds[1:].tolist(),
                             zero.tolist(), strict=True):  # fmt: skip
         if hi <= lo:
