@@ -28,9 +28,9 @@ measured slope, 7 % above the nominal 42 um/s), a negligible viscous damping (ze
 drift of the absolute force level over the run is outside the model: `peak_force` is not
 fitted). The rig's 30.7 g only sets the units: an effective mass is fitted (omega0).
 
-`--out DIR`, then copy slider_fit.png to docs/img to refresh docs/slider_fit.md. About 13
-minutes of CPU, 10 minutes on 2 quiet cores (docs/slider_fit.md, "Cost"): a point of a fit
-through this measurement is 1000 model cycles as a 2 kHz trace, ~1-1.5 s.
+`--out DIR`, then copy slider_fit.png to docs/img to refresh docs/slider_fit.md. About 12
+minutes of CPU, 9.3 minutes on 2 quiet cores (docs/slider_fit.md, "Cost"): a point of a
+fit through this measurement is 1000 model cycles as a 2 kHz trace, ~1-1.5 s.
 """
 
 from __future__ import annotations
@@ -233,9 +233,9 @@ def verdict(chosen_name, chosen, comparison, p_values, data_si, sims_si):
         lines.append(
             "Its fit's surface has no usable curvature (its warnings): the estimates stand, "
             "but its intervals are not available and its goodness-of-fit p-values are rough "
-            "(docs/goodness.md). Four times the model cycles (--n-sim 4000) did not settle "
-            "it: the measured surface is rough, and the noise and the threshold's spread "
-            "trade off (docs/slider_fit.md)."
+            "(docs/goodness.md). The noise and the threshold's spread trade off along a "
+            "plateau of the surface, where the simulation's noise makes spikes of a few "
+            "units; more model cycles a point (--n-sim) shrink them (docs/slider_fit.md)."
         )
     sim = sims_si[chosen_name]
     for name, label, scale in PANELS:
