@@ -224,6 +224,39 @@ def test_the_cap_the_clipped_design_and_the_simulation_noise_are_said(small, mon
     assert mc["n_sim_needed"] == int(float(f"{want:.2g}"))
 
 
+def test_design_steps_narrow_where_one_step_falls_far():
+    """`surface._narrowed` against closed forms: on l(u) = -c u^2 / 2 a step of 0.3 along an
+    axis of curvature 4000 falls by 180 and is narrowed to 0.1, where it falls by exactly
+    `MAX_STEP_DROP` (20); an axis of curvature 10 (a fall of 0.45) keeps 0.3. Add a
+    quartic term along the strong axis and a coupling: the maximum is at 0 with Hessian
+    [[-4000, -100], [-100, -10]]. From (0.002, 0.05), `_local_surface` on its narrowed
+    steps finds the vertex and both curvatures within 20 %; on the fixed steps of 0.3 the
+    quartic's misfit leaks into the weak axis through the diagonal points: its curvature
+    comes out 17 times too large and its vertex barely moves from the start."""
+    c0, c1, q, c01 = 4000.0, 10.0, 2e3, 100.0
+
+    def quartic(u):
+        return -0.5 * c0 * u[0] ** 2 - q * u[0] ** 4 - 0.5 * c1 * u[1] ** 2 - c01 * u[0] * u[1]
+
+    lo, hi = np.full(2, -5.0), np.full(2, 5.0)
+    quadratic = lambda u: (-0.5 * c0 * u[0] ** 2 - 0.5 * c1 * u[1] ** 2, None)  # noqa: E731
+    steps = surface._narrowed(quadratic, np.zeros(2), np.full(2, 0.3), lo, hi)
+    np.testing.assert_allclose(steps, [0.1, 0.3], rtol=1e-12)
+    assert 0.5 * c0 * steps[0] ** 2 == pytest.approx(surface.MAX_STEP_DROP, rel=1e-12)
+    u = np.array([0.002, 0.05])
+    fitted = surface._local_surface(
+        lambda v: (quartic(v), {"x": np.zeros(3)}), u, lo, hi, {"x": None}, ["a", "b"], 0.3
+    )  # fmt: skip
+    assert fitted.steps[0] < 0.1 and fitted.steps[1] == 0.3
+    np.testing.assert_allclose(np.diag(fitted.hessian), [-c0, -c1], rtol=0.2)
+    np.testing.assert_allclose(fitted.shift, -u, rtol=0.2)
+    design = surface._quadratic_design(u, np.full(2, 0.3))
+    shift, wide = surface._polynomial_vertex(
+        design - u, np.array([quartic(v) for v in design]), np.full(2, 0.3)
+    )  # fmt: skip
+    assert wide[1, 1] < -10 * c1 and abs(shift[1]) < 0.5 * u[1]
+
+
 def test_a_rejected_surface_vertex_is_said(small, monkeypatch):
     """The polynomial's vertex rejected (forced here): the fit says so and falls back."""
     real = surface._polynomial_vertex

@@ -20,6 +20,14 @@ GRID_POINTS = 5  # per free parameter, for the coarse start (p <= 2; 8 p points 
 # Nelder-Mead's cap a free parameter: converged on the simplex's size it took 22 evaluations
 # for one parameter and 35 for two (measured, slip and stick times); the cap is 4-5 x that.
 MAXFEV_PER_PARAMETER = 100
+# A design step is narrowed, axis by axis, until the log-likelihood falls by at most this
+# much over one step from the centre: the polynomial is a local model. On the measured
+# slider's random threshold (4 free, steps of 0.3) one step along omega0 fell by 160-280
+# units and two by 390-840, and the cubic's misfit there (tens of units) swamped the few
+# units D moves: the fitted curvature along D came out positive (+174) and the fit had no
+# intervals. Twenty units stay far above the simulation's noise at a point (a few units
+# through a measurement, where the design step is wide for that reason).
+MAX_STEP_DROP = 20.0
 
 
 def _search(loglik, lo, hi, free) -> tuple[np.ndarray, dict, list[str]]:
@@ -104,14 +112,24 @@ def _local_surface(loglik, u_hat, lo, hi, data, names, step=DESIGN_STEP) -> _Sur
     around `u_hat`: quadratic, plus a cubic term along each axis, on steps of DESIGN_STEP
     (wide against the surface's Monte Carlo roughness; on steps of one standard error it
     drowned the curvature, and what it leaves is measured by the second seed, see
-    `intervals._mc_noise`). The cubic terms take the surface's skew out of the vertex: a
+    `intervals._mc_noise`), each narrowed where one step falls by more than
+    `MAX_STEP_DROP` (`_narrowed`). The cubic terms take the surface's skew out of the vertex: a
     quadratic alone put it 3-4 % low. Points past the box are evaluated at the box (`loglik`
     clips) and so regressed where they were evaluated."""
     design_steps = np.full(len(names), step)
+    known: dict[bytes, tuple] = {}  # the points evaluated, by their coordinates
+
+    def evaluated(u):
+        key = np.asarray(u, float).tobytes()
+        if key not in known:
+            known[key] = loglik(u)
+        return known[key]
+
     for attempt in range(2):
+        design_steps = _narrowed(evaluated, u_hat, design_steps, lo, hi)
         nominal = _quadratic_design(u_hat, design_steps)
         design = np.clip(nominal, lo, hi)
-        values, scores = _evaluate(design, lambda u: loglik(u), data)
+        values, scores = _evaluate(design, evaluated, data)
         shift, H = _polynomial_vertex(design - u_hat, np.array(values), design_steps)
         best_point = int(np.argmax(values))
         if shift is not None or attempt == 1 or best_point == 0:
@@ -124,6 +142,31 @@ def _local_surface(loglik, u_hat, lo, hi, data, names, step=DESIGN_STEP) -> _Sur
         centre=u_hat, steps=design_steps, nominal=nominal, design=design, values=values,
         scores=scores, shift=shift, hessian=H, clipped=clipped,
     )  # fmt: skip
+
+
+def _narrowed(loglik, u, steps, lo, hi) -> np.ndarray:
+    """The design steps, each axis's narrowed (never widened) so that the log-likelihood
+    falls by at most `MAX_STEP_DROP` over one step from `u`: the mean fall at +-1 step
+    along the axis (the design's own points, evaluated first), scaled as a quadratic's
+    (a step times sqrt(MAX_STEP_DROP / fall)); an axis clipped at the box on either side,
+    or with a point the model refuses, keeps its step."""
+    steps = np.array(steps, float)
+    centre = loglik(u)[0]
+    if not np.isfinite(centre):
+        return steps
+    for i in range(u.size):
+        falls = []
+        for sign in (-1.0, 1.0):
+            v = u.copy()
+            v[i] += sign * steps[i]
+            if not lo[i] <= v[i] <= hi[i]:
+                break
+            falls.append(centre - loglik(v)[0])
+        if len(falls) == 2 and np.all(np.isfinite(falls)):
+            fall = float(np.mean(falls))
+            if fall > MAX_STEP_DROP:
+                steps[i] *= np.sqrt(MAX_STEP_DROP / fall)
+    return steps
 
 
 def _design(lo, hi):
