@@ -16,8 +16,9 @@ examples/data/slider_paper_on_paper/README.md.
    sqrt(k/m)) and a friction-noise intensity `D` free: a fixed static threshold `x0`,
    and a normal random one (`threshold_params.mean`, `.sd`); their fits run side by
    side, one process each;
-4. `compare_fits` chooses the simpler unless the data reject it; the chosen model's
-   goodness of fit (`goodness_of_fit`, 100 replicates through the measurement);
+4. `compare_fits` chooses the simpler unless the data reject it; beside it, in a process
+   of its own, each candidate's goodness of fit (`goodness_of_fit`, 100 replicates
+   through the measurement) and its cycles for the predictive check;
 5. its parameters in SI with 95 % intervals, a predictive check (`slider_fit.png`: data
    against both fitted models, stick time, slip time, force drop), and the verdict,
    printed and written to `slider_fit.md` (and `slider_fit.json`).
@@ -29,7 +30,7 @@ drift of the absolute force level over the run is outside the model: `peak_force
 fitted). The rig's 30.7 g only sets the units: an effective mass is fitted (omega0).
 
 `--out DIR`, then copy slider_fit.png to docs/img to refresh docs/slider_fit.md. About 12
-minutes of CPU, 9.3 minutes on 2 quiet cores (docs/slider_fit.md, "Cost"): a point of a
+minutes of CPU, 7.8 minutes on 2 quiet cores (docs/slider_fit.md, "Cost"): a point of a
 fit through this measurement is 1000 model cycles as a 2 kHz trace, ~1-1.5 s.
 """
 
@@ -207,7 +208,7 @@ def plot_check(data_si, models_si, p_values, chosen, path):
     plt.close(fig)
 
 
-def verdict(chosen_name, chosen, comparison, p_values, data_si, sims_si):
+def verdict(chosen_name, chosen, comparison, p_values, data_si, sims_si, others=None):
     """The plain statement: which model, whether it reproduces each observable, and where
     it does not (the quantiles of data and model side by side)."""
     lines = []
@@ -228,6 +229,9 @@ def verdict(chosen_name, chosen, comparison, p_values, data_si, sims_si):
         n = next(iter(data_si.values())).size
         lines.append(f"**It reproduces the measurement** within what {n} cycles can tell: "
                      f"no goodness-of-fit p-value is below {ALPHA} ({shown}).")  # fmt: skip
+    for name, ps in (others or {}).items():
+        shown_other = ", ".join(f"{names.get(k, k)} p = {p:.3g}" for k, p in ps.items())
+        lines.append(f"The {name} model's own goodness of fit: {shown_other}.")
     said = chosen.diagnostics["warnings"]
     if any(w.startswith(UNUSABLE) for w in said):
         lines.append(
@@ -265,34 +269,59 @@ def fit_candidates(data, slider, n_sim, seed, workers):
     return fits, said
 
 
-def conclude(fits, said, slider, out, n_sim, seed):
-    """The comparison, the chosen model's goodness of fit, the predictive check, the SI
-    parameters and the verdict, written to `out`: returns the JSON record."""
+def checked(fit, seed, n_sim, slider):
+    """A candidate's goodness of fit (its warnings returned rather than printed) and its
+    cycles simulated through the measurement with a seed of its own (not the draws its
+    estimate was tuned on), in SI; picklable, for a worker process."""
     import stickslip as ss
-
-    table = next(iter(fits.values())).data  # the cycles in the model's units, as fitted
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        comparison = ss.compare_fits(fits, seed=seed + 100)
+        goodness = ss.goodness_of_fit(fit, n_rep=100, seed=seed + 200)
+    return goodness, _ours(caught), to_si(fit.simulated(4 * n_sim, seed=seed + 300), slider)
+
+
+def conclude(fits, said, slider, out, n_sim, seed, workers):
+    """The comparison, the goodness of fit of every candidate (which one is chosen is not
+    known until the comparison ends: with `workers` > 1 they run beside it, in a process
+    of their own), the predictive check, the SI parameters and the verdict, written to
+    `out`: returns the JSON record. The numbers do not depend on `workers`."""
+    import stickslip as ss
+
+    table = next(iter(fits.values())).data  # the cycles in the model's units, as fitted
+    context = multiprocessing.get_context("spawn")
+    pool = (concurrent.futures.ProcessPoolExecutor(1, mp_context=context) if workers > 1
+            else None)  # fmt: skip
+    try:
+        jobs = {name: pool.submit(checked, r, seed, n_sim, slider) for name, r in fits.items()
+                } if pool else {}  # fmt: skip
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            comparison = ss.compare_fits(fits, seed=seed + 100)
         print("\n" + comparison.summary(), flush=True)
-        chosen_name = comparison.chosen_name
-        goodness = ss.goodness_of_fit(comparison.chosen, n_rep=100, seed=seed + 200)
+        checks = {name: jobs[name].result() if pool else checked(r, seed, n_sim, slider)
+                  for name, r in fits.items()}  # fmt: skip
+    finally:
+        if pool:
+            pool.shutdown()
+    chosen_name = comparison.chosen_name
+    goodness, said_goodness, _ = checks[chosen_name]
     chosen = dataclasses.replace(comparison.chosen, goodness=goodness)
     p_values = chosen.p_values
+    others = {name: dataclasses.replace(fits[name], goodness=g).p_values
+              for name, (g, _, _) in checks.items() if name != chosen_name}  # fmt: skip
 
-    # the predictive check: each fitted model simulated through the measurement with a
-    # seed of its own (not the draws its estimate was tuned on)
     data_si = to_si(table, slider)
-    sims_si = {name: to_si(r.simulated(4 * n_sim, seed=seed + 300), slider)
-               for name, r in fits.items()}  # fmt: skip
+    sims_si = {name: sim for name, (_, _, sim) in checks.items()}
     plot_check(data_si, sims_si, p_values, chosen_name, out / "slider_fit.png")
     rows = si_parameters(chosen, slider)
-    lines = verdict(chosen_name, chosen, comparison, p_values, data_si, sims_si)
+    lines = verdict(chosen_name, chosen, comparison, p_values, data_si, sims_si, others)
     warned = [f"{k}: {w}" for k, ws in said.items() for w in ws]
-    warned += _ours(caught)
-    return write_report(out, chosen_name, comparison, rows, lines, warned, p_values, fits,
-                        slider, n_sim, seed)  # fmt: skip
+    warned += _ours(caught) + said_goodness
+    record = write_report(out, chosen_name, comparison, rows, lines, warned, p_values, fits,
+                          slider, n_sim, seed)  # fmt: skip
+    record["goodness_of_the_others"] = others
+    return record
 
 
 def main(argv=None):
@@ -304,7 +333,9 @@ def main(argv=None):
     parser.add_argument("--out", default="results-slider-fit", help="folder for the outputs")
     parser.add_argument("--n-sim", type=int, default=1000, help="model cycles per point")
     parser.add_argument("--seed", type=int, default=1, help="the fits' simulation seed")
-    parser.add_argument("--workers", type=int, default=2, help="candidates fitted at once")
+    parser.add_argument("--workers", type=int, default=2,
+                        help="processes at once: the candidates' fits, then the goodness "
+                        "checks beside the comparison")  # fmt: skip
     args = parser.parse_args(argv)
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -319,7 +350,7 @@ def main(argv=None):
           f"v_b = {slider.v_b:.4g} m/s (the sticks' slope)", flush=True)  # fmt: skip
     fits, said = fit_candidates(data, slider, args.n_sim, args.seed, args.workers)
     fit_seconds = time.perf_counter() - wall0
-    record = conclude(fits, said, slider, out, args.n_sim, args.seed)
+    record = conclude(fits, said, slider, out, args.n_sim, args.seed, args.workers)
     wall = time.perf_counter() - wall0
     usage = [resource.getrusage(w) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)]
     cpu = sum(u.ru_utime + u.ru_stime for u in usage)
