@@ -37,11 +37,12 @@ MIN_SIMULATED = 50
 # defensive normal's 1/n mixture sets the level without one). On the measured slider
 # (`examples/slider_fit.py`: three data slips shorter than one sampling interval, which the
 # measured model makes only rarely) the log-likelihood jumped 5-15 units between points
-# 0.5 % apart in omega0 or D, and the fit's surface was not concave; with the floor, steps
-# of 0.3-2 units around a clear maximum (`_density_table`). The floor lies below the
-# density wherever the model puts more than a value per bandwidth, which is where the data
-# fall when the model holds (a datum beyond it is scored alike at every parameter: it no
-# longer pulls the estimate), and it vanishes as n_sim grows.
+# 0.5 % apart in omega0 or D, and the fit's surface was not concave; with the floor (and the
+# force noise keyed by cycle), steps of 0.1-2.5 units around a clear maximum
+# (`_density_table`). The floor lies below the density wherever the model puts more than a
+# value per bandwidth, which is where the data fall when the model holds (a datum beyond it
+# is scored alike at every parameter: it no longer pulls the estimate), and it vanishes as
+# n_sim grows.
 FLOOR_POINTS = 1.0
 
 
