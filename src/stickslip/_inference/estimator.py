@@ -54,7 +54,10 @@ N_SIM_MEASURED = 4000
 # one simulated cycle near it does (measured: 5 of 320 data made 13 of a 15-unit jump
 # between D 0.4 % apart). Against that noise (sd ~4 units a point at n_sim 4000) the
 # curvature over steps of 0.1 (~1-2 units, SE of log D ~0.06) gave a vertex whose Monte
-# Carlo sd was 2-6 standard errors (3 sets); over steps of 0.3 it was 0-1.1 (3 sets).
+# Carlo sd was 2-6 standard errors (3 sets); over steps of 0.3 it was 0-1.1 (3 sets). (Those
+# measurements predate the kernel estimate's floor, `likelihood.FLOOR_POINTS`, which takes
+# most of that noise out; 0.3 is where the design starts, narrowed along an axis that falls
+# by more than `surface.MAX_STEP_DROP` over a step.)
 MEASURED_DESIGN_STEP = 0.3
 
 
