@@ -293,14 +293,17 @@ def conclude(fits, said, slider, out, n_sim, seed, workers):
     pool = (concurrent.futures.ProcessPoolExecutor(1, mp_context=context) if workers > 1
             else None)  # fmt: skip
     try:
-        jobs = {name: pool.submit(checked, r, seed, n_sim, slider) for name, r in fits.items()
-                } if pool else {}  # fmt: skip
+        if pool:
+            jobs = {name: pool.submit(checked, r, seed, n_sim, slider)
+                    for name, r in fits.items()}  # fmt: skip
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             comparison = ss.compare_fits(fits, seed=seed + 100)
         print("\n" + comparison.summary(), flush=True)
-        checks = {name: jobs[name].result() if pool else checked(r, seed, n_sim, slider)
-                  for name, r in fits.items()}  # fmt: skip
+        if pool:
+            checks = {name: job.result() for name, job in jobs.items()}
+        else:
+            checks = {name: checked(r, seed, n_sim, slider) for name, r in fits.items()}
     finally:
         if pool:
             pool.shutdown()

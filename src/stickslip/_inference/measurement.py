@@ -423,9 +423,10 @@ def _keyed_samples(release, slip, stick, n, h, seed, path, normals, spikes):
     stream of its own per cycle rather than a shared pool (`_keyed_grid`): a force trace's
     cycle spans thousands of samples (2900 on the measured slider), so a pool's stretches
     would overlap often."""
-    anchors, starts = _segments(release, slip, stick, (n - 1) * h, h)
+    # samples k h for k < n: a stretch starting in [(n - 1) h, n h) holds none (skipped
+    # below), and the first stretch, from 0, is always kept
+    anchors, starts = _segments(release, slip, stick, n * h, h)
     first = np.minimum(np.ceil(starts / h - 1e-9), n).astype(np.int64)
-    first[0] = 0
     bounds = np.r_[first, n]
     zero = np.ceil(release[anchors] / h - 1e-9).astype(np.int64)
     noise = np.empty(n) if normals else None
