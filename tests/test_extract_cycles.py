@@ -578,3 +578,32 @@ def test_slider_example_runs(tmp_path):
     back = ss.read_cycles(tmp_path / "slider_cycles.csv")
     assert back.info["lines_removed"] and len(back) > 100
     assert "k168Nm_v4300: refused:" in run.stdout
+
+
+def test_force_slip_shape_and_its_derivatives():
+    """The slip's shape (a damped half-oscillation from 0 to 1, flat before and after) and
+    its derivatives, against the closed form and central differences, on windows that
+    start before the slip and end after it (as a fit's do)."""
+    from stickslip._extract import _force
+
+    rng = np.random.default_rng(3)
+    kappa = rng.uniform(0.0, 8.0, (6, 1))
+    phi = np.linspace(-0.7, 1.8, 251)[None, :] + rng.uniform(-0.01, 0.01, (6, 1))
+    phi[0, :3] = (0.0, 1.0, 0.5)  # the ends themselves
+
+    def closed(p, k):
+        p = np.clip(p, 0.0, 1.0)
+        g = 1.0 - np.exp(-k * p) * (np.cos(np.pi * p) + k / np.pi * np.sin(np.pi * p))
+        return g / (1.0 + np.exp(-k))
+
+    S, S_phi, S_kappa = _force._shape_jac(phi, kappa)
+    assert S.shape == phi.shape
+    np.testing.assert_allclose(S, closed(phi, kappa), rtol=0, atol=1e-14)
+    assert np.all(S[phi <= 0] == 0) and np.allclose(S[phi >= 1], 1.0, atol=1e-14)
+    e = 1e-6
+    inner = (phi > e) & (phi < 1 - e)
+    fd_phi = (closed(phi + e, kappa) - closed(phi - e, kappa)) / (2 * e)
+    fd_kappa = (closed(phi, kappa + e) - closed(phi, kappa - e)) / (2 * e)
+    np.testing.assert_allclose(S_phi[inner], fd_phi[inner], rtol=0, atol=1e-7)
+    assert np.all(S_phi[(phi <= 0) | (phi >= 1)] == 0)
+    np.testing.assert_allclose(S_kappa, fd_kappa, rtol=0, atol=1e-7)
