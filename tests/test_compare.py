@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import stickslip as ss
-from stickslip._inference.compare import _named, _quadratic_max, compare_fits
+from stickslip._inference.compare import _named, _polynomial_max, compare_fits
 from stickslip._inference.likelihood import _simulate
 
 BASE = dict(omega0=1.0, zeta=0.1, v_b=1.0, tau=0.1)
@@ -74,6 +74,24 @@ def test_clear_case_chooses_the_random_threshold(clear_case):
     # tails add no more than that)
     assert test["p_values"] == [1 / 40, 1 / 40], test
     assert min(test["statistic"]) > 12, test
+
+
+def test_kept_cycles_are_the_ones_simulated_again(clear_case):
+    """The comparison scores its replicates against the cycles each fit simulated at its
+    design (kept in `diagnostics["design"]["samples"]`); without them it simulates the
+    same points and seeds again: the same statistic and p-values to the bit."""
+    r_fixed, r_random, comparison = clear_case
+    assert r_random.diagnostics["design"]["samples"] is not None
+
+    def without(r):
+        d = dict(r.diagnostics)
+        d["design"] = {**d["design"], "samples": None}
+        return dataclasses.replace(r, diagnostics=d)
+
+    again = compare_fits({"fixed": without(r_fixed), "random": without(r_random)},
+                         alpha=0.05, n_boot=39, seed=1)  # fmt: skip
+    assert again.tests == comparison.tests
+    assert again.chosen_name == comparison.chosen_name
 
 
 def test_table_shape(clear_case):
@@ -156,10 +174,30 @@ def test_refusals(clear_case):
             assert "\n" not in str(e) and str(e).startswith("compare_fits: ")
 
 
-def test_quadratic_max_against_closed_form():
-    """The statistic's maximum of a quadratic through the design values: exact for values
-    that are a quadratic (a shared curvature, a level and gradient per data set), at the
-    vertex where it lies inside the design's box, on the box's face where it does not."""
+def _quadratic_max_on_polygon(level, vertex, Q, corners) -> float:
+    """The maximum of the concave quadratic level + (x - vertex) Q (x - vertex) / 2 over
+    the convex polygon `corners` (in order): the vertex where it lies inside, else the
+    best of each edge's own maximum (a concave quadratic in one variable)."""
+    q = lambda x: level + 0.5 * (x - vertex) @ Q @ (x - vertex)  # noqa: E731
+    edges = list(zip(corners, corners[1:] + corners[:1], strict=True))
+    cross = lambda u, w: u[0] * w[1] - u[1] * w[0]  # noqa: E731
+    inside = all(cross(b - a, vertex - a) >= 0 for a, b in edges)  # counter-clockwise
+    if inside:
+        return level
+    best = -np.inf
+    for a, b in edges:
+        d = b - a  # x = a + t d, t in [0, 1]: q' = d Q (a + t d - vertex) = 0
+        t = np.clip(-(d @ Q @ (a - vertex)) / (d @ Q @ d), 0.0, 1.0)
+        best = max(best, q(a + t * d))
+    return best
+
+
+def test_polynomial_max_against_closed_form():
+    """The statistic's maximum of the polynomial through the design values, over the
+    region the design spans (the convex hull of its axis points, +-2 steps): exact for
+    values that are a quadratic (a shared curvature, a level and gradient per data set),
+    at the vertex where it lies inside, on the hull's edges where it does not (closed
+    form), and one-sided where the design is."""
     p = 2
     offsets = [np.zeros(p)]
     for i in range(p):
@@ -170,36 +208,31 @@ def test_quadratic_max_against_closed_form():
     offsets += [np.array(v, float) for v in ((1, 1), (1, -1), (-1, 1), (-1, -1))]
     offsets = np.array(offsets)
     Q = np.array([[-2.0, 0.5], [0.5, -1.0]])
-    vertices = np.array([[0.5, -1.0], [-1.5, 0.25], [3.0, 0.0]])  # the last outside the box
-    levels = np.array([-10.0, 3.0, 7.0])
+    # inside, inside, outside past an axis point, outside past a face
+    vertices = np.array([[0.5, -1.0], [-1.5, 0.25], [3.0, 0.0], [1.5, 1.5]])
+    levels = np.array([-10.0, 3.0, 7.0, 1.0])
     values = np.stack(
         [levels[s] + 0.5 * np.einsum("ni,ij,nj->n", offsets - v, Q, offsets - v)
          for s, v in enumerate(vertices)], axis=1,
     )  # fmt: skip
-    got = _quadratic_max(offsets, values)
-    # inside (on the 17-point grid of [-2, 2]: steps of 1/4): the level itself
-    assert got[:2] == pytest.approx(levels[:2], abs=1e-9)
-    # outside along axis 0: on the face x0 = 2, the best x1 = v1 + Q01 (2 - v0) / (-Q11)...
-    # closed form of max over x1 of q(2, x1): x1* = v1 - Q01 (2 - v0) / Q11
-    v0, v1 = vertices[2]
-    x1 = v1 - Q[0, 1] * (2.0 - v0) / Q[1, 1]
-    d = np.array([2.0 - v0, x1 - v1])
-    face = levels[2] + 0.5 * d @ Q @ d
-    grid_x1 = np.linspace(-2, 2, 17)
-    on_grid = max(levels[2] + 0.5 * np.array([2.0 - v0, g - v1]) @ Q @ np.array(
-        [2.0 - v0, g - v1]) for g in grid_x1)  # fmt: skip
-    assert on_grid <= face + 1e-12
-    assert got[2] == pytest.approx(on_grid, abs=1e-9)
+    got = _polynomial_max(offsets, values)
+    hull = [np.array(c, float) for c in ((2, 0), (0, 2), (-2, 0), (0, -2))]
+    for s in range(len(levels)):
+        exact = _quadratic_max_on_polygon(levels[s], vertices[s], Q, hull)
+        # on a grid 1/8 step apart: below the maximum by at most the curvature over 1/16
+        assert exact - 0.05 <= got[s] <= exact + 1e-9, (s, got[s], exact)
+    assert got[:2] == pytest.approx(levels[:2], abs=0.05)
+    assert got[2] == pytest.approx(6.0, abs=1e-9)  # at the axis point (2, 0): by hand
     # a one-sided design (a threshold spread of 0: the model refuses the other side) keeps
     # the maximum on its side
     one_sided = offsets[offsets[:, 1] >= 0]
     vals = levels[0] + 0.5 * np.einsum("ni,ij,nj->n", one_sided - vertices[0], Q,
                                        one_sided - vertices[0])  # fmt: skip
-    best = _quadratic_max(one_sided, vals[:, None])[0]
-    x0 = vertices[0][0] - Q[0, 1] * (0.0 - vertices[0][1]) / Q[0, 0]  # on the face x1 = 0
-    d = np.array([x0 - vertices[0][0], 0.0 - vertices[0][1]])
-    assert best <= levels[0] + 0.5 * d @ Q @ d + 1e-12
-    assert best == pytest.approx(levels[0] + 0.5 * d @ Q @ d, abs=0.02)  # grid 1/8 apart
+    best = _polynomial_max(one_sided, vals[:, None])[0]
+    half = [np.array(c, float) for c in ((2, 0), (0, 2), (-2, 0))]
+    exact = _quadratic_max_on_polygon(levels[0], vertices[0], Q, half)
+    assert exact < levels[0] - 0.1  # the vertex (x1 = -1) is on the refused side
+    assert exact - 0.05 <= best <= exact + 1e-9
 
 
 @pytest.mark.slow
@@ -286,3 +319,25 @@ def test_white_against_ou_noise_where_the_data_can_tell_and_where_they_cannot():
     print(f"white kept in {kept}/10, OU chosen in {found}/10, {time.perf_counter() - t0:.0f} s")
     assert kept >= 8, chosen
     assert found >= 9, chosen
+
+
+def test_polynomial_max_with_cubic_terms_against_closed_form():
+    """The fit's polynomial carries a cubic term per axis (the surface's skew): one axis,
+    values c_s + g_s x + q x^2 / 2 + k x^3 (shared q and k, a level and slope per data
+    set) at the design's five points; the maximum over [-2, 2] from the roots of the
+    derivative, and the box's ends."""
+    offsets = np.array([[0.0], [-2.0], [-1.0], [1.0], [2.0]])
+    q, k = -3.0, 0.4
+    levels, slopes = np.array([1.0, -4.0, 2.0]), np.array([0.5, -2.5, 6.0])
+    x = offsets[:, 0]
+    values = np.stack([c + g * x + 0.5 * q * x**2 + k * x**3
+                       for c, g in zip(levels, slopes, strict=True)], axis=1)  # fmt: skip
+    got = _polynomial_max(offsets, values)
+    for s, (c, g) in enumerate(zip(levels, slopes, strict=True)):
+        f = np.polynomial.Polynomial([c, g, 0.5 * q, k])
+        roots = f.deriv().roots()
+        cands = [r.real for r in roots if abs(r.imag) < 1e-12 and -2 <= r.real <= 2]
+        exact = max(f(np.array([-2.0, 2.0] + cands)))
+        # on the 17-point grid (steps of 1/4): below the maximum by at most the curvature
+        # over an eighth of a step
+        assert exact - 0.5 * 8 * 0.125**2 <= got[s] <= exact + 1e-9

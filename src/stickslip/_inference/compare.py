@@ -14,9 +14,10 @@ it. So the null distribution is not taken from asymptotics but simulated:
   ratio $T = 2[\tilde\ell_B(y) - \tilde\ell_A(y)]$, where $\tilde\ell_M(y)$ is the maximum
   near $M$'s estimate of $M$'s own smoothed log-likelihood (its fit's bandwidths,
   observation rule, `dt`, `t_max`, `n_sim` and seed: `likelihood._per_cycle`): evaluated
-  at a design of points around the estimate (the centre, $\pm 1$ and $\pm 2$ steps along
-  each axis, $\pm 1$ along each diagonal pair; `_Candidate.steps`), a quadratic through
-  them, its largest value over the design's box (`_quadratic_max`). Its null distribution
+  at the fit's own design (`surface._local_surface`: the centre, $\pm 1$ and $\pm 2$
+  steps along each axis, $\pm 1$ along each diagonal pair, clipped at the box), the fit's
+  polynomial through them (quadratic, a cubic term per axis), its largest value over the
+  region the design spans (`_polynomial_max`, `_region`). Its null distribution
   is a parametric bootstrap: `n_boot` data sets of the data's size simulated from $A$ at
   its estimate through the fit's observation rule (`goodness._replicates`), each scored by
   the *same* $T$: the same design points and the same simulated samples;
@@ -32,17 +33,25 @@ law. The simulation's own noise is conditioned on rather than averaged over: the
 simulated samples are drawn once and used for the data and every replicate, so under the
 null the data's $T$ and the replicates' $T^*$ share one law *given those samples*, and the
 test keeps its level whatever the noise (noise can only cost power). It is then repeated
-with each fit's second seed (`diagnostics["mc_noise"]["seed"]`, independent samples), and
+with each fit's second seed (`diagnostics["design"]["seeds"]`, independent samples), and
 a candidate is rejected only when both reject: the larger $p$ counts, which keeps the
 level, and a warning says when the two disagree (the choice then hangs on the simulation:
-raise `n_sim`). A quadratic's maximum rather than the largest design value, because the
-design is centred on the data's own estimate: the data's maximum sits on a design point
+raise `n_sim`). A polynomial's maximum rather than the largest design value, because the
+design is centred on the data's own estimate: the data's maximum sits near a design point
 while a replicate's falls between points, which the largest design value underrates (the
-test would reject too often); a quadratic's maximum does not depend on where in the design
-it falls. The design rather than a refit
-of every replicate keeps the cost at two dozen simulations a candidate instead of
-`2 n_boot` fits; under the null the replicates' maxima lie within about one standard
-error of the estimates, inside the design's $\pm 2$ steps.
+test would reject too often); a polynomial's maximum does not depend on where in the
+design it falls.
+
+Why the fit's design. The fit has simulated it already, at both seeds, and keeps those
+cycles where they are small (`estimator.KEEP_SAMPLES_BYTES`: every fit through a
+measurement): a comparison then costs its replicates and the scoring alone (on the measured
+slider ~70 s, where a design of its own, 132 simulations through the measurement, took
+~160 s more). Where the fit did not keep them (per-cycle values at 10^5 cycles a point)
+they are simulated again: the same cycles, a function of the point and the seed. The
+fit's steps are where its polynomial is a good local model of the surface (each step
+falls by at most `surface.MAX_STEP_DROP`): the replicates' maxima, within a few standard
+errors of the estimate, lie inside its $\pm 2$ steps. A refit of every replicate would
+cost `2 n_boot` fits.
 
 What it assumes: the cycles are independent (the fit's own assumption: a replicate is a
 set of independent cycles); the candidates are fitted to the same data with the same
@@ -65,7 +74,7 @@ import numpy as np
 from .._errors import DataError, ParameterError, check_int
 from .goodness import ALPHA as GOODNESS_ALPHA
 from .goodness import _replicates, _Setting
-from .likelihood import _per_cycle
+from .likelihood import _sample, _scored
 
 # The level of each choice: a simpler model is kept unless p < ALPHA. The issue asks that a
 # model which holds be kept in >= 90 % of data sets: at 0.05 a calibrated test keeps it in
@@ -73,22 +82,7 @@ from .likelihood import _per_cycle
 # 0.1 % of the time. goodness_of_fit's verdict level is 0.01 too. Against a threshold
 # spread of 0.2 of its mean the likelihood ratio is ~80 (150 cycles): no power is lost.
 ALPHA = 0.01
-DESIGN_STEP = 0.1  # the fit's own design step (fit coordinates): where probing starts
-# A design step is at most this many fit units: a step past a factor e (log scale) reaches
-# where the model refuses or the surface is flat anyway.
-MAX_STEP = 1.0
-# A probed step is where the log-likelihood has fallen by this much: one standard error of
-# a regular likelihood (a fall of 1/2), so that the design's +-2 steps span what the
-# replicates' maxima scatter over.
-PROBE_DROP = 0.5
-# The standard error replaces the curvature scale as the step where it is wider by at most
-# this factor: the sandwich of a composite likelihood (two columns of one cycle counted as
-# independent at worst double the information) and the fit's simulation-noise terms widen
-# it by less than 2 where the fit is regular; a wider one comes from a surface without a
-# maximum (a covariance of 1e17 at a threshold spread of 0, seen), and is not used.
-SE_FACTOR = 3.0
-RETREATS = 3  # a design point the model refuses is moved halfway to the centre this often
-GRID_BUDGET = 4096  # points of the grid a fitted quadratic is maximised over
+GRID_BUDGET = 4096  # points of the grid a fitted polynomial is maximised over
 
 
 @dataclasses.dataclass(frozen=True)
@@ -249,8 +243,8 @@ def compare_fits(
 # -- pieces -----------------------------------------------------------------------------
 @dataclasses.dataclass(frozen=True)
 class _Candidate:
-    """One fit, as the tests need it: the model at fit coordinates, the design of points
-    around its estimate, its two simulation seeds."""
+    """One fit, as the tests need it: the model at fit coordinates, the fit's own design
+    of points around its estimate, its two simulation seeds."""
 
     name: str
     result: Any
@@ -262,170 +256,146 @@ class _Candidate:
     @classmethod
     def of(cls, name, result) -> _Candidate:
         setting = _Setting.of(result)  # (the constructor's arguments: `model_kwargs`)
-        d = result.diagnostics
-        first = int(d["seed"])
-        second = d.get("mc_noise", {}).get("seed")
-        if second is None:
-            second = (first + 0x9E3779B97F4A7C15) % 2**64  # fit's own second stream
+        design = result.diagnostics.get("design", {})
+        if "points" not in design or "seeds" not in design:
+            raise ParameterError(
+                "compare_fits", "fits", f"holds {name}, a fit without its design of points "
+                "(from another version of stickslip): fit it again",
+            )  # fmt: skip
+        first, second = (int(x) for x in design["seeds"])
         return cls(
             name=name, result=result, setting=setting, n_free=len(result.estimate),
-            log_likelihood=float(result.log_likelihood), seeds=(first, int(second)),
+            log_likelihood=float(result.log_likelihood), seeds=(first, second),
         )  # fmt: skip
 
-    def model(self, u):
-        try:
-            return self.setting.model(u)
-        except (ValueError, ArithmeticError):  # outside the model's range
-            return None
-
-    def loglik(self, model, data, seed) -> float:
-        """The fit's smoothed log-likelihood of `data` at `model` (its settings, `seed`)."""
+    def design(self) -> tuple[list, np.ndarray, list]:
+        """The fit's own design (`surface._local_surface`: the centre, +-1 and +-2 steps
+        along each axis, +-1 step along each pair's diagonals, clipped at the box) less
+        the points where the fit's log-likelihood is not finite at either seed: the models
+        there, their offsets from the centre in steps, and, per seed, the cycles the fit
+        simulated there (`None` where the fit did not keep them: simulated again, the same
+        cycles)."""
         s = self.setting
-        terms = _per_cycle(model, data, s.bandwidth, s.n_sim, s.dt, s.t_max, seed, s.observe)
-        return float(sum(np.sum(v) for v in terms.values()))
-
-    def steps(self, data) -> np.ndarray:
-        """A design step per free parameter (fit coordinates): the curvature scale
-        $1/\\sqrt{-H_{jj}}$ of the fit's surface (where the log-likelihood falls by 1/2), or
-        the standard error where it is wider, up to `SE_FACTOR` times (a composite
-        likelihood's estimate scatters more than its curvature says). Where the fit's
-        surface says nothing (no negative curvature, a design clipped at the box), the step
-        is found on the data: doubled from `DESIGN_STEP` / 8 until the log-likelihood falls
-        by `PROBE_DROP` (or the step reaches `MAX_STEP`)."""
-        s = self.setting
-        d = self.result.diagnostics
-        p = len(s.names)
-        H = np.atleast_2d(np.asarray(d.get("hessian", np.full((p, p), np.nan)), float))
-        se = np.sqrt(np.abs(np.diag(s.covariance)))
-        clipped = set(d.get("design", {}).get("clipped", ()))
-        steps = np.empty(p)
-        centre = None
-        for j, name in enumerate(s.names):
-            curv = -H[j, j] if H.shape == (p, p) else np.nan
-            if name not in clipped and np.isfinite(curv) and curv > 0:
-                steps[j] = 1.0 / math.sqrt(curv)
-                if steps[j] < se[j] <= SE_FACTOR * steps[j]:
-                    steps[j] = se[j]
-                steps[j] = min(steps[j], MAX_STEP)
+        d = self.result.diagnostics["design"]
+        centre, steps = np.asarray(d["centre"], float), np.asarray(d["steps"], float)
+        points = np.atleast_2d(np.asarray(d["points"], float))
+        finite = np.all(np.isfinite(np.asarray(d["values"], float)), axis=0)
+        kept = d.get("samples")
+        models, offsets, samples = [], [], ([], [])
+        for i, u in enumerate(points):
+            m = _built(s, u) if finite[i] else None
+            if m is None:
                 continue
-            if centre is None:
-                centre = self.loglik(self.model(s.u_hat), data, self.seeds[0])
-            t = DESIGN_STEP / 8
-            while t < MAX_STEP:
-                drops = []
-                for sign in (1.0, -1.0):
-                    u = s.u_hat.copy()
-                    u[j] += sign * t
-                    m = self.model(u)
-                    if m is not None:
-                        drops.append(centre - self.loglik(m, data, self.seeds[0]))
-                if drops and np.mean(drops) >= PROBE_DROP:
-                    break
-                t *= 2.0
-            steps[j] = min(t, MAX_STEP)
-        return steps
-
-    def design(self, data) -> tuple[list, np.ndarray]:
-        """The models at the centre, +-1 and +-2 steps along each axis, and +-1 step along
-        each pair's diagonals (`steps`), and those offsets (in steps); a point the model
-        refuses moves halfway to the centre, up to `RETREATS` times, or is left out."""
-        s = self.setting
-        p = len(s.names)
-        steps = self.steps(data)
-        offsets = [np.zeros(p)]
-        for i in range(p):
-            for m in (-2, -1, 1, 2):
-                e = np.zeros(p)
-                e[i] = m
-                offsets.append(e)
-            for j in range(i + 1, p):
-                for a, b in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
-                    e = np.zeros(p)
-                    e[i], e[j] = a, b
-                    offsets.append(e)
-        models, kept = [], []
-        for e in offsets:
-            for _ in range(RETREATS + 1):
-                m = self.model(s.u_hat + e * steps)
-                if m is not None or not np.any(e):
-                    break
-                e = 0.5 * e
-            if m is not None:
-                models.append(m)
-                kept.append(e)
-        if not models or np.any(kept[0]):
+            models.append(m)
+            offsets.append((u - centre) / steps)
+            for j in range(2):
+                samples[j].append(None if kept is None else kept[j][i])
+        if not models:
             raise ParameterError(
-                "compare_fits", "fits", f"holds {self.name}, whose model cannot be rebuilt at "
-                "its own estimate",
+                "compare_fits", "fits", f"holds {self.name}, whose fit has no design point "
+                "with a finite log-likelihood",
             )  # fmt: skip
-        return models, np.array(kept)
+        return models, np.array(offsets), list(samples)
 
-    def best(self, design, pooled, n_sets: int, seed: int) -> np.ndarray:
+    def best(self, design, pooled, n_sets: int, which: int) -> np.ndarray:
         """$\\tilde\\ell$ of each of the `n_sets` data sets stacked in `pooled`: the fit's
         smoothed log-likelihood (its bandwidths, observation rule and simulation settings,
-        this seed) at each design point, a quadratic fitted through them, and its largest
-        value over the design's region (`_quadratic_max`)."""
+        seed number `which`) at each design point, the fit's polynomial fitted through
+        them, and its largest value over the design's region (`_polynomial_max`)."""
         s = self.setting
-        models, offsets = design
+        models, offsets, samples = design
+        seed = self.seeds[which]
         values = np.empty((len(models), n_sets))
         for i, m in enumerate(models):
-            terms = _per_cycle(m, pooled, s.bandwidth, s.n_sim, s.dt, s.t_max, seed, s.observe)
+            sim = samples[which][i]
+            if sim is None:
+                sim = _sample(m, s.n_sim, s.dt, s.t_max, seed, s.observe)
+            terms = _scored(pooled, sim, s.bandwidth, s.observe)
+            if terms is None:  # (the fit found cycles there: the same simulation)
+                values[i] = -np.inf
+                continue
             per_row = np.sum([terms[k] for k in pooled], axis=0)
             values[i] = per_row.reshape(n_sets, -1).sum(axis=1)
-        return _quadratic_max(offsets, values)
+        ok = np.all(np.isfinite(values), axis=1)
+        return _polynomial_max(offsets[ok], values[ok])
 
 
-def _quadratic_max(offsets: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """The largest value, over the box the design's points span, of a quadratic fitted to
-    each data set's values at the design points (`values`: points x sets): its curvature
-    is fitted once to the sets' mean surface (the curvature of a log-likelihood is nearly
-    the same for every data set of one size; fitted per set it would carry each set's
-    simulation noise), the level and gradient per set.
+def _built(setting, u):
+    try:
+        return setting.model(u)
+    except (ValueError, ArithmeticError):  # outside the model's range
+        return None
+
+
+def _polynomial_max(offsets: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """The largest value, over the region the design's points span (`_region`), of the
+    fit's polynomial (`surface._polynomial_vertex`: quadratic plus a cubic term per axis)
+    fitted to each data set's values at the design points (`values`: points x sets): its
+    curvature and cubic terms are fitted once to the sets' mean surface (nearly the same
+    for every data set of one size; fitted per set they would carry each set's simulation
+    noise), the level and gradient per set.
 
     Why not the largest value at a design point: the design is centred on the data's own
-    estimate, so the data's maximum sits on a point while a replicate's falls between
+    estimate, so the data's maximum sits near a point while a replicate's falls between
     points and is underrated: the replicates' ratios, and the p-values, would be pulled
-    down. A quadratic's maximum does not depend on where in the design it falls."""
+    down. A polynomial's maximum does not depend on where in the design it falls."""
     n_points, p = offsets.shape
     pairs = [(i, j) for i in range(p) for j in range(i, p)]
-    quad = np.stack(
-        [offsets[:, i] * offsets[:, j] * (0.5 if i == j else 1.0) for i, j in pairs], axis=1
-    )  # fmt: skip
+
+    def shape_terms(x):  # the curvature's and the cubic terms' columns
+        quad = [x[:, i] * x[:, j] * (0.5 if i == j else 1.0) for i, j in pairs]
+        return np.stack(quad + [x[:, i] ** 3 for i in range(p)], axis=1)
+
     linear = np.hstack([np.ones((n_points, 1)), offsets])
-    coef = np.linalg.lstsq(np.hstack([linear, quad]), values.mean(axis=1), rcond=None)[0]
-    Q = np.zeros((p, p))
-    for (i, j), c in zip(pairs, coef[1 + p :], strict=True):
-        Q[i, j] = Q[j, i] = c
-    curvature = 0.5 * np.einsum("ni,ij,nj->n", offsets, Q, offsets)
-    ag = np.linalg.lstsq(linear, values - curvature[:, None], rcond=None)[0]  # (1 + p) x sets
-    # the region: the box the design spans (one-sided where the model refuses the other
-    # side, a threshold spread of 0), on a grid fine against a step (<= 1/4 step for p <= 3)
-    lo, hi = offsets.min(axis=0), offsets.max(axis=0)
-    per_axis = int(min(17, max(3, math.floor(GRID_BUDGET ** (1.0 / p)))))
+    coef = np.linalg.lstsq(np.hstack([linear, shape_terms(offsets)]), values.mean(axis=1),
+                           rcond=None)[0]  # fmt: skip
+    shape = coef[1 + p :]
+    ag = np.linalg.lstsq(linear, values - (shape_terms(offsets) @ shape)[:, None],
+                         rcond=None)[0]  # (1 + p) x sets  # fmt: skip
+    x = _region(offsets)
+    surface = ag[0][None, :] + x @ ag[1:] + (shape_terms(x) @ shape)[:, None]
+    return surface.max(axis=0)
+
+
+def _region(offsets: np.ndarray) -> np.ndarray:
+    r"""Points filling the region a design spans, where its polynomial interpolates: the
+    convex hull of its points along the axes (+-2 steps, or where the box clipped them;
+    one-sided where the model refuses the other side), $\sum_i x_i / e_i \le 1$ over the
+    extents $e_i$ on each side, which holds the diagonal points (+-1, +-1) on its faces. Not
+    the box they span: its corners (+-2 along every axis at once) lie far from every point,
+    where a polynomial fitted on steps wide against the surface's curvature (falls of up to
+    `surface.MAX_STEP_DROP` a step) extrapolates: 15 log-likelihood units above every design
+    value, measured on the slider's random threshold (4 free). A grid of at least
+    `GRID_BUDGET` points inside it, and the design's points themselves."""
+    p = offsets.shape[1]
+    lo, hi = np.minimum(offsets.min(axis=0), 0.0), np.maximum(offsets.max(axis=0), 0.0)
+    # the hull holds 1 / p! of the box: a grid of GRID_BUDGET p! points in the box, up to
+    # 33 a side and 2^20 in all
+    per_axis = (GRID_BUDGET * math.factorial(p)) ** (1.0 / p)
+    per_axis = int(max(3, min(33, per_axis, 2 ** (20 / p))))
     axes = [np.linspace(a, b, per_axis) for a, b in zip(lo, hi, strict=True)]
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, p)
-    surface = (
-        ag[0][None, :] + grid @ ag[1:] + 0.5 * np.einsum("ni,ij,nj->n", grid, Q, grid)[:, None]
-    )
-    return surface.max(axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scaled = np.where(grid > 0, grid / hi, np.where(grid < 0, grid / lo, 0.0))
+    inside = grid[np.sum(scaled, axis=1) <= 1.0 + 1e-12]
+    return np.vstack([inside, offsets])
 
 
 def _test(a: _Candidate, b: _Candidate, data: dict, n_boot: int, seed: int, designs) -> dict:
     """The parametric-bootstrap likelihood-ratio test of `a` (null) against `b`, with each
     fit's two simulation seeds (the same replicates for both); `designs` caches each
-    candidate's design (it depends on the data alone, not on the null)."""
+    candidate's design (the fit's: it does not depend on the null)."""
     n = next(iter(data.values())).size
     reps = _replicates(a.setting, n, n_boot, seed)
     pooled = {k: np.concatenate([data[k]] + [r[k] for r in reps]) for k in data}
     for c in (a, b):
         if c.name not in designs:
-            designs[c.name] = c.design(data)
+            designs[c.name] = c.design()
     designs = (designs[a.name], designs[b.name])
     stats, p_values = [], []
     for s in range(2):
         t = 2.0 * (
-            b.best(designs[1], pooled, n_boot + 1, b.seeds[s])
-            - a.best(designs[0], pooled, n_boot + 1, a.seeds[s])
+            b.best(designs[1], pooled, n_boot + 1, s) - a.best(designs[0], pooled, n_boot + 1, s)
         )
         stats.append(float(t[0]))
         p_values.append(float((1 + np.sum(t[1:] >= t[0])) / (1 + n_boot)))

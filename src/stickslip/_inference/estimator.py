@@ -24,7 +24,7 @@ from .._errors import DataError, ParameterError, check_int, check_positive
 from .data import LOG_KINDS, _check_data, _looks_sampled, _measurement, _transform
 from .forward import _simulate, _simulation_settings
 from .intervals import _combine_seeds, _mc_noise, _sandwich, _wald, concave
-from .likelihood import _bandwidth, _per_cycle
+from .likelihood import _bandwidth, _sample, _scored
 from .params import (
     ToFit,
     _check_box,
@@ -123,6 +123,11 @@ def _estimate(
     # common random numbers make the value a function of the point and the seed; only the
     # best, for memory: its per-cycle terms are a data set's size).
     best: dict = {}
+    # The simulated cycles at the surface's design points, both seeds, kept for the model
+    # comparison (`compare_fits` scores its bootstrap replicates against them) where they
+    # fit in KEEP_SAMPLES_BYTES; `recording` holds them while the design is evaluated.
+    keep = _keeps_samples(n_sim, len(data), len(names))
+    recording: dict | None = None
 
     def loglik(u, at_seed=seed):
         """The log-likelihood at `u` (clipped to the box) and its per-cycle terms (`None`
@@ -131,11 +136,14 @@ def _estimate(
         key = u.tobytes()
         kept = best.get(at_seed)
         if kept is not None and kept[0] == key:
-            return kept[1]
-        out = _loglik(u, at_seed)
-        if kept is None or out[0] > kept[1][0]:
-            best[at_seed] = (key, out)
-        return out
+            out = kept[1]
+        else:
+            out = _loglik(u, at_seed)
+            if kept is None or out[0] > kept[1][0]:
+                best[at_seed] = (key, out)
+        if recording is not None:
+            recording[key, at_seed] = out[2]
+        return out[:2]
 
     def _loglik(u, at_seed):
         try:
@@ -143,11 +151,12 @@ def _estimate(
         except (ValueError, ArithmeticError):
             m = None
         try:
-            terms = None if m is None else _per_cycle(m, data, bandwidth, n_sim, dt, t_max,
-                                                      at_seed, measured)  # fmt: skip
+            sim = None if m is None else _sample(m, n_sim, dt, t_max, at_seed, measured)
         except ParameterError as err:  # simulate's names are fit's arguments
             name = {"n_paths": "n_sim"}.get(err.parameter, err.parameter)
             raise ParameterError(owner, name, err.reason, err.value) from None
+        terms = _scored(data, sim, bandwidth, measured)
+        sim = None if sim is None or not keep else {k: np.asarray(sim[k], float) for k in data}
         value = -np.inf if terms is None else float(sum(np.sum(v) for v in terms.values()))
         if at_seed == seed:  # the surface's points (the second seed's are in mc_noise)
             points.append((np.array([params(u)[k] for k in names]), value))
@@ -156,13 +165,14 @@ def _estimate(
 
             shown = ", ".join(f"{k}={v:.4g}" for k, v in params(u).items())
             print(f"fit: {shown}: log-likelihood {value:.2f}", file=sys.stderr, flush=True)
-        return value, terms
+        return value, terms, sim
 
     # 1. a coarse grid over the box, Nelder-Mead from its best point
     u_best, optimizer, caught = _search(loglik, lo, hi, free)
     _check_informative(points, names, data, centre, n_sim, dt, t_max, seed, measured)
     # 2. a polynomial around it: the vertex and the Hessian
     step = DESIGN_STEP if measured is None else MEASURED_DESIGN_STEP
+    recording = {} if keep else None
     surface = _local_surface(loglik, u_best, lo, hi, data, names, step)
     caught += surface.warnings
     # 3. the simulation's own noise: the same design with a second, independent seed. The
@@ -173,6 +183,13 @@ def _estimate(
     # also give the sandwich's J without the simulation's noise (`_sandwich`).
     seed2 = (seed + 0x9E3779B97F4A7C15) % 2**64  # far from seed: an independent stream
     values2, scores2 = _evaluate(surface.design, lambda u: loglik(u, seed2), data)
+    samples = None
+    if recording is not None:
+        samples = _DesignSamples(
+            [recording[np.clip(u, lo, hi).tobytes(), at] for u in surface.design]
+            for at in (seed, seed2)
+        )  # fmt: skip
+        recording = None
     cov, said = _sandwich(surface, names, scores2)
     caught += said
     shift2, _ = _polynomial_vertex(surface.design - surface.centre, np.array(values2),
@@ -217,13 +234,42 @@ def _estimate(
         warnings=([sampled] if sampled else []) + caught,
         to_fit=ToFit(scales),
         optimizer=optimizer,
-        design=dict(clipped=surface.clipped, vertex=surface.shift is not None),
+        # the surface's design (fit coordinates), its values at both seeds and, where kept,
+        # the cycles simulated there: the model comparison's design (`compare_fits`)
+        design=dict(
+            clipped=surface.clipped, vertex=surface.shift is not None,
+            centre=surface.centre.tolist(), steps=surface.steps.tolist(),
+            points=surface.design.tolist(), values=[list(map(float, surface.values)),
+                                                    list(map(float, values2))],
+            seeds=[seed, seed2], samples=samples,
+        ),
         mc_noise=mc_noise,
     )  # fmt: skip
     return FitResult(
         estimate=estimate, ci=ci, log_likelihood=ll_hat, method=method,
         diagnostics=diagnostics, data=data, model=Model(**_kwargs(fixed, estimate)),
     )  # fmt: skip
+
+
+# The most memory a fit keeps of the cycles simulated at its design points (both seeds),
+# for `compare_fits`: 8 B a cycle and column. A fit through a measurement keeps them (~2
+# MB at n_sim 1000, four columns and four free parameters, ~8 MB at 4000); per-cycle fits
+# at the default 10^5 cycles a point do not (the comparison simulates them again, the same
+# cycles: each is a function of the point and the seed, ~0.1 s).
+KEEP_SAMPLES_BYTES = 32 * 2**20
+
+
+class _DesignSamples(list):
+    """Per seed, the cycles simulated at each design point (`None` where the model refused
+    it): a list, shown in one line (a `FitResult`'s repr shows its diagnostics)."""
+
+    def __repr__(self) -> str:
+        return f"<cycles simulated at {len(self[0])} design points, {len(self)} seeds>"
+
+
+def _keeps_samples(n_sim: int, n_columns: int, n_free: int) -> bool:
+    n_points = 1 + 4 * n_free + 2 * n_free * (n_free - 1)  # `surface._quadratic_design`
+    return 2 * n_points * n_sim * n_columns * 8 <= KEEP_SAMPLES_BYTES
 
 
 def _check_informative(points, names, data, centre, n_sim, dt, t_max, seed, measured):

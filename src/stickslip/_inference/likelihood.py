@@ -117,11 +117,23 @@ def _per_cycle(model, data, bandwidth, n_sim, dt, t_max, seed, measurement) -> d
     (a log-likelihood of -inf) where the measured trace shows no cycles, or fewer than
     `MIN_SIMULATED`: a model whose trace the measurement cannot resolve does not make the
     data."""
+    return _scored(data, _sample(model, n_sim, dt, t_max, seed, measurement), bandwidth,
+                   measurement)  # fmt: skip
+
+
+def _sample(model, n_sim, dt, t_max, seed, measurement) -> dict | None:
+    """`_per_cycle`'s simulated cycles (`None` where the measured trace shows none)."""
     try:
-        sim = _simulate(model, n_sim, dt, t_max, seed, measurement)
+        return _simulate(model, n_sim, dt, t_max, seed, measurement)
     except DataError:
         if measurement is None:
             raise
+        return None
+
+
+def _scored(data, sim, bandwidth, measurement) -> dict | None:
+    """`_per_cycle`'s terms of `data` against the simulated cycles `sim` (`_sample`)."""
+    if sim is None:
         return None
     if measurement is not None and min(np.size(sim[k]) for k in data) < MIN_SIMULATED:
         return None

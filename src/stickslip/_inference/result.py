@@ -24,7 +24,9 @@ class FitResult:
       `measurement`: the data's `Measurement`, `None` for per-cycle values), the
       covariance and Hessian (fit coordinates), every evaluated point, the evaluations and
       seconds spent, `optimizer` (Nelder-Mead's evaluations and cap), `design` (the axes
-      clipped at the box, whether the polynomial had a vertex), `mc_noise` (the second
+      clipped at the box, whether the polynomial had a vertex, its `centre`, `steps`,
+      `points` and their `values` at both `seeds`, in fit coordinates, and, where small
+      enough, the cycles simulated there, which `compare_fits` reuses), `mc_noise` (the second
       seed, the Monte Carlo sd of the estimate against its standard error, the `n_sim`
       advised), `zero_fraction` (of each duration column), and `warnings` (each also
       issued as a one-line `UserWarning`);
