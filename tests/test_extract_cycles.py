@@ -607,3 +607,30 @@ def test_force_slip_shape_and_its_derivatives():
     np.testing.assert_allclose(S_phi[inner], fd_phi[inner], rtol=0, atol=1e-7)
     assert np.all(S_phi[(phi <= 0) | (phi >= 1)] == 0)
     np.testing.assert_allclose(S_kappa, fd_kappa, rtol=0, atol=1e-7)
+
+
+def test_bracketed_median_is_numpys():
+    """`_input.median` (bracketed selection) gives np.median's number, bit for bit, on the
+    arrays an extraction meets and the awkward ones: odd and even lengths, coarse
+    quantisation (ties across the middle), one value throughout, sorted and periodic
+    traces, heavy tails, a NaN, and arrays below the bracketing length."""
+    from stickslip._extract._input import median
+
+    rng = np.random.default_rng(5)
+    n = 300_001
+    arrays = {
+        "normal": rng.standard_normal(n),
+        "even": rng.standard_normal(n + 1),
+        "quantised": np.round(rng.standard_normal(n) * 3) / 3,
+        "constant": np.full(n, 2.5),
+        "sorted": np.sort(rng.standard_normal(n)),
+        "sawtooth": np.tile(np.linspace(0.0, 1.0, 2900), 120)[:n],
+        "cauchy": rng.standard_cauchy(n),
+        "small": rng.standard_normal(1001),
+        "two": np.array([1.0, 4.0]),
+    }
+    for name, a in arrays.items():
+        assert median(a) == float(np.median(a)), name
+    with_nan = arrays["normal"].copy()
+    with_nan[17] = np.nan
+    assert np.isnan(median(with_nan))

@@ -41,7 +41,7 @@ import numpy as np
 
 from .._errors import DataError, ParameterError, check_positive
 from ._cycles import Cycles
-from ._input import OWNER, as_series, check_length, check_times, power_of_two, runs
+from ._input import OWNER, as_series, check_length, check_times, median, power_of_two, runs
 
 # In noise sd. A noise excursion beyond 5 sd: probability 6e-7 per independent value.
 THRESHOLDS = {
@@ -105,7 +105,7 @@ def extract_force(t, force, stiffness, v_b, window, thresholds=None) -> Cycles:
     check_times(t, minimum=_MIN_SAMPLES)
     check_length("force", f, t.size)
     step = np.diff(t)
-    h = float(np.median(step))
+    h = median(step)
     if np.max(np.abs(step - h)) > _UNIFORM * h:
         raise ParameterError(
             OWNER, "t", f"must be evenly sampled for a force trace: steps range from "
@@ -332,7 +332,9 @@ def _drop_sd(y, window, sigma) -> float:
     n = y.size // window
     if n < 8:
         return white
-    d = np.diff(np.median(y[: n * window].reshape(n, window), axis=1))
+    # each block's middle value (the window is odd): np.median's, without its per-row mean
+    blocks = np.partition(y[: n * window].reshape(n, window), window // 2, axis=1)
+    d = np.diff(blocks[:, window // 2])
     return max(white, _MAD * float(np.median(np.abs(d - np.median(d)))))
 
 
@@ -373,7 +375,7 @@ def _remove_lines(s, h):
 def _robust_sd(d: np.ndarray) -> float:
     """1.4826 MAD; where over half the values are equal (coarsely quantised, quiet), the
     rms of the values within their 99th percentile of size (0 if they are all equal)."""
-    sd = _MAD * float(np.median(np.abs(d - np.median(d))))
+    sd = _MAD * median(np.abs(d - median(d)))
     if sd > 0:
         return sd
     small = d[np.abs(d) <= np.percentile(np.abs(d), 99)]
@@ -395,10 +397,10 @@ def _slip_stretches(s, window, sigma, thr):
         raise ParameterError(OWNER, "window", f"must be shorter than the trace ({s.size})")
     rate = savgol_filter(s, window, 2, deriv=1, mode="interp")
     white_sd = sigma * math.sqrt(12.0 / (window * (window**2 - 1.0)))
-    g = float(np.median(rate))
+    g = median(rate)
     u = rate - g
     # slips are a few % of the samples: the MAD sees the noise only
-    rate_sd = max(white_sd, _MAD * float(np.median(np.abs(u))))
+    rate_sd = max(white_sd, _MAD * median(np.abs(u)))
     first, last = runs(u < -thr["extent"] * rate_sd)
     core = np.concatenate([[0], np.cumsum(u < -thr["slip"] * rate_sd)])
     has_core = core[last + 1] - core[first] > 0
@@ -477,7 +479,12 @@ def _single(x, p):
     i0, T, y0, D, kappa = (p[..., j, None] for j in range(5))
     phi = (x - i0) / T
     S, S_phi, S_kappa = _shape_jac(phi, kappa)
-    jac = np.stack([D * S_phi / T, D * S_phi * phi / T, np.ones_like(S), -S, -D * S_kappa], axis=-1)
+    jac = np.empty(S.shape + (5,))  # (written column by column: no stacked copies)
+    jac[..., 0] = D * S_phi / T
+    jac[..., 1] = D * S_phi * phi / T
+    jac[..., 2] = 1.0
+    np.negative(S, out=jac[..., 3])
+    jac[..., 4] = -D * S_kappa
     return y0 - D * S, jac
 
 

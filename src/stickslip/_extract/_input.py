@@ -75,3 +75,31 @@ def runs(flags: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     padded = np.concatenate([[False], flags, [False]]).astype(np.int8)
     edges = np.diff(padded)
     return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
+
+
+# Arrays at least this long take `median`'s bracketed selection; shorter ones np.median.
+_BRACKET_FROM = 1 << 16
+_BRACKET_SAMPLE = 4096  # values drawn to bracket the middle ones
+_BRACKET_HALF = 160  # sample ranks either side of the middle: ~5 sd of its rank
+
+
+def median(a: np.ndarray) -> float:
+    """`float(np.median(a))` of a 1-d array, the same number, 2-3x faster on the millions of
+    samples of a force trace (np.median partitions a copy of the whole array; an extraction
+    takes seven such medians). The middle values are bracketed by two values of a sample
+    of the array, those between the brackets (~8 %) selected, and the middle ones found
+    among them; where the brackets miss (rarely: they lie ~5 sd of the sample's rank from
+    the middle), or the array holds a nan, np.median itself."""
+    n = a.size
+    if n < _BRACKET_FROM:
+        return float(np.median(a))
+    sample = np.sort(a[np.random.default_rng(n).integers(0, n, _BRACKET_SAMPLE)])
+    mid = _BRACKET_SAMPLE // 2
+    lo, hi = sample[mid - _BRACKET_HALF], sample[mid + _BRACKET_HALF - 1]
+    below, above = np.count_nonzero(a < lo), np.count_nonzero(a > hi)
+    between = a[(a >= lo) & (a <= hi)]  # (a nan is in none of the three: counted out)
+    r0, r1 = (n - 1) // 2 - below, n // 2 - below  # the middle ranks, among `between`
+    if below + between.size + above != n or r0 < 0 or r1 >= between.size:
+        return float(np.median(a))
+    part = np.partition(between, [r0, r1] if r1 > r0 else r0)
+    return float(np.mean(part[r0 : r1 + 1]))  # (np.median's own mean of the middle values)
