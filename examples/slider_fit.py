@@ -16,9 +16,10 @@ examples/data/slider_paper_on_paper/README.md.
    sqrt(k/m)) and a friction-noise intensity `D` free: a fixed static threshold `x0`,
    and a normal random one (`threshold_params.mean`, `.sd`); their fits run side by
    side, one process each;
-4. `compare_fits` chooses the simpler unless the data reject it; beside it, in a process
-   of its own, each candidate's goodness of fit (`goodness_of_fit`, 100 replicates
-   through the measurement) and its cycles for the predictive check;
+4. `compare_fits` chooses the simpler unless the data reject it (scoring its replicates
+   against the cycles the fits simulated at their designs); each candidate's goodness of
+   fit (`goodness_of_fit`, 100 replicates through the measurement) and its cycles for the
+   predictive check run in the worker processes, submitted as soon as its fit ends;
 5. its parameters in SI with 95 % intervals, a predictive check (`slider_fit.png`: data
    against both fitted models, stick time, slip time, force drop), and the verdict,
    printed and written to `slider_fit.md` (and `slider_fit.json`).
@@ -29,9 +30,9 @@ measured slope, 7 % above the nominal 42 um/s), a negligible viscous damping (ze
 drift of the absolute force level over the run is outside the model: `peak_force` is not
 fitted). The rig's 30.7 g only sets the units: an effective mass is fitted (omega0).
 
-`--out DIR`, then copy slider_fit.png to docs/img to refresh docs/slider_fit.md. About 12
-minutes of CPU, 7.8 minutes on 2 quiet cores (docs/slider_fit.md, "Cost"): a point of a
-fit through this measurement is 1000 model cycles as a 2 kHz trace, ~1-1.5 s.
+`--out DIR`, then copy slider_fit.png to docs/img to refresh docs/slider_fit.md. About
+7.5 minutes of CPU, 4.4 minutes on 2 quiet cores (docs/slider_fit.md, "Cost"): a point of
+a fit through this measurement is 1000 model cycles as a 2 kHz trace, ~0.9 s.
 """
 
 from __future__ import annotations
@@ -42,6 +43,7 @@ import dataclasses
 import json
 import math
 import multiprocessing
+import os
 import pathlib
 import sys
 import time
@@ -253,20 +255,61 @@ def verdict(chosen_name, chosen, comparison, p_values, data_si, sims_si, others=
     return lines
 
 
-def fit_candidates(data, slider, n_sim, seed, workers):
-    """Each candidate fitted in a process of its own (`workers` at a time): `{name:
-    FitResult}` and `{name: [warnings]}`."""
+# glibc's allocator for the worker processes: keep freed memory for reuse rather than
+# returning it to the system. A point's trace is millions of samples, and the extraction's
+# arrays of that size, each fresh from the system, page-faulted on every point: a point of
+# a fit took 0.90 s with these settings against 1.05 s without (8 points, one process),
+# the same numbers. Set for the workers only (read when a process starts), not for this one.
+ALLOCATOR = {
+    "MALLOC_MMAP_THRESHOLD_": str(32 * 2**20),  # arrays up to 32 MB from the heap...
+    "MALLOC_TRIM_THRESHOLD_": str(2 * 2**30),  # ...kept there when freed...
+    "MALLOC_TOP_PAD_": str(512 * 2**20),  # ...and the heap grown in large steps
+}
+
+
+def run_all(data, slider, n_sim, seed, workers):
+    """Everything in worker processes (`workers` at a time, `ALLOCATOR`'s settings): the
+    candidates' fits; each candidate's goodness of fit and predictive cycles (`checked`),
+    submitted as soon as its fit ends; the comparison, once every fit has ended, beside
+    the checks still running. Returns `(fits, said, comparison, caught, checks,
+    fits_done)`, the last the `time.perf_counter()` at which the last fit ended. The
+    numbers do not depend on `workers` or on the order the fits end in."""
     specs = candidates(slider)
-    fits, said = {}, {}
+    fits, said, checking = {}, {}, {}
     context = multiprocessing.get_context("spawn")  # a fresh JAX in each worker
-    with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
-        jobs = {name: pool.submit(fitted, data, slider, spec, n_sim, seed)
-                for name, spec in specs.items()}  # fmt: skip
-        for name, job in jobs.items():
-            r, said[name] = job.result()
-            fits[name] = r
-            print(f"\n{name}:\n{r.summary()}", flush=True)
-    return fits, said
+    saved = {k: os.environ.get(k) for k in ALLOCATOR}
+    os.environ.update(ALLOCATOR)
+    try:
+        with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
+            jobs = {pool.submit(fitted, data, slider, spec, n_sim, seed): name
+                    for name, spec in specs.items()}  # fmt: skip
+            for job in concurrent.futures.as_completed(jobs):
+                name = jobs[job]
+                fits[name], said[name] = job.result()
+                checking[name] = pool.submit(checked, fits[name], seed, n_sim, slider)
+                print(f"\n{name}:\n{fits[name].summary()}", flush=True)
+            fits_done = time.perf_counter()
+            fits = {name: fits[name] for name in specs}  # the candidates' own order
+            comparison, caught = pool.submit(compared, fits, seed).result()
+            print("\n" + comparison.summary(), flush=True)
+            checks = {name: checking[name].result() for name in specs}
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+    return fits, said, comparison, caught, checks, fits_done
+
+
+def compared(fits, seed):
+    """`compare_fits` and its warnings (returned rather than printed); for a worker."""
+    import stickslip as ss
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        comparison = ss.compare_fits(fits, seed=seed + 100)
+    return comparison, _ours(caught)
 
 
 def checked(fit, seed, n_sim, slider):
@@ -281,32 +324,10 @@ def checked(fit, seed, n_sim, slider):
     return goodness, _ours(caught), to_si(fit.simulated(4 * n_sim, seed=seed + 300), slider)
 
 
-def conclude(fits, said, slider, out, n_sim, seed, workers):
-    """The comparison, the goodness of fit of every candidate (which one is chosen is not
-    known until the comparison ends: with `workers` > 1 they run beside it, in a process
-    of their own), the predictive check, the SI parameters and the verdict, written to
-    `out`: returns the JSON record. The numbers do not depend on `workers`."""
-    import stickslip as ss
-
+def conclude(fits, said, comparison, caught, checks, slider, out, n_sim, seed):
+    """The chosen candidate with its goodness of fit, the predictive check, the SI
+    parameters and the verdict, written to `out`: returns the JSON record."""
     table = next(iter(fits.values())).data  # the cycles in the model's units, as fitted
-    context = multiprocessing.get_context("spawn")
-    pool = (concurrent.futures.ProcessPoolExecutor(1, mp_context=context) if workers > 1
-            else None)  # fmt: skip
-    try:
-        if pool:
-            jobs = {name: pool.submit(checked, r, seed, n_sim, slider)
-                    for name, r in fits.items()}  # fmt: skip
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            comparison = ss.compare_fits(fits, seed=seed + 100)
-        print("\n" + comparison.summary(), flush=True)
-        if pool:
-            checks = {name: job.result() for name, job in jobs.items()}
-        else:
-            checks = {name: checked(r, seed, n_sim, slider) for name, r in fits.items()}
-    finally:
-        if pool:
-            pool.shutdown()
     chosen_name = comparison.chosen_name
     goodness, said_goodness, _ = checks[chosen_name]
     chosen = dataclasses.replace(comparison.chosen, goodness=goodness)
@@ -320,7 +341,7 @@ def conclude(fits, said, slider, out, n_sim, seed, workers):
     rows = si_parameters(chosen, slider)
     lines = verdict(chosen_name, chosen, comparison, p_values, data_si, sims_si, others)
     warned = [f"{k}: {w}" for k, ws in said.items() for w in ws]
-    warned += _ours(caught) + said_goodness
+    warned += caught + said_goodness
     record = write_report(out, chosen_name, comparison, rows, lines, warned, p_values, fits,
                           slider, n_sim, seed)  # fmt: skip
     record["goodness_of_the_others"] = others
@@ -351,9 +372,12 @@ def main(argv=None):
     print(f"{len(cycles)} cycles; reference slider: omega0 = {slider.scales.omega0:.4g} rad/s, "
           f"x0 = {slider.scales.length:.4g} m, force unit k x0 = {slider.scales.force:.4g} N, "
           f"v_b = {slider.v_b:.4g} m/s (the sticks' slope)", flush=True)  # fmt: skip
-    fits, said = fit_candidates(data, slider, args.n_sim, args.seed, args.workers)
-    fit_seconds = time.perf_counter() - wall0
-    record = conclude(fits, said, slider, out, args.n_sim, args.seed, args.workers)
+    fits, said, comparison, caught, checks, fits_done = run_all(
+        data, slider, args.n_sim, args.seed, args.workers
+    )
+    fit_seconds = fits_done - wall0
+    record = conclude(fits, said, comparison, caught, checks, slider, out, args.n_sim,
+                      args.seed)  # fmt: skip
     wall = time.perf_counter() - wall0
     usage = [resource.getrusage(w) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)]
     cpu = sum(u.ru_utime + u.ru_stime for u in usage)

@@ -227,8 +227,8 @@ def compare_fits(
     table = _table(order, cands, chosen, rejected, tests, alpha)
     method = (
         f"simplest of {len(names)} candidates not rejected at alpha = {alpha:g}: likelihood "
-        "ratios of the fits' smoothed simulated log-likelihoods (each the maximum of a "
-        "quadratic through a design of +-2 steps around the estimate), calibrated by "
+        "ratios of the fits' smoothed simulated log-likelihoods (each the maximum of the "
+        "fit's polynomial through its design, +-2 steps around the estimate), calibrated by "
         f"{n_boot} parametric-bootstrap replicates from the simpler model; rejected only if "
         "rejected with both of the fits' seeds; Bonferroni over richer rivals"
     )
