@@ -365,8 +365,9 @@ def _region(offsets: np.ndarray) -> np.ndarray:
     the box they span: its corners (+-2 along every axis at once) lie far from every point,
     where a polynomial fitted on steps wide against the surface's curvature (falls of up to
     `surface.MAX_STEP_DROP` a step) extrapolates: 15 log-likelihood units above every design
-    value, measured on the slider's random threshold (4 free). A grid of at least
-    `GRID_BUDGET` points inside it, and the design's points themselves."""
+    value, measured on the slider's random threshold (4 free). A grid of up to 33 points
+    a side (about `GRID_BUDGET` inside the hull from three free parameters; steps of 1/8
+    for one or two), and the design's points themselves."""
     p = offsets.shape[1]
     lo, hi = np.minimum(offsets.min(axis=0), 0.0), np.maximum(offsets.max(axis=0), 0.0)
     # the hull holds 1 / p! of the box: a grid of GRID_BUDGET p! points in the box, up to

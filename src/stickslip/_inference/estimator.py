@@ -252,11 +252,13 @@ def _estimate(
 
 
 # The most memory a fit keeps of the cycles simulated at its design points (both seeds),
-# for `compare_fits`: 8 B a cycle and column. A fit through a measurement keeps them (~2
-# MB at n_sim 1000, four columns and four free parameters, ~8 MB at 4000); per-cycle fits
-# at the default 10^5 cycles a point do not (the comparison simulates them again, the same
-# cycles: each is a function of the point and the seed, ~0.1 s).
-KEEP_SAMPLES_BYTES = 32 * 2**20
+# for `compare_fits`: 8 B a simulated cycle and fitted column. Through a measurement: ~2 MB
+# at n_sim 1000 with three columns and four free parameters (41 points), ~8 MB at the
+# default 4000. Per-cycle values at the default 10^5 cycles a point: kept for one free
+# parameter (5 points, 8 MB a column), not from two (13 points, 21 MB a column): the
+# comparison simulates them again, the same cycles (a function of the point and the
+# seed), ~0.1-0.3 s a point.
+KEEP_SAMPLES_BYTES = 16 * 2**20
 
 
 class _DesignSamples(list):
