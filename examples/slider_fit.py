@@ -259,7 +259,8 @@ def verdict(chosen_name, chosen, comparison, p_values, data_si, sims_si, others=
 # returning it to the system. A point's trace is millions of samples, and the extraction's
 # arrays of that size, each fresh from the system, page-faulted on every point: a point of
 # a fit took 0.90 s with these settings against 1.05 s without (8 points, one process),
-# the same numbers. Set for the workers only (read when a process starts), not for this one.
+# the same numbers. Set for the workers only (read when a process starts), not for this one;
+# other C libraries ignore them.
 ALLOCATOR = {
     "MALLOC_MMAP_THRESHOLD_": str(32 * 2**20),  # arrays up to 32 MB from the heap...
     "MALLOC_TRIM_THRESHOLD_": str(2 * 2**30),  # ...kept there when freed...
