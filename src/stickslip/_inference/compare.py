@@ -75,6 +75,7 @@ from .._errors import DataError, ParameterError, check_int
 from .goodness import ALPHA as GOODNESS_ALPHA
 from .goodness import _replicates, _Setting
 from .likelihood import _sample, _scored
+from .surface import _polynomial_terms
 
 # The level of each choice: a simpler model is kept unless p < ALPHA. The issue asks that a
 # model which holds be kept in >= 90 % of data sets: at 0.05 a calibrated test keeps it in
@@ -339,21 +340,14 @@ def _polynomial_max(offsets: np.ndarray, values: np.ndarray) -> np.ndarray:
     estimate, so the data's maximum sits near a point while a replicate's falls between
     points and is underrated: the replicates' ratios, and the p-values, would be pulled
     down. A polynomial's maximum does not depend on where in the design it falls."""
-    n_points, p = offsets.shape
-    pairs = [(i, j) for i in range(p) for j in range(i, p)]
-
-    def shape_terms(x):  # the curvature's and the cubic terms' columns
-        quad = [x[:, i] * x[:, j] * (0.5 if i == j else 1.0) for i, j in pairs]
-        return np.stack(quad + [x[:, i] ** 3 for i in range(p)], axis=1)
-
-    linear = np.hstack([np.ones((n_points, 1)), offsets])
-    coef = np.linalg.lstsq(np.hstack([linear, shape_terms(offsets)]), values.mean(axis=1),
-                           rcond=None)[0]  # fmt: skip
-    shape = coef[1 + p :]
-    ag = np.linalg.lstsq(linear, values - (shape_terms(offsets) @ shape)[:, None],
+    p = offsets.shape[1]
+    terms = _polynomial_terms(offsets)  # 1, linear | curvature, cubic (the fit's own)
+    linear, shape_terms = terms[:, : 1 + p], terms[:, 1 + p :]
+    shape = np.linalg.lstsq(terms, values.mean(axis=1), rcond=None)[0][1 + p :]
+    ag = np.linalg.lstsq(linear, values - (shape_terms @ shape)[:, None],
                          rcond=None)[0]  # (1 + p) x sets  # fmt: skip
-    x = _region(offsets)
-    surface = ag[0][None, :] + x @ ag[1:] + (shape_terms(x) @ shape)[:, None]
+    x = _polynomial_terms(_region(offsets))
+    surface = x[:, : 1 + p] @ ag + (x[:, 1 + p :] @ shape)[:, None]
     return surface.max(axis=0)
 
 

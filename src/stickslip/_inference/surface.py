@@ -202,11 +202,8 @@ def _polynomial_vertex(du, values, steps):
     (the quadratic's alone if there is no vertex)."""
     p = du.shape[1]
     ok = np.isfinite(values)
-    cols = [np.ones(len(du))] + [du[:, i] for i in range(p)]
-    pairs = [(i, j) for i in range(p) for j in range(i, p)]
-    cols += [du[:, i] * du[:, j] * (0.5 if i == j else 1.0) for i, j in pairs]
-    cols += [du[:, i] ** 3 for i in range(p)]
-    coef = np.linalg.lstsq(np.stack(cols, axis=1)[ok], values[ok], rcond=None)[0]
+    pairs = _pairs(p)
+    coef = np.linalg.lstsq(_polynomial_terms(du)[ok], values[ok], rcond=None)[0]
     g = coef[1 : 1 + p]
     Q = np.zeros((p, p))
     for (i, j), v in zip(pairs, coef[1 + p : 1 + p + len(pairs)], strict=True):
@@ -226,6 +223,22 @@ def _polynomial_vertex(du, values, steps):
         if np.all(np.abs(step) < 1e-6 * steps):
             break
     return x, Q + np.diag(6 * k * x)
+
+
+def _pairs(p: int) -> list[tuple[int, int]]:
+    """The curvature's index pairs (i <= j), in `_polynomial_terms`' column order."""
+    return [(i, j) for i in range(p) for j in range(i, p)]
+
+
+def _polynomial_terms(du: np.ndarray) -> np.ndarray:
+    """The columns of the surface's polynomial at offsets `du` (points x p): 1, du_i, the
+    curvature's du_i du_j (halved on the diagonal, `_pairs`' order) and du_i^3; shared by
+    `_polynomial_vertex` and `compare._polynomial_max`."""
+    p = du.shape[1]
+    cols = [np.ones(len(du))] + [du[:, i] for i in range(p)]
+    cols += [du[:, i] * du[:, j] * (0.5 if i == j else 1.0) for i, j in _pairs(p)]
+    cols += [du[:, i] ** 3 for i in range(p)]
+    return np.stack(cols, axis=1)
 
 
 def _evaluate(design, loglik, data):
