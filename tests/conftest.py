@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import pathlib
+import subprocess
 
 import numpy as np
 import pytest
@@ -57,6 +58,51 @@ def Langevin():
     import stickslip
 
     return stickslip.get_model("langevin")
+
+
+def run_cli(*args, cwd=None) -> subprocess.CompletedProcess:
+    """`stickslip *args` run in this process (click's `CliRunner`, from `cwd`), returned as
+    `subprocess.run` returns it (`returncode`, `stdout`, `stderr`): a new process would spend
+    1-2 s importing and loading compiled code before the command starts. An exception the
+    command does not handle is raised here. The installed console script in a process of its
+    own is tested in tests/test_study_errors.py (`test_console_script_exit_code`)."""
+    from click.testing import CliRunner
+
+    from stickslip.cli import main
+
+    before = os.getcwd()
+    if cwd is not None:
+        os.chdir(cwd)
+    try:
+        result = CliRunner().invoke(main, [str(a) for a in args])
+    finally:
+        os.chdir(before)
+    if result.exception is not None and not isinstance(result.exception, SystemExit):
+        raise result.exception
+    return subprocess.CompletedProcess(args, result.exit_code, result.stdout, result.stderr)
+
+
+def run_script(path, *args) -> subprocess.CompletedProcess:
+    """`python path *args` run in this process (as `__main__`, its stdout and stderr
+    captured), returned as `subprocess.run` returns it: an example's run without a new
+    process's start (importing JAX, loading compiled code: 1-2 s each). An exception the
+    script does not handle is raised here."""
+    import contextlib
+    import io
+    import runpy
+    import sys
+
+    out, err = io.StringIO(), io.StringIO()
+    argv, code = sys.argv, 0
+    sys.argv = [str(path), *(str(a) for a in args)]
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            runpy.run_path(str(path), run_name="__main__")
+    except SystemExit as stop:
+        code = stop.code if isinstance(stop.code, int) else int(stop.code is not None)
+    finally:
+        sys.argv = argv
+    return subprocess.CompletedProcess(args, code, out.getvalue(), err.getvalue())
 
 
 def chi2_homogeneity(counts_a, counts_b, min_expected=5.0):

@@ -2,20 +2,17 @@
 
 from __future__ import annotations
 
-import subprocess
 import sys
 
 import numpy as np
 import pytest
+from conftest import run_cli
 
 import stickslip as ss
 
 
 def _cli(*args, cwd):
-    return subprocess.run(
-        [sys.executable, "-m", "stickslip.cli", "cycles", *args],
-        capture_output=True, text=True, cwd=cwd,
-    )  # fmt: skip
+    return run_cli("cycles", *args, cwd=cwd)
 
 
 def _sine_csv(path, offset=0.0, bom=False):

@@ -6,6 +6,7 @@ import subprocess
 import sys
 
 import pytest
+from conftest import run_script
 
 import stickslip as ss
 
@@ -14,18 +15,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 def test_public_reference_example(tmp_path):
     out = tmp_path / "results"
-    run = subprocess.run(
-        [
-            sys.executable,
-            str(ROOT / "examples" / "public_reference.py"),
-            "--out",
-            str(out),
-            "--n-paths",
-            "2000",
-        ],
-        capture_output=True,
-        text=True,
-    )
+    run = run_script(ROOT / "examples" / "public_reference.py", "--out", out, "--n-paths", 2000)
     assert run.returncode == 0, run.stderr
     for name in (
         "summary.md",
@@ -53,11 +43,7 @@ def test_carlson_langer_example(tmp_path):
 
 
 def test_white_noise_example():
-    run = subprocess.run(
-        [sys.executable, str(ROOT / "examples" / "white_noise_degeneracy.py"), "--n-paths", "300"],
-        capture_output=True,
-        text=True,
-    )
+    run = run_script(ROOT / "examples" / "white_noise_degeneracy.py", "--n-paths", 300)
     assert run.returncode == 0, run.stderr
     assert "Brownian bridge" in run.stdout
 

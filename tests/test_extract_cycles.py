@@ -4,12 +4,11 @@ uniform grid as a measurement would be, must give back the simulated cycles."""
 from __future__ import annotations
 
 import pathlib
-import subprocess
-import sys
 import warnings
 
 import numpy as np
 import pytest
+from conftest import run_cli, run_script
 
 import stickslip as ss
 
@@ -244,10 +243,7 @@ def test_cycles_table_and_csv(tmp_path):
 
 
 def _cli(*args, cwd):
-    return subprocess.run(
-        [sys.executable, "-m", "stickslip.cli", "cycles", *args],
-        capture_output=True, text=True, cwd=cwd,
-    )  # fmt: skip
+    return run_cli("cycles", *args, cwd=cwd)
 
 
 def test_cli(tmp_path):
@@ -567,11 +563,7 @@ def test_measured_inertial_run_is_refused_in_one_line():
 def test_slider_example_runs(tmp_path):
     """examples/slider_trace.py on the shipped measured trace, without the sensitivity
     table (the docs' figures and table come from the full run)."""
-    run = subprocess.run(
-        [sys.executable, str(DATA.parents[1] / "slider_trace.py"), "--out", str(tmp_path),
-         "--no-sensitivity"],
-        capture_output=True, text=True,
-    )  # fmt: skip
+    run = run_script(DATA.parents[1] / "slider_trace.py", "--out", tmp_path, "--no-sensitivity")
     assert run.returncode == 0, run.stderr
     for name in ("slider_window.png", "slider_histograms.png", "slider_cycles.csv"):
         assert (tmp_path / name).stat().st_size > 0

@@ -4,12 +4,11 @@ parameters). Data are simulated from known parameters with seeds the fit does no
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 import time
 
 import numpy as np
 import pytest
+from conftest import run_cli
 
 import stickslip as ss
 from stickslip._inference.forward import _simulate
@@ -93,10 +92,7 @@ def test_fit_command_writes_estimates_intervals_and_figure(tmp_path):
                comments="")  # fmt: skip
     study = _study(tmp_path)
     out = tmp_path / "out"
-    proc = subprocess.run(
-        [sys.executable, "-m", "stickslip.cli", "fit", str(study), "--out", str(out), "-q"],
-        capture_output=True, text=True,
-    )  # fmt: skip
+    proc = run_cli("fit", study, "--out", out, "-q")
     assert proc.returncode == 0, proc.stderr
     record = json.loads((out / "fit.json").read_text())
     lo, hi = record["ci95"]["D"]
@@ -128,10 +124,7 @@ def test_fit_command_bad_data_is_one_line_and_writes_nothing(tmp_path, content, 
     (tmp_path / "cycles.csv").write_text(content)
     study = _study(tmp_path)
     out = tmp_path / "out"
-    proc = subprocess.run(
-        [sys.executable, "-m", "stickslip.cli", "fit", str(study), "--out", str(out)],
-        capture_output=True, text=True,
-    )  # fmt: skip
+    proc = run_cli("fit", study, "--out", out)
     assert proc.returncode == 2, proc.stderr
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and field in lines[0], lines

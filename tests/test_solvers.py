@@ -1,15 +1,22 @@
 """The slip-phase solvers as diffrax solvers."""
 
+import equinox as eqx
 import numpy as np
 import pytest
 import scipy.integrate
 import scipy.linalg
 
 from stickslip import EulerMaruyama, ExactGaussian, _rng
-from stickslip._jax import jnp
+from stickslip._jax import jax, jnp
 from stickslip._model import _to_arrays
-from stickslip._solver import PathwiseBrownian, SlipTerm
-from stickslip._solver.exact import psd_factor, transition
+from stickslip._solver import PathwiseBrownian, SlipTerm, exact
+
+# The solvers run as the simulator runs them, inside compiled code: one compilation per
+# function and shape instead of one per primitive and shape (op by op: 12 s of a cold run).
+transition = jax.jit(exact.transition)
+psd_factor = jax.jit(exact.psd_factor)
+traced_solver = eqx.filter_jit(ExactGaussian)
+dense_nodes = eqx.filter_jit(lambda solver, m, y0, y1, h: solver.dense_nodes(m, y0, y1, h))
 
 A = np.array([[0.0, 1.0, 0.0], [-1.0, -0.1, 1.0], [0.0, 0.0, -10.0]])
 b = np.array([0.1, -0.2, 0.0])
@@ -44,11 +51,18 @@ def test_psd_factor_handles_tiny_and_zero_variances():
 def _setup(Langevin, solver, n, tau=0.1):
     model = _to_arrays(Langevin(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=tau))
     key = _rng.stream_key(_rng.seed_key(0), _rng.STEP)
-    path = jnp.arange(n, dtype=jnp.uint32)
-    dt = jnp.asarray(0.01)
+    path = np.arange(n, dtype=np.uint32)
+    dt = np.asarray(0.01)
     control = PathwiseBrownian(key, path, dt, solver.noise_dim(model))
-    X0 = jnp.tile(jnp.asarray(model.onset_state(None))[:, None], (1, n))
+    X0 = np.tile(np.asarray(model.onset_state(None))[:, None], (1, n))
     return model, SlipTerm(model, control), (X0, None)
+
+
+@eqx.filter_jit
+def _first_step(solver, terms, y0, model, t0, t1):
+    """One step of `solver` from `y0`, and the control's `(h, dW)` over it."""
+    state = solver.init(terms, t0, t1, y0, model)
+    return solver.step(terms, t0, t1, y0, model, state, False)[0][0], terms.contr(t0, t1)
 
 
 def test_host_built_solver_equals_the_traced_one(Langevin):
@@ -57,7 +71,7 @@ def test_host_built_solver_equals_the_traced_one(Langevin):
     m = Langevin(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=0.1)
     lg = m.linear_gaussian()
     for h in (0.01, 0.7, 5.0):
-        traced = ExactGaussian(lg.A, lg.b, lg.B, h, nodes=16)
+        traced = traced_solver(lg.A, lg.b, lg.B, jnp.asarray(h), nodes=16)  # one compilation
         host = ExactGaussian(lg.A, lg.b, lg.B, h, nodes=16, host=True)
         for name in ("Phi", "c", "node_Phi", "node_c", "node_G", "node_dG"):
             a, b = np.asarray(getattr(traced, name)), getattr(host, name)
@@ -73,10 +87,9 @@ def test_exact_step_has_the_transition_law(Langevin):
     n, h = 200_000, 0.01
     m = Langevin(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=0.1)
     lg = m.linear_gaussian()
-    solver = ExactGaussian(lg.A, lg.b, lg.B, h)
+    solver = traced_solver(lg.A, lg.b, lg.B, h)
     model, terms, y0 = _setup(Langevin, solver, n)
-    state = solver.init(terms, 0.0, 1.0, y0, model)
-    X1 = np.asarray(solver.step(terms, 0.0, 1.0, y0, model, state, False)[0][0])
+    X1 = np.asarray(_first_step(solver, terms, y0, model, 0.0, 1.0)[0])
     Phi, c, Sigma = (np.asarray(a) for a in transition(lg.A, lg.b, lg.B, h))
     mean = Phi @ np.asarray(lg.m0) + c
     dev = X1 - mean[:, None]
@@ -91,9 +104,7 @@ def test_euler_maruyama_step(Langevin):
     """X1 = X0 + f(X0) h + G(X0) dW with the increments the control hands out for that step."""
     solver = EulerMaruyama()
     model, terms, y0 = _setup(Langevin, solver, 64)
-    state = solver.init(terms, 3.0, 4.0, y0, model)
-    ours = np.asarray(solver.step(terms, 3.0, 4.0, y0, model, state, False)[0][0])
-    h, dw = (np.asarray(a) for a in terms.contr(3.0, 4.0))
+    ours, (h, dw) = jax.tree.map(np.asarray, _first_step(solver, terms, y0, model, 3.0, 4.0))
     X0 = np.asarray(y0[0])
     x, v, eta = X0
     drift = np.stack([v, -x - 0.1 * v + eta, -eta / 0.1])
@@ -101,7 +112,7 @@ def test_euler_maruyama_step(Langevin):
     np.testing.assert_allclose(ours, X0 + drift * h + diffusion, rtol=1e-14, atol=1e-15)
     assert h == pytest.approx(0.01)
     # The increments of step 3 are the same whichever step they are drawn from (counters).
-    again = np.asarray(terms.control.evaluate(3.0, 4.0))
+    again = np.asarray(eqx.filter_jit(lambda c: c.evaluate(3.0, 4.0))(terms.control))
     np.testing.assert_array_equal(again, dw)
 
 
@@ -113,12 +124,12 @@ def test_bridge_mean_nodes(Langevin, nodes):
     h = 0.02
     m = Langevin(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=0.1)
     lg = m.linear_gaussian()
-    solver = ExactGaussian(lg.A, lg.b, lg.B, h, nodes=nodes)
+    solver = traced_solver(lg.A, lg.b, lg.B, h, nodes=nodes)
     rng = np.random.default_rng(0)
     y0 = rng.normal(size=(3, 5))
     y1 = rng.normal(size=(3, 5))
     values, slopes = (
-        np.asarray(a) for a in solver.dense_nodes(m, jnp.asarray(y0), jnp.asarray(y1), h)
+        np.asarray(a) for a in dense_nodes(solver, m, jnp.asarray(y0), jnp.asarray(y1), h)
     )
     np.testing.assert_array_equal(values[0], y0)
     np.testing.assert_array_equal(values[-1], y1)
@@ -133,8 +144,8 @@ def test_bridge_mean_nodes(Langevin, nodes):
         expected = mean_s + cov_s_h @ np.linalg.solve(cov_h, y1 - P2 @ mean_s)
         np.testing.assert_allclose(values[j], expected, rtol=1e-7, atol=1e-9)
     # Slopes are the time derivative of the node values (finite differences of a fine solver).
-    fine = ExactGaussian(lg.A, lg.b, lg.B, h, nodes=64)
-    fv, fs = (np.asarray(a) for a in fine.dense_nodes(m, jnp.asarray(y0), jnp.asarray(y1), h))
+    fine = traced_solver(lg.A, lg.b, lg.B, h, nodes=64)
+    fv, fs = (np.asarray(a) for a in dense_nodes(fine, m, jnp.asarray(y0), jnp.asarray(y1), h))
     fd = (fv[2:] - fv[:-2]) / (2 * h / 64)
     np.testing.assert_allclose(fd, fs[1:-1], rtol=2e-3, atol=2e-3 * np.abs(fs).max())
 
@@ -150,11 +161,11 @@ def test_noise_free_nodes_are_the_flow(Langevin):
     h = 0.05
     m = Langevin(omega0=1.0, zeta=0.1, D=0.0, v_b=1.0, x0=1.0, tau=0.1)
     lg = m.linear_gaussian()
-    solver = ExactGaussian(lg.A, lg.b, lg.B, h, nodes=4)
+    solver = traced_solver(lg.A, lg.b, lg.B, h, nodes=4)
     y0 = np.array([[1.0], [1.0], [0.0]])
     y1 = scipy.linalg.expm(np.asarray(lg.A) * h) @ y0
     values, slopes = (
-        np.asarray(a) for a in solver.dense_nodes(m, jnp.asarray(y0), jnp.asarray(y1), h)
+        np.asarray(a) for a in dense_nodes(solver, m, jnp.asarray(y0), jnp.asarray(y1), h)
     )
     for j in range(5):
         flow = scipy.linalg.expm(np.asarray(lg.A) * h * j / 4) @ y0
