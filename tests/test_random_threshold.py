@@ -65,6 +65,28 @@ def test_zero_spread_is_langevin(RandomThreshold, Langevin, law, tau):
         np.testing.assert_allclose(ea.period_density(T), eb.period_density(T), atol=1e-10)
 
 
+def test_every_law_steps_on_the_plain_models_compiled_loop(RandomThreshold, Langevin):
+    """The slip phase is the `langevin` one (`slip_phase`): a run of any threshold law uses
+    the stepping loops, in-step location and upcrossing count of the plain model (one
+    compiled program for all of them, the same key); only the release differs. That the
+    numbers are the same is the zero-spread test above (bit for bit) and the model
+    contract (the slip-phase methods agree)."""
+    from stickslip._rng import seed_key
+    from stickslip._simulate.driver import _Run
+
+    def run(model):
+        return _Run("simulate", model, "auto", "continuous", 0.2, 20.0, seed_key(0))
+
+    for tau in (0.1, None):
+        base = BASE | {"tau": tau}
+        plain = run(Langevin(**base, x0=1.0))
+        for law, params in LAWS.items():
+            rt = run(RandomThreshold(**base, threshold=law, threshold_params=params))
+            assert rt.advance.key is plain.advance.key, law
+            assert rt.advance_past.key is plain.advance_past.key, law
+            assert rt.onset.key is not plain.onset.key  # the release draws the law's thresholds
+
+
 @pytest.mark.parametrize("law", sorted(LAWS))
 def test_thresholds_follow_their_law(RandomThreshold, law):
     """Onset positions of a simulated ensemble against the SciPy law (KS test), and the

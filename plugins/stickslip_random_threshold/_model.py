@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import equinox as eqx
 import numpy as np
-from stickslip_langevin import LangevinSlip
+from stickslip_langevin import Langevin, LangevinSlip
 
 from stickslip.plugin import check_real, jax
 
@@ -91,6 +91,14 @@ class RandomThreshold(LangevinSlip):
         return cls(1.0, 0.1, 0.4, 1.0, "lognormal", {"median": 1.0, "sigma": 0.25}, tau=0.1)
 
     # The slip phase is the Langevin one (LangevinSlip); only the threshold is random.
+    def slip_phase(self):
+        # The `langevin` model with the same slip (its threshold, the median, is used only at
+        # release): every threshold law runs on the stepping loop the plain model compiles.
+        return Langevin(
+            self.omega0, self.zeta, self.D, self.v_b, self._length_scale(), tau=self.tau,
+            eta0=self.eta0,
+        )  # fmt: skip
+
     def threshold_at(self, key):
         return self.threshold.sample(jax.random.fold_in(key, 1))
 

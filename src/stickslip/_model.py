@@ -132,6 +132,20 @@ class FrictionModel(eqx.Module):
         """The linear-Gaussian description of the slip phase, or None (the default)."""
         return None
 
+    def slip_phase(self) -> FrictionModel:
+        """The model as the simulator's compiled slip-phase code sees it (default: itself).
+
+        The stepping loop and the in-step location call only the slip-phase methods
+        (`state_names`, `noise_dim`, `drift`, `diffusion`, `crossing`, `crossing_rate`,
+        `crossing_noise`, `stick_level`); the release (`onset_state`), the stick phase and the
+        linear-Gaussian description are always the model's own. A model whose other fields
+        matter only at release or in the stick phase (a law of random thresholds) may return
+        a plainer model whose slip-phase methods compute the same numbers: runs of both then
+        share those compiled programs (one compilation instead of one per model class and
+        law; the `random-threshold` plugin returns its `langevin` slip). The results are the
+        same to the last bit; the model contract test checks the methods agree."""
+        return self
+
     def onset_mixture(self, nodes: int = 32):
         """The law of the onset state as a mixture of Gaussians, for the exact estimator:
         `(m0s (K, d), P0s (K, d, d), weights (K,))`, weights summing to 1. The default is the

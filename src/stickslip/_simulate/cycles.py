@@ -250,7 +250,7 @@ def _traces(run, table, path_ids):
         # compiled it again, 0.5-3 s)
         ys = np.asarray(
             run.call(
-                _record, run.model, run.solver, run.cfg, X0, ks, path, run.dt_arr,
+                _record, run.slip, run.solver, run.cfg, X0, ks, path, run.dt_arr,
                 run.keys["step"], run.keys["bridge"], n_rec, paths=n,
             )
         )  # fmt: skip

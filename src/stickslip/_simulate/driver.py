@@ -577,6 +577,10 @@ class _Run:
         self.stats = {"dispatches": 0, "transfers": 0}
         self._count_lock = threading.Lock()
         self.model = _to_arrays(model)
+        # What the compiled slip-phase code (stepping, in-step location, upcrossings) is
+        # given: `FrictionModel.slip_phase` (models that differ only at release share it).
+        slip = model.slip_phase()
+        self.slip = self.model if slip is model else _to_arrays(slip)
         self._fixed: dict = {}  # `call`'s executables with the model as first argument
         # The slip's linear-Gaussian description on the host (one compiled call: evaluated
         # op by op, its first use in a process compiles each operation).
@@ -635,12 +639,12 @@ class _Run:
             self.locator = _make_solver(lg, self.cfg, dt, self.nodes)
         # The stepping loop, its model and solver flattened once for all its calls.
         self.advance = _compile.Fixed(
-            _advance, self.model, self.solver, self.cfg, 0, timer=self.timer
+            _advance, self.slip, self.solver, self.cfg, 0, timer=self.timer
         )
         self.onset = _compile.Fixed(_onset, self.model, smooth, timer=self.timer)
         # Small buffers of the bridge detector (`_chunk`): the loop that steps past candidates.
         self.advance_past = _compile.Fixed(
-            _advance, self.model, self.solver, self.cfg, PAST_SLOTS, timer=self.timer
+            _advance, self.slip, self.solver, self.cfg, PAST_SLOTS, timer=self.timer
         )
         self.stats.update(path_steps=0, buffers=0)
         if detect == "bridge":
@@ -669,13 +673,18 @@ class _Run:
         )
 
     def call(self, fn, *args, paths=None):
-        """`_compile.call`; a call whose first argument is the run's model and whose others
-        are arrays goes through a `_compile.Fixed` of the run (the model partitioned once, not
-        at every call: ~0.5 ms a call)."""
-        if args and args[0] is self.model and all(isinstance(a, _ARRAYS) for a in args[1:]):
-            fixed = self._fixed.get(fn)
+        """`_compile.call`; a call whose first argument is the run's model (or its slip phase,
+        `slip`) and whose others are arrays goes through a `_compile.Fixed` of the run (the
+        model partitioned once, not at every call: ~0.5 ms a call)."""
+        first = args[0] if args else None
+        if (first is self.model or first is self.slip) and all(
+            isinstance(a, _ARRAYS) for a in args[1:]
+        ):
+            fixed = self._fixed.get((fn, first is self.model))
             if fixed is None:
-                fixed = self._fixed[fn] = _compile.Fixed(fn, self.model, timer=self.timer)
+                fixed = self._fixed[(fn, first is self.model)] = _compile.Fixed(
+                    fn, first, timer=self.timer
+                )
             return self._counted(fixed(*args[1:], paths=paths))
         return self._counted(_compile.call(fn, *args, timer=self.timer, paths=paths))
 
@@ -767,7 +776,7 @@ class _Run:
             if cfg.detect == "bridge":
                 cfg = dataclasses.replace(cfg, detect="cubic")
             c, t, x = self.call(
-                record, self.model, self.solver, cfg, X, p, self.dt_arr,
+                record, self.slip, self.solver, cfg, X, p, self.dt_arr,
                 self.keys["step"], self.keys["bridge"], np.asarray(float(self.n_steps)),
                 max_crossings, paths=size,
             )  # fmt: skip
@@ -1055,7 +1064,7 @@ class _Run:
     def _locate_chunk(self, X_end, X_prev_end, k_end, path, count, t_stick, stick_state, located):
         """Locate each stick inside its step (all detectors but the bridge), in batches that
         bound the memory of the dense nodes."""
-        model, cfg, keys = self.model, self.cfg, self.keys
+        model, cfg, keys = self.slip, self.cfg, self.keys
         done = np.nonzero(k_end[:count] >= 0)[0]
         batch = min(LOCATE_BATCH, _buffer_size(max(done.size, 1)))
         for start in range(0, done.size, batch):
