@@ -111,9 +111,18 @@ def test_detector_choice(Langevin):
         (base | {"tau": None}, {}, "brownian"),
         (base, {"monitor": "grid"}, "grid"),
     ]
+    # The choice is made when a run is set up (`_Run`: no simulation, nothing compiled for
+    # the four other detectors, each a program of its own); the first case runs, and says
+    # it in the ensemble's `info`.
+    from stickslip._rng import seed_key
+    from stickslip._simulate.driver import _Run
+
     for params, kwargs, detector in cases:
-        ens = ss.simulate(Langevin(**params), 200, 0.05, 5.0, seed=1, **kwargs)
-        assert ens.info["detector"] == detector, (params, kwargs)
+        run = _Run("simulate", Langevin(**params), kwargs.get("solver", "auto"),
+                   kwargs.get("monitor", "continuous"), 0.05, 5.0, seed_key(1))  # fmt: skip
+        assert run.info(Langevin(**params))["detector"] == detector, (params, kwargs)
+    ens = ss.simulate(Langevin(**base), 200, 0.05, 5.0, seed=1)
+    assert ens.info["detector"] == "bridge"
 
 
 def test_paths_that_never_stuck_have_no_stick_state(Langevin):

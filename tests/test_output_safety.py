@@ -26,7 +26,7 @@ STUDY = {
         "name": "langevin",
         "params": {"omega0": 1.0, "zeta": 0.1, "D": 0.4, "v_b": 1.0, "x0": 1.0, "tau": 0.1},
     },
-    "simulation": {"n_paths": 200, "dt": 0.01, "t_max": 30},
+    "simulation": {"n_paths": 200, "dt": 0.2, "t_max": 30},
     "outputs": ["slip_time"],
 }
 FIT = {"data": "cycles.csv", "free": {"D": [0.05, 2.0]}, "n_sim": 1000}
