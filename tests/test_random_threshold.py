@@ -66,7 +66,8 @@ def test_zero_spread_is_langevin(RandomThreshold, Langevin, law, tau):
 
 
 def test_every_law_steps_on_the_plain_models_compiled_loop(RandomThreshold, Langevin):
-    """The slip phase is the `langevin` one (`slip_phase`): a run of any threshold law uses
+    """The slip phase is the `langevin` one (`slip_phase`): a run of any threshold law (and
+    of either noise at release) uses
     the stepping loops, in-step location and upcrossing count of the plain model (one
     compiled program for all of them, the same key); only the release differs. That the
     numbers are the same is the zero-spread test above (bit for bit) and the model
@@ -85,6 +86,13 @@ def test_every_law_steps_on_the_plain_models_compiled_loop(RandomThreshold, Lang
             assert rt.advance.key is plain.advance.key, law
             assert rt.advance_past.key is plain.advance_past.key, law
             assert rt.onset.key is not plain.onset.key  # the release draws the law's thresholds
+    # Stationary noise at release (`eta0`) leaves the slip as it is: the same programs.
+    stationary = Langevin(**BASE, x0=1.0, eta0="stationary")
+    assert run(stationary).advance.key is run(Langevin(**BASE, x0=1.0)).advance.key
+    y = np.array([0.7, 0.2, -0.3])
+    for f in ("drift", "diffusion", "crossing", "crossing_rate", "crossing_noise"):
+        a, b = getattr(stationary.slip_phase(), f)(y), getattr(stationary, f)(y)
+        np.testing.assert_array_equal(a, b, err_msg=f)
 
 
 @pytest.mark.parametrize("law", sorted(LAWS))

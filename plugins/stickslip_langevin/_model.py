@@ -178,6 +178,13 @@ class Langevin(LangevinSlip):
     def mean_threshold(self):
         return self.x0
 
+    def slip_phase(self):
+        # `eta0` decides only the noise drawn at release: a "stationary" model slips as the
+        # "zero" one, and runs on its compiled programs.
+        if self.eta0 == "zero":
+            return self
+        return Langevin(self.omega0, self.zeta, self.D, self.v_b, self.x0, tau=self.tau)
+
     def __init__(self, omega0, zeta, D, v_b, x0, tau=None, eta0="zero"):
         # Store plain floats (ints accepted); validation in __check_init__ names the field.
         def as_float(name, value):

@@ -92,12 +92,11 @@ class RandomThreshold(LangevinSlip):
 
     # The slip phase is the Langevin one (LangevinSlip); only the threshold is random.
     def slip_phase(self):
-        # The `langevin` model with the same slip (its threshold, the median, is used only at
-        # release): every threshold law runs on the stepping loop the plain model compiles.
+        # The `langevin` model with the same slip (its threshold, the median, and `eta0` are
+        # used only at release): every threshold law runs on the plain model's compiled loops.
         return Langevin(
-            self.omega0, self.zeta, self.D, self.v_b, self._length_scale(), tau=self.tau,
-            eta0=self.eta0,
-        )  # fmt: skip
+            self.omega0, self.zeta, self.D, self.v_b, self._length_scale(), tau=self.tau
+        )
 
     def threshold_at(self, key):
         return self.threshold.sample(jax.random.fold_in(key, 1))
