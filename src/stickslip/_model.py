@@ -58,6 +58,9 @@ class FrictionModel(eqx.Module):
       e.g. a random threshold or a random initial noise);
     - optionally `linear_gaussian()`, when the slip SDE is linear with additive noise: the
       simulator then steps exactly and the estimator is exact.
+    - optionally `slip_phase()`, a plainer model with the same slip-phase methods, when the
+      model's other fields matter only at release or in the stick phase: runs of both then
+      share the simulator's compiled slip-phase programs.
 
     The defaults read the crossing variable and position from the state components named
     `"v"` and `"x"`, and give the stick phase of eq. (9): the position advances at the stick
