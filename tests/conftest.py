@@ -105,6 +105,21 @@ def run_script(path, *args) -> subprocess.CompletedProcess:
     return subprocess.CompletedProcess(args, code, out.getvalue(), err.getvalue())
 
 
+SLIP_METHODS = ("drift", "diffusion", "crossing", "crossing_rate", "crossing_noise")
+
+
+def assert_same_slip(model, states) -> None:
+    """`model.slip_phase()` (what the simulator's compiled slip-phase code runs on) gives the
+    model's own slip-phase numbers, bit for bit, at each state in `states`."""
+    slip = model.slip_phase()
+    assert slip.state_names == model.state_names and slip.noise_dim == model.noise_dim
+    assert slip.crossing_is_smooth == model.crossing_is_smooth
+    assert float(slip.stick_level) == float(model.stick_level)
+    for y in states:
+        for f in SLIP_METHODS:
+            np.testing.assert_array_equal(getattr(slip, f)(y), getattr(model, f)(y), err_msg=f)
+
+
 def chi2_homogeneity(counts_a, counts_b, min_expected=5.0):
     """Chi-square test that two histograms (same bins) come from one distribution.
 

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from conftest import assert_same_slip
 
 import stickslip as ss
 from stickslip._jax import jax, jnp
@@ -27,13 +28,7 @@ def test_model_contract(name, cls):
     slip = m.slip_phase()  # what the compiled slip-phase code runs on: the same numbers
     if slip is not m:
         assert isinstance(slip, ss.FrictionModel)
-        assert slip.state_names == m.state_names and slip.noise_dim == m.noise_dim
-        assert slip.crossing_is_smooth == m.crossing_is_smooth
-        assert float(slip.stick_level) == float(m.stick_level)
-        rng = np.random.default_rng(1)
-        for y in (y0, y0 + rng.normal(size=d)):
-            for f in ("drift", "diffusion", "crossing", "crossing_rate", "crossing_noise"):
-                np.testing.assert_array_equal(getattr(slip, f)(y), getattr(m, f)(y), err_msg=f)
+        assert_same_slip(m, (y0, y0 + np.random.default_rng(1).normal(size=d)))
     lg = m.linear_gaussian()
     if lg is not None:
         y = y0 + 0.1

@@ -118,9 +118,10 @@ def test_detector_choice(Langevin):
     from stickslip._simulate.driver import _Run
 
     for params, kwargs, detector in cases:
-        run = _Run("simulate", Langevin(**params), kwargs.get("solver", "auto"),
+        model = Langevin(**params)
+        run = _Run("simulate", model, kwargs.get("solver", "auto"),
                    kwargs.get("monitor", "continuous"), 0.05, 5.0, seed_key(1))  # fmt: skip
-        assert run.info(Langevin(**params))["detector"] == detector, (params, kwargs)
+        assert run.info(model)["detector"] == detector, (params, kwargs)
     ens = ss.simulate(Langevin(**base), 200, 0.05, 5.0, seed=1)
     assert ens.info["detector"] == "bridge"
 

@@ -6,6 +6,7 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import assert_same_slip
 from scipy import stats
 
 import stickslip as ss
@@ -66,12 +67,10 @@ def test_zero_spread_is_langevin(RandomThreshold, Langevin, law, tau):
 
 
 def test_every_law_steps_on_the_plain_models_compiled_loop(RandomThreshold, Langevin):
-    """The slip phase is the `langevin` one (`slip_phase`): a run of any threshold law (and
-    of either noise at release) uses
-    the stepping loops, in-step location and upcrossing count of the plain model (one
-    compiled program for all of them, the same key); only the release differs. That the
-    numbers are the same is the zero-spread test above (bit for bit) and the model
-    contract (the slip-phase methods agree)."""
+    """The slip phase is the `langevin` one (`slip_phase`): a run of any threshold law, and
+    of either noise at release, steps on the plain model's compiled loops (the same program
+    keys); only the release differs. That the numbers are the same: the zero-spread test
+    above (bit for bit) and the slip-phase methods (here and in the model contract)."""
     from stickslip._rng import seed_key
     from stickslip._simulate.driver import _Run
 
@@ -89,10 +88,7 @@ def test_every_law_steps_on_the_plain_models_compiled_loop(RandomThreshold, Lang
     # Stationary noise at release (`eta0`) leaves the slip as it is: the same programs.
     stationary = Langevin(**BASE, x0=1.0, eta0="stationary")
     assert run(stationary).advance.key is run(Langevin(**BASE, x0=1.0)).advance.key
-    y = np.array([0.7, 0.2, -0.3])
-    for f in ("drift", "diffusion", "crossing", "crossing_rate", "crossing_noise"):
-        a, b = getattr(stationary.slip_phase(), f)(y), getattr(stationary, f)(y)
-        np.testing.assert_array_equal(a, b, err_msg=f)
+    assert_same_slip(stationary, [np.array([0.7, 0.2, -0.3])])
 
 
 @pytest.mark.parametrize("law", sorted(LAWS))
