@@ -68,14 +68,27 @@ def test_stand_in_sizes_give_the_numbers_of_every_size_compiled(empty_cache, mon
     """From an empty cache, the `"reuse"` policy runs the survivors on the buffers it has
     (the first size, padded) and compiles a few programs; `"eager"` then compiles every
     buffer size the run passes through: the same numbers to the last bit (they are keyed by
-    path and step, not by buffer). The exact detector (refinement, speculation at small
-    buffers) and the grid monitor (sticks located after the stepping)."""
+    path and step, not by buffer); runs of fewer and more paths compile no loop. The exact
+    detector (refinement, speculation at small buffers) and the grid monitor (sticks
+    located after the stepping)."""
     model = ss.get_model("langevin")(**PUBLIC, tau=0.1)
     monkeypatch.setenv("STICKSLIP_COMPILE", "reuse")
     before = ss.cache_info()["compiles"]
     reuse = ss.simulate(model, 3000, 0.2, 30.0, seed=5, monitor=monitor)
     # the model's description, the per-path helpers, the loop, the refinement or locator
     assert ss.cache_info()["compiles"] - before <= 4
+    # Runs of other sizes start on the loop at hand: fewer paths on its larger buffer
+    # (padded), more in chunks of its size; a path's numbers are its own (keyed by its
+    # index): the first paths of each run are the paths of the run above.
+    before = ss.cache_info()["compiles"]
+    fewer = ss.simulate(model, 300, 0.2, 30.0, seed=5, monitor=monitor)
+    assert ss.cache_info()["compiles"] == before
+    more = ss.simulate(model, 20000, 0.2, 30.0, seed=5, monitor=monitor)
+    assert ss.cache_info()["compiles"] - before <= 1  # (the onset states of 20000 paths)
+    for name in OUTPUTS:
+        a = getattr(reuse, name)
+        np.testing.assert_array_equal(getattr(fewer, name), a[:300], err_msg=name)
+        np.testing.assert_array_equal(getattr(more, name)[:3000], a, err_msg=name)
     _compile.clear_caches()
     monkeypatch.setenv("STICKSLIP_COMPILE", "eager")
     before = ss.cache_info()["compiles"]

@@ -12,6 +12,7 @@ import time
 
 import numpy as np
 import pytest
+from conftest import run_cli
 
 import stickslip as ss
 
@@ -29,15 +30,24 @@ SWEEP = dict(
 )
 
 
-def _cluster():
+def _cluster(n_workers=2):
     return distributed.LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
+        n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=":0"
     )
 
 
 @pytest.fixture(scope="module")
 def client():
+    """Two worker processes: the work is split between processes (the slow tier's runs)."""
     with _cluster() as cluster, distributed.Client(cluster) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def one_worker():
+    """One worker process: the default tier's sweep, whose points still run as tasks in
+    another process (each worker costs ~5 s of CPU: a new process's start and loading)."""
+    with _cluster(n_workers=1) as cluster, distributed.Client(cluster) as c:
         yield c
 
 
@@ -53,7 +63,7 @@ def assert_same(a, b, names):
         assert np.array_equal(x, y, equal_nan=True), name
 
 
-@pytest.mark.slow  # 15 s (the default tier keeps the sweep below on the same cluster)
+@pytest.mark.slow  # 15 s (the default tier keeps the sweep below, on one worker process)
 def test_ensemble_on_two_worker_processes_is_the_local_one(client, model):
     """The issue's acceptance: 40000 paths, dt 0.01, t_max 30, seed 3 on a 2-process local
     cluster give exactly the local arrays."""
@@ -100,12 +110,12 @@ def test_upcrossings_cycles_and_chains_on_the_cluster(client, model):
     assert np.array_equal(np.concatenate(local.releases), np.concatenate(remote.releases))
 
 
-def test_sweep_on_the_cluster_writes_the_local_dataset(client, tmp_path):
+def test_sweep_on_the_cluster_writes_the_local_dataset(one_worker, tmp_path):
     """A sweep's points run as tasks; the Dataset written is the local one, bar wall times."""
     import xarray as xr
 
     ss.run_study(SWEEP, tmp_path / "local", progress=False, figures=False)
-    ss.run_study(SWEEP, tmp_path / "dask", progress=False, figures=False, client=client)
+    ss.run_study(SWEEP, tmp_path / "dask", progress=False, figures=False, client=one_worker)
     with xr.open_dataset(tmp_path / "local" / "results.nc") as a:
         with xr.open_dataset(tmp_path / "dask" / "results.nc") as b:
             timings = {k for k in a.data_vars if k.startswith("seconds_")}
@@ -143,6 +153,8 @@ def test_a_worker_killed_mid_ensemble_changes_no_number(model):
 
 
 def test_unreachable_scheduler_is_one_line(model, monkeypatch, tmp_path):
+    """The library and the command line (in this process: the timeout is patched here;
+    the console script's exit code is tested in tests/test_study_errors.py)."""
     from stickslip import _distributed
 
     monkeypatch.setattr(_distributed, "CONNECT_TIMEOUT", 1.0)
@@ -156,11 +168,7 @@ def test_unreachable_scheduler_is_one_line(model, monkeypatch, tmp_path):
     import yaml
 
     study.write_text(yaml.safe_dump({k: v for k, v in SWEEP.items() if k != "sweep"}))
-    proc = subprocess.run(
-        [sys.executable, "-m", "stickslip.cli", "run", str(study), "--out", str(out), "--dask",
-         "tcp://127.0.0.1:9"],
-        capture_output=True, text=True, env=dict(os.environ, STICKSLIP_DASK_TIMEOUT="1"),
-    )  # fmt: skip
+    proc = run_cli("run", study, "--out", out, "--dask", "tcp://127.0.0.1:9")
     assert proc.returncode == 2, proc.stderr
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and "--dask" in lines[0] and "cannot reach" in lines[0], lines

@@ -97,8 +97,8 @@ _requested: set = set()  # what this process has asked for
 
 def request(fn, *args, paths: int) -> bool:
     """Under the `"background"` policy (`_compile.policy`), have the background compiler
-    make `_compile.executable(fn, *args, paths=paths)` (arrays in `args` may be
-    `_compile.resized` stand-ins: only their shapes travel) and make sure a worker runs.
+    make `_compile.executable(fn, *args, paths=paths)` (arrays in `args` may be stand-ins
+    of their shapes: only their shapes travel) and make sure a worker runs.
     Once per process and program; nothing where the program has no disk entry (no cache
     directory, or arguments without a reproducible text form) or cannot travel. Returns
     whether a job was queued."""

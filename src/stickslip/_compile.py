@@ -135,11 +135,12 @@ POLICIES = ("background", "reuse", "eager")
 def policy() -> str:
     """How the simulator meets a buffer size it has no executable for (`STICKSLIP_COMPILE`):
 
-    - `"background"` (default): where an executable of a larger size of the same program is
-      at hand (in memory or on disk), run on it (padded: the same numbers, keyed by path and
-      step) and have the exact size compiled by a background process (`_background`) for
-      later runs; compile here only what nothing can stand in for. A first run on a fresh
-      machine then compiles a handful of programs instead of one per buffer size.
+    - `"background"` (default): where an executable of another size of the same program is
+      at hand (in memory or on disk), run on it (a larger one padded, a smaller one in more
+      chunks: the same numbers, keyed by path and step) and have the exact size compiled by
+      a background process (`_background`) for later runs; compile here only what nothing
+      can stand in for. A first run on a fresh machine then compiles a handful of programs
+      instead of one per buffer size, and a later run of another size none.
     - `"reuse"`: the same, without the background process (later runs stay on the larger
       sizes until something compiles the exact ones: for test suites and short-lived jobs).
     - `"eager"`: compile every buffer size where it is first needed (the fastest run once
@@ -276,7 +277,7 @@ class Fixed:
         _export(self.fn, leaves, treedef, static, paths)
 
     def ready(self, *rest, paths: int) -> bool:
-        """Whether a call on these shapes (`rest`: arrays, or `resized` stand-ins) runs
+        """Whether a call on these shapes (`rest`: arrays, or stand-ins of their shapes) runs
         without tracing or compiling: its executable is in memory or on disk (then loaded)."""
         key = (paths,) + tuple((x.shape, x.dtype) for x in rest)
         if key in self.entries:
@@ -367,19 +368,6 @@ def disk_entry(fn, args) -> bool:
     leaves, treedef = jax.tree_util.tree_flatten(dynamic)
     shapes = tuple((tuple(x.shape), str(x.dtype)) for x in leaves)
     return _trace_file(fn, treedef, shapes, static) is not None
-
-
-def resized(args, paths: int, size: int):
-    """Stand-ins for `args` on a buffer of `size` paths: every array whose last axis has
-    `paths` entries (the path axis, as `_poly_specs` reads it) becomes a zero-copy array of
-    zeros with `size` there (shapes and dtypes are all an executable's key looks at)."""
-
-    def one(x):
-        if eqx.is_array(x) and x.ndim and x.shape[-1] == paths:
-            return np.broadcast_to(np.zeros((), x.dtype), x.shape[:-1] + (size,))
-        return x
-
-    return jax.tree_util.tree_map(one, args)
 
 
 def _compile(fn, args, leaves, treedef, static, paths, build=True):

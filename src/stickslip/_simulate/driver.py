@@ -40,6 +40,10 @@ MIN_BUFFER = 128  # smallest buffer; below it a step costs the same whatever the
 # cost milliseconds (measured per step: 48 us at 128, 228 us at 1024, 495 us at 4096).
 FINE_BUFFER = 8192
 LOCATE_BATCH = 4096  # paths located at once (bounds the memory of the dense nodes)
+# A chunk whose first buffer has no compiled loop runs on one up to this many times larger
+# (padded), or in chunks of one down to 1 / (2 STAND_IN) of it, where one is compiled
+# (`_Run._first_buffer`, `_Run._chunk_length`; not under the "eager" policy).
+STAND_IN = 8
 SPECULATE_BELOW = 16384  # buffers from this size down step past candidates (`_Run._chunk`)
 PAST_SLOTS = 2  # candidates a path steps past inside one stepping call (`SteppingPastHybrid`)
 DEFAULT_CROSSING_TOL = 1e-5  # bound on the chance of a missed crossing per certified step
@@ -308,6 +312,12 @@ def _pad_paths(x, size: int):
     if n == 0:
         return np.zeros(x.shape[:-1] + (size,), x.dtype)
     return np.concatenate([x, np.repeat(x[..., :1], size - n, axis=-1)], axis=-1)
+
+
+def _zeros(shape, dtype=np.float64):
+    """A read-only array of zeros of this shape (no memory: a stand-in argument whose shape
+    and dtype are all a compiled call's key looks at)."""
+    return np.broadcast_to(np.zeros((), dtype), shape)
 
 
 def _larger_buffer(size: int) -> int:
@@ -653,6 +663,7 @@ class _Run:
         self.onset_positions = None  # and the positions at onset
         self.refined_miss = 0.0  # the summed miss bounds of every exact refinement
         self._refiner = None  # the exact refinement (compiled), made on first use
+        self._locate = None  # the in-step location (`_locate_chunk`), made on first use
         self.scheduler = _scheduler(owner, scheduler, detect)
         self._programs: dict = {}  # the device scheduler's programs, by buffer size
 
@@ -721,6 +732,8 @@ class _Run:
             # (one program for all the chunks of the run: its buffer holds the largest)
             size = _buffer_size(min(paths.size, chunk_size))
             chunk = functools.partial(device.first_passages, self, size)
+        else:
+            chunk_size = self._chunk_length(min(paths.size, chunk_size))
         parts = [chunk(paths[i : i + chunk_size]) for i in range(0, paths.size, chunk_size)]
         if len(parts) == 1:  # as they are (the onset states: a read-only view; callers copy)
             self.miss, self.onset_positions = parts[0][4:]
@@ -790,10 +803,11 @@ class _Run:
         """Onset states of the paths with counters `paths`."""
         return np.asarray(self._onset_states(paths, counter)[0])[:, : paths.size]
 
-    def _onset_states(self, paths, counter=0, stick_state=None):
+    def _onset_states(self, paths, counter=0, stick_state=None, exact=False):
         """`_onset` for the paths `paths` (and their stick states, if given), on the padded
-        size, as the device arrays of the call."""
-        size = _padded_size(paths.size)
+        size (`_onset_size`; with `exact`, on `paths.size`: a chunk's buffer), as the device
+        arrays of the call."""
+        size = paths.size if exact else self._onset_size(paths.size)
         if stick_state is None:
             stick = np.zeros((len(self.model.state_names), size))
         else:
@@ -804,18 +818,53 @@ class _Run:
             )
         )
 
+    def _onset_size(self, n: int) -> int:
+        """The size an onset call of `n` paths runs on (`_padded_size`, or a larger compiled
+        one, `_size_at_hand`): the draws are keyed by path, the padding is discarded."""
+        size = _padded_size(n)
+        if size > DEFAULT_CHUNK:
+            return size
+        d = len(self.model.state_names)
+        return self._size_at_hand(
+            self.onset, lambda m: (self.keys["onset"], _zeros(m, np.uint32), np.uint32(0),
+                                   _zeros((d, m))),
+            size, DEFAULT_CHUNK,
+        )  # fmt: skip
+
+    def _size_at_hand(self, fixed, specimen, want: int, most: int, smaller: bool = False):
+        """The size that a call of `fixed` (a `_compile.Fixed`) on `want` paths runs on:
+        `want` where it is compiled (in memory or on disk) or under the `"eager"` policy;
+        else the smallest compiled size above it up to `STAND_IN` times it or `most`,
+        padded; with `smaller`, else the largest compiled size down to `1 / (2 STAND_IN)`
+        of it (the caller then makes several calls); else `want` (compiled at the call).
+        `specimen(size)`: the call's arguments after the fixed ones, for `size` paths."""
+        if _compile.policy() == "eager" or fixed.ready(*specimen(want), paths=want):
+            return want
+        size, top = want, min(STAND_IN * want, most)
+        while size < top:
+            size = min(_larger_buffer(size), top)
+            if fixed.ready(*specimen(size), paths=size):
+                return size
+        size = _smaller_buffer(want) if smaller else 0
+        while size and size * 2 * STAND_IN >= want:
+            if fixed.ready(*specimen(size), paths=size):
+                return size
+            size = _smaller_buffer(size)
+        return want
+
     def _chunk(self, paths):
         """First passages of one chunk of paths; see `simulate`. Also returns each path's
         miss bound (bridge detector; zeros otherwise)."""
-        cfg, keys = self.cfg, self.keys
+        cfg = self.cfg
         refine = cfg.detect == "bridge"
         count = paths.size
-        size = _buffer_size(count)
+        want = _buffer_size(count)
+        size, past = self._first_buffer(want)
         path = np.zeros(size, dtype=np.uint32)
         path[:count] = paths
         # On the device for the calls below (a NumPy argument is copied at every call: the
         # states twice, ~2.5 ms at 131072 paths); read here through a zero-copy view.
-        X0_dev, x_start, rate = self._onset_states(path)[:3]
+        X0_dev, x_start, rate = self._onset_states(path, exact=True)[:3]
         X0, x_start, rate = np.asarray(X0_dev), np.asarray(x_start), np.asarray(rate)
         k_stick = np.full(size, INACTIVE)
         k_stick[:count] = SLIPPING
@@ -839,16 +888,14 @@ class _Run:
         X, X_prev, ks, p = X0, X0, k_stick, path
         offset, miss = np.zeros(size), np.zeros(size)
         X_dev, X_prev_dev, miss_dev = X0_dev, X0_dev, miss
-        horizon = np.asarray(float(self.n_steps))
-        tol = np.asarray(self.tol)
         # Small buffers step past candidate steps that end below the level (as if refuted)
         # and refine them all at the end, each path's in step order: the same first crossing
         # as refining each before going on (the draws are keyed by path, step and node), in
         # one refinement instead of one per stepping round (each ~1 ms whatever its size).
         pending = []
         # `want`: the buffer size the paths left call for; `size`: the one they run on, larger
-        # where `want` has no executable yet (`_stand_in`; the same numbers either way).
-        want, past = size, self._speculates(size)
+        # where `want` has no executable yet (`_first_buffer`, `_stand_in`; the same numbers
+        # either way).
         first = True
         while True:
             n_slip = np.count_nonzero(ks == SLIPPING)
@@ -856,11 +903,9 @@ class _Run:
                 if pending:
                     self._settle(pending, t_stick, stick_state, miss_end)
                 break
-            stop_at = _smaller_buffer(want)
-            args = (
-                X_dev, X_prev_dev, ks, miss_dev, p, offset, horizon, self.dt_arr, keys["step"],
-                keys["bridge"], np.asarray(stop_at), tol,
-            )  # fmt: skip
+            args = self._loop_args(
+                X_dev, X_prev_dev, ks, miss_dev, p, offset, _smaller_buffer(want)
+            )
             loop = self._loop(past)
             if first and refine:
                 # The refinement's first buffer compiles in a thread while the stepping loop
@@ -937,7 +982,7 @@ class _Run:
                 self.bar.update(n_slip - alive.size)
             if alive.size and want > MIN_BUFFER and alive.size <= _smaller_buffer(want):
                 want = _buffer_size(alive.size)
-                new_size, past = self._stand_in(want, size, past, args)
+                new_size, past = self._stand_in(want, size, past)
                 if new_size == size:
                     continue
                 # Re-pack the survivors into a smaller buffer: finished paths cost nothing.
@@ -971,30 +1016,102 @@ class _Run:
         loop's, one for all its sizes."""
         return self._loop(self._speculates(size)).key
 
-    def _stand_in(self, want, size, past, args):
+    def _loop_args(self, X, X_prev, ks, miss, p, offset, stop_at):
+        """The stepping loop's arguments after its model, solver and configuration: the
+        buffer's states, modes, miss bounds, paths and step offsets, and where to stop (the
+        paths left slipping at or below `stop_at`)."""
+        keys = self.keys
+        return (
+            X, X_prev, ks, miss, p, offset, np.asarray(float(self.n_steps)), self.dt_arr,
+            keys["step"], keys["bridge"], np.asarray(stop_at), np.asarray(self.tol),
+        )  # fmt: skip
+
+    def _ready(self, size: int):
+        """Whether the stepping loop of a buffer of `size` paths is compiled (in memory or
+        on disk; nothing is traced or compiled here): the `past` flag of the loop to run it
+        with (a buffer that steps past candidates can also run the loop that does not: the
+        same numbers), else `None`."""
+        for spec in (True, False) if self._speculates(size) else (False,):
+            if self._loop(spec).ready(*self._loop_specimen(size), paths=size):
+                return spec
+        return None
+
+    def _loop_specimen(self, size: int):
+        """Stand-ins for the stepping loop's arguments on a buffer of `size` paths."""
+        X, f = _zeros((len(self.model.state_names), size)), _zeros(size)
+        return self._loop_args(X, X, f, f, _zeros(size, np.uint32), f, 0)
+
+    def _compile_here(self, want: int) -> bool:
+        """Whether the stepping loop of `want` paths is to be compiled now if it is not at
+        hand: under the `"eager"` policy, or once its rent has passed a compilation's cost
+        (then paid); otherwise the background compiler is asked for it (`policy`)."""
+        if _compile.policy() == "eager":
+            return True
+        key = self._want_key(want)
+        if _compile.due(key):
+            _compile.pay(key)
+            return True
+        loop = self._loop(self._speculates(want))
+        _background.request(loop.fn, *loop.fixed, *self._loop_specimen(want), paths=want)
+        return False
+
+    def _at_hand(self, want: int):
+        """`(size, past)` of a compiled stepping loop (`_ready`) for a chunk that wants a
+        buffer of `want` paths: `want` itself, else the smallest compiled one up to
+        `STAND_IN` times larger, else the largest down to `1 / (2 STAND_IN)` of it (not under
+        the `"eager"` policy); `None` if there is none."""
+        spec = self._ready(want)
+        if spec is not None:
+            return want, spec
+        if _compile.policy() == "eager":
+            return None
+        size = _larger_buffer(want)
+        while size <= STAND_IN * want:
+            spec = self._ready(size)
+            if spec is not None:
+                return size, spec
+            size = _larger_buffer(size)
+        size = _smaller_buffer(want)
+        while size and size * 2 * STAND_IN >= want:
+            spec = self._ready(size)
+            if spec is not None:
+                return size, spec
+            size = _smaller_buffer(size)
+        return None
+
+    def _chunk_length(self, n: int) -> int:
+        """Paths per chunk for chunks of up to `n` paths: `n`, or the size of a smaller
+        compiled buffer where that is the one at hand (`_at_hand`) and the wanted one is not
+        to be compiled here (`_compile_here`): more chunks on a compiled loop, the same
+        numbers (each path's are keyed by its index)."""
+        want = _buffer_size(n)
+        found = self._at_hand(want)
+        if found is not None and found[0] < want and not self._compile_here(want):
+            return found[0]
+        return n
+
+    def _first_buffer(self, want: int):
+        """The buffer size (and whether it steps past candidates) that a chunk wanting a
+        buffer of `want` paths starts on: a larger compiled one where that is the one at
+        hand (`_at_hand`) and the wanted one is not to be compiled here (`_compile_here`):
+        padded, the same numbers (the time it wastes is rent for `want`); else `want`."""
+        found = self._at_hand(want)
+        if found is None or (found[0] != want and (found[0] < want or self._compile_here(want))):
+            return want, self._speculates(want)
+        return found
+
+    def _stand_in(self, want, size, past):
         """The buffer size (and whether it speculates) that `want` paths run on, at most
         `size` (the current one, whose loop `past` is at hand): `want` itself where its loop
-        is compiled (in memory or on disk), under the `"eager"` policy, or once its rent has
-        passed a compilation's cost (`_compile.rent`); otherwise the smallest size between
-        them whose loop is compiled (the background compiler is asked for `want`'s). `args`:
-        the loop's last arguments, on `size` paths."""
-        policy = _compile.policy()
+        is compiled (in memory or on disk) or is to be compiled here (`_compile_here`);
+        otherwise the smallest size between them whose loop is compiled."""
         candidate = want
         while candidate < size:
-            stand_in = _compile.resized(args, size, candidate)
-            options = (True, False) if self._speculates(candidate) else (False,)
-            for spec in options:
-                if self._loop(spec).ready(*stand_in, paths=candidate):
-                    return candidate, spec
-            if candidate == want:
-                spec = self._speculates(want)
-                if policy == "eager":
-                    return want, spec  # compiled at its first call
-                if _compile.due(self._want_key(want)):
-                    _compile.pay(self._want_key(want))
-                    return want, spec
-                loop = self._loop(spec)
-                _background.request(loop.fn, *loop.fixed, *stand_in, paths=want)
+            spec = self._ready(candidate)
+            if spec is not None:
+                return candidate, spec
+            if candidate == want and self._compile_here(want):
+                return want, self._speculates(want)
             candidate = _larger_buffer(candidate)
         return size, past
 
@@ -1066,14 +1183,23 @@ class _Run:
         bound the memory of the dense nodes."""
         model, cfg, keys = self.slip, self.cfg, self.keys
         done = np.nonzero(k_end[:count] >= 0)[0]
-        batch = min(LOCATE_BATCH, _buffer_size(max(done.size, 1)))
+        if self._locate is None:
+            self._locate = _compile.Fixed(_locate, model, self.locator, cfg, timer=self.timer)
+        d = len(model.state_names)
+        batch = self._size_at_hand(
+            self._locate,
+            lambda m: (_zeros((d, m)), _zeros((d, m)), _zeros(m), _zeros(m, np.uint32),
+                       self.dt_arr, keys["z"], keys["u"]),
+            min(LOCATE_BATCH, _buffer_size(max(done.size, 1))), LOCATE_BATCH, smaller=True,
+        )  # fmt: skip
         for start in range(0, done.size, batch):
             rows = done[start : start + batch]
             rows_padded = _pad_paths(rows, batch)
-            frac, state, found = self.call(
-                _locate, model, self.locator, cfg, X_prev_end[:, rows_padded],
-                X_end[:, rows_padded], k_end[rows_padded], path[rows_padded], self.dt_arr,
-                keys["z"], keys["u"], paths=batch,
+            frac, state, found = self._counted(
+                self._locate(
+                    X_prev_end[:, rows_padded], X_end[:, rows_padded], k_end[rows_padded],
+                    path[rows_padded], self.dt_arr, keys["z"], keys["u"], paths=batch,
+                )
             )  # fmt: skip
             n = rows.size
             t_stick[rows] = (k_end[rows] + np.asarray(frac)[:n]) * self.dt
