@@ -65,34 +65,37 @@ def empty_cache(tmp_path):
     "monitor", [pytest.param("continuous", marks=pytest.mark.slow), "grid"], ids=["exact", "grid"]
 )
 def test_stand_in_sizes_give_the_numbers_of_every_size_compiled(empty_cache, monkeypatch, monitor):
-    """From an empty cache, the `"reuse"` policy runs the survivors on the buffers it has
-    (the first size, padded) and compiles a few programs; `"eager"` then compiles every
-    buffer size the run passes through: the same numbers to the last bit (they are keyed by
-    path and step, not by buffer); runs of fewer and more paths compile no loop. The exact
-    detector (refinement, speculation at small buffers) and the grid monitor (sticks
-    located after the stepping)."""
+    """From an empty cache, the `"reuse"` policy runs on the buffers it has and compiles a
+    few programs: the survivors of a run on its first buffer (padded), a run of more paths
+    in chunks of a compiled buffer (the exact detector's refinement in batches of its
+    compiled buffer), one of fewer paths on a larger compiled buffer; `"eager"` then
+    compiles every buffer size the run passes through. The same numbers to the last bit:
+    they are keyed by path and step, not by buffer or chunk (the first paths of each run
+    are those of the others). The exact detector (refinement, speculation at small buffers)
+    and the grid monitor (sticks located after the stepping)."""
     model = ss.get_model("langevin")(**PUBLIC, tau=0.1)
+    run = lambda n: ss.simulate(model, n, 0.2, 30.0, seed=5, monitor=monitor)  # noqa: E731
     monkeypatch.setenv("STICKSLIP_COMPILE", "reuse")
     before = ss.cache_info()["compiles"]
-    reuse = ss.simulate(model, 3000, 0.2, 30.0, seed=5, monitor=monitor)
+    first = run(300)
     # the model's description, the per-path helpers, the loop, the refinement or locator
     assert ss.cache_info()["compiles"] - before <= 4
-    # Runs of other sizes start on the loop at hand: fewer paths on its larger buffer
-    # (padded), more in chunks of its size; a path's numbers are its own (keyed by its
-    # index): the first paths of each run are the paths of the run above.
     before = ss.cache_info()["compiles"]
-    fewer = ss.simulate(model, 300, 0.2, 30.0, seed=5, monitor=monitor)
-    assert ss.cache_info()["compiles"] == before
-    more = ss.simulate(model, 20000, 0.2, 30.0, seed=5, monitor=monitor)
-    assert ss.cache_info()["compiles"] - before <= 1  # (the onset states of 20000 paths)
+    reuse = run(3000)  # wants 8192 paths' buffer: in chunks of the 1024 compiled
+    fewer = run(100)  # wants 128: on 1024
+    more = run(12000)  # wants 16384: in chunks of 1024
+    # no loop, locator or refinement compiled: the onset states of 3000 and 12000 paths
+    # (each one call) at most
+    assert ss.cache_info()["compiles"] - before <= 2
     for name in OUTPUTS:
         a = getattr(reuse, name)
-        np.testing.assert_array_equal(getattr(fewer, name), a[:300], err_msg=name)
+        np.testing.assert_array_equal(getattr(first, name), a[:300], err_msg=name)
+        np.testing.assert_array_equal(getattr(fewer, name), a[:100], err_msg=name)
         np.testing.assert_array_equal(getattr(more, name)[:3000], a, err_msg=name)
     _compile.clear_caches()
     monkeypatch.setenv("STICKSLIP_COMPILE", "eager")
     before = ss.cache_info()["compiles"]
-    eager = ss.simulate(model, 3000, 0.2, 30.0, seed=5, monitor=monitor)
+    eager = run(3000)
     assert ss.cache_info()["compiles"] > before  # sizes the reuse run never compiled
     for name in OUTPUTS:
         np.testing.assert_array_equal(getattr(reuse, name), getattr(eager, name), err_msg=name)

@@ -11,11 +11,11 @@ import diffrax
 import equinox as eqx
 import numpy as np
 
-from .. import _rng
+from .. import _compile, _rng
 from .._errors import ParameterError, check_int
 from .._jax import jnp
 from .._model import FrictionModel
-from .driver import _Run, _validate, check_memory
+from .driver import _Run, _validate, _zeros, check_memory
 from .hybrid import INACTIVE, SLIPPING
 from .loop import solve
 
@@ -73,7 +73,7 @@ class CycleSeries:
 
 
 @eqx.filter_jit
-def _record(model, solver, cfg, X, k_stick, path, dt, step_key, bridge_key, n_steps):
+def _record(model, solver, cfg, n_steps, X, k_stick, path, dt, step_key, bridge_key):
     """The same noise as in `simulate`, saving the state after every step. Nothing sticks
     (the slips are cut at their known stick times), so no candidate step of the exact
     detector freezes a path early."""
@@ -236,10 +236,21 @@ def _traces(run, table, path_ids):
     # Group slots so that one recording solve stays within the memory bound.
     n_rec = _next_pow2_int(max(1, int(steps_needed.max())))
     group = max(1, _MAX_RECORD_FLOATS // (n_rec * d * 2))
+    # The slots of a solve: the size that holds a group (at least 128), or another size of
+    # the same program at hand (`_Run._size_at_hand`: a larger one within the memory bound,
+    # padded, or a smaller one, in more solves; each slot's noise is its own).
+    fixed = _compile.Fixed(_record, run.slip, run.solver, run.cfg, n_rec, timer=run.timer)
+    want = max(128, _next_pow2_int(min(group, slots.size)))
+    n = run._size_at_hand(
+        fixed,
+        lambda m: (_zeros((d, m)), _zeros(m), _zeros(m, np.uint32), run.dt_arr,
+                   run.keys["step"], run.keys["bridge"]),
+        want, max(want, 1 << (group.bit_length() - 1)), smaller=True,
+    )  # fmt: skip
+    group = min(group, n)
     samples = []
     for start in range(0, slots.size, group):
         idx = np.arange(start, min(start + group, slots.size))
-        n = max(128, _next_pow2_int(idx.size))
         pad = n - idx.size
         X0 = np.concatenate([table["onset"][:, idx], np.zeros((d, pad))], axis=1)
         ks = np.concatenate(
@@ -249,11 +260,10 @@ def _traces(run, table, path_ids):
         # `paths`: kept on disk, as the stepping's programs (without it every process
         # compiled it again, 0.5-3 s)
         ys = np.asarray(
-            run.call(
-                _record, run.slip, run.solver, run.cfg, X0, ks, path, run.dt_arr,
-                run.keys["step"], run.keys["bridge"], n_rec, paths=n,
+            run._counted(
+                fixed(X0, ks, path, run.dt_arr, run.keys["step"], run.keys["bridge"], paths=n)
             )
-        )  # fmt: skip
+        )
         for col, row in enumerate(idx):
             k = int(np.floor(slip_time[row] / dt + 1e-9)) if not table["immediate"][row] else 0
             k = min(k, n_rec)
