@@ -343,8 +343,12 @@ def test_stepping_past_candidates_finds_the_same_sticks(Langevin, monkeypatch):
     at the end (`driver.SPECULATE_BELOW`): the same sticks, bit for bit, as refining each
     candidate before stepping on (the scheme checked against the depth-first reference
     above), although some paths were stepped past the step that holds their stick."""
+    from stickslip import _compile
     from stickslip._simulate import driver
 
+    # (each run on the buffers it wants: no other size stands in for its first one, so the
+    # stepping calls counted below are each scheme's own)
+    monkeypatch.setattr(_compile, "STAND_IN", 0)
     model = Langevin(**PUBLIC)
     runs = []
     # Never; always, by the host between stepping calls; always, inside the stepping loop
@@ -411,8 +415,12 @@ def test_refinement_in_two_threads_is_the_one_thread_one(Langevin, monkeypatch):
     the same refinements as in one thread, candidate by candidate, whatever the threads'
     order (the one-thread refinement is checked against the depth-first reference above);
     and in one thread in several batches of equal size."""
+    from stickslip import _compile
     from stickslip._simulate import driver
 
+    # (one chunk on its own buffer, refined in batches of the size wanted: no other size
+    # stands in for them)
+    monkeypatch.setattr(_compile, "STAND_IN", 0)
     model = Langevin(**PUBLIC)
     run = driver._Run("test", driver._to_arrays(model), "auto", "continuous", 0.8, 30.0,
                       ss._rng.seed_key(7))  # fmt: skip

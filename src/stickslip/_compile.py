@@ -130,6 +130,11 @@ def cold_note() -> str | None:
 
 
 POLICIES = ("background", "reuse", "eager")
+# How far another size stands in for the one a call wants (not under "eager"): a compiled
+# one up to this many times larger (padded), or one down to 1 / (2 STAND_IN) of it (the
+# caller then makes more calls: chunks, batches); 0: only what the call wants (and, in the
+# simulator's shrinking buffers, the larger buffer already running).
+STAND_IN = 8
 
 
 def policy() -> str:

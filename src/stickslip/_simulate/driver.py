@@ -40,10 +40,6 @@ MIN_BUFFER = 128  # smallest buffer; below it a step costs the same whatever the
 # cost milliseconds (measured per step: 48 us at 128, 228 us at 1024, 495 us at 4096).
 FINE_BUFFER = 8192
 LOCATE_BATCH = 4096  # paths located at once (bounds the memory of the dense nodes)
-# A chunk whose first buffer has no compiled loop runs on one up to this many times larger
-# (padded), or in chunks of one down to 1 / (2 STAND_IN) of it, where one is compiled
-# (`_Run._first_buffer`, `_Run._chunk_length`; not under the "eager" policy).
-STAND_IN = 8
 SPECULATE_BELOW = 16384  # buffers from this size down step past candidates (`_Run._chunk`)
 PAST_SLOTS = 2  # candidates a path steps past inside one stepping call (`SteppingPastHybrid`)
 DEFAULT_CROSSING_TOL = 1e-5  # bound on the chance of a missed crossing per certified step
@@ -834,19 +830,19 @@ class _Run:
     def _size_at_hand(self, fixed, specimen, want: int, most: int, smaller: bool = False):
         """The size that a call of `fixed` (a `_compile.Fixed`) on `want` paths runs on:
         `want` where it is compiled (in memory or on disk) or under the `"eager"` policy;
-        else the smallest compiled size above it up to `STAND_IN` times it or `most`,
+        else the smallest compiled size above it up to `_compile.STAND_IN` times it or `most`,
         padded; with `smaller`, else the largest compiled size down to `1 / (2 STAND_IN)`
         of it (the caller then makes several calls); else `want` (compiled at the call).
         `specimen(size)`: the call's arguments after the fixed ones, for `size` paths."""
         if _compile.policy() == "eager" or fixed.ready(*specimen(want), paths=want):
             return want
-        size, top = want, min(STAND_IN * want, most)
+        size, top = want, min(_compile.STAND_IN * want, most)
         while size < top:
             size = min(_larger_buffer(size), top)
             if fixed.ready(*specimen(size), paths=size):
                 return size
         size = _smaller_buffer(want) if smaller else 0
-        while size and size * 2 * STAND_IN >= want:
+        while size and size * 2 * _compile.STAND_IN >= want:
             if fixed.ready(*specimen(size), paths=size):
                 return size
             size = _smaller_buffer(size)
@@ -1058,21 +1054,21 @@ class _Run:
     def _at_hand(self, want: int):
         """`(size, past)` of a compiled stepping loop (`_ready`) for a chunk that wants a
         buffer of `want` paths: `want` itself, else the smallest compiled one up to
-        `STAND_IN` times larger, else the largest down to `1 / (2 STAND_IN)` of it (not under
-        the `"eager"` policy); `None` if there is none."""
+        `_compile.STAND_IN` times larger, else the largest down to `1 / (2 STAND_IN)` of it
+        (not under the `"eager"` policy); `None` if there is none."""
         spec = self._ready(want)
         if spec is not None:
             return want, spec
         if _compile.policy() == "eager":
             return None
         size = _larger_buffer(want)
-        while size <= STAND_IN * want:
+        while size <= _compile.STAND_IN * want:
             spec = self._ready(size)
             if spec is not None:
                 return size, spec
             size = _larger_buffer(size)
         size = _smaller_buffer(want)
-        while size and size * 2 * STAND_IN >= want:
+        while size and size * 2 * _compile.STAND_IN >= want:
             spec = self._ready(size)
             if spec is not None:
                 return size, spec
