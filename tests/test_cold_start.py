@@ -83,8 +83,8 @@ def test_stand_in_sizes_give_the_numbers_of_every_size_compiled(empty_cache, mon
     before = ss.cache_info()["compiles"]
     reuse = run(3000)  # wants 8192 paths' buffer: in chunks of the 1024 compiled
     fewer = run(100)  # wants 128: on 1024
-    more = run(12000)  # wants 16384: in chunks of 1024
-    # no loop, locator or refinement compiled: the onset states of 3000 and 12000 paths
+    more = run(8000)  # wants 8192: in chunks of 1024
+    # no loop, locator or refinement compiled: the onset states of 3000 and 8000 paths
     # (each one call) at most
     assert ss.cache_info()["compiles"] - before <= 2
     for name in OUTPUTS:

@@ -45,6 +45,9 @@ _cache: collections.OrderedDict = collections.OrderedDict()  # executables, LRU
 _entries: collections.OrderedDict = collections.OrderedDict()  # `memoized`, LRU
 _entries_lock = threading.RLock()
 _exported: dict = {}  # shape-polymorphic traces (few: one per function and model structure)
+_absent: dict = {}  # (Fixed key, shapes) -> when its executable was last found missing
+ABSENT_SECONDS = 5.0
+_trace_files: dict = {}  # their disk entries' paths (`_trace_file`)
 stats = {
     "traces": 0, "compiles": 0, "exported_loaded": 0, "executables_loaded": 0, "shipped_loaded": 0,
 }  # fmt: skip
@@ -81,6 +84,8 @@ def clear_caches() -> None:
     _cache.clear()
     _entries.clear()
     _exported.clear()
+    _absent.clear()
+    _trace_files.clear()
     _resident.clear()
     _keys.clear()
     _rent.clear()
@@ -131,7 +136,7 @@ def cold_note() -> str | None:
 
 POLICIES = ("background", "reuse", "eager")
 # How far another size stands in for the one a call wants (not under "eager"): a compiled
-# one up to this many times larger (padded), or one down to 1 / (2 STAND_IN) of it (the
+# one up to this many times larger (padded), or one down to 1 / STAND_IN of it (the
 # caller then makes more calls: chunks, batches); 0: only what the call wants (and, in the
 # simulator's shrinking buffers, the larger buffer already running).
 STAND_IN = 8
@@ -283,15 +288,23 @@ class Fixed:
 
     def ready(self, *rest, paths: int) -> bool:
         """Whether a call on these shapes (`rest`: arrays, or stand-ins of their shapes) runs
-        without tracing or compiling: its executable is in memory or on disk (then loaded)."""
+        without tracing or compiling: its executable is in memory or on disk (then loaded).
+        An executable found missing is not looked for again for `ABSENT_SECONDS` (a look on
+        disk costs a few milliseconds; another process may write it meanwhile)."""
         key = (paths,) + tuple((x.shape, x.dtype) for x in rest)
         if key in self.entries:
             return True
         entry = remembered((Fixed, self.key) + key)
         if entry is None:
+            seen = _absent.get((self.key,) + key)
+            if seen is not None and time.monotonic() - seen < ABSENT_SECONDS:
+                return False
             found = executable(self.fn, *self.fixed, *rest, timer=self.timer, paths=paths,
                                build=False)  # fmt: skip
             if found is None:
+                if len(_absent) > 4 * MAX_ENTRIES:
+                    _absent.clear()
+                _absent[(self.key,) + key] = time.monotonic()
                 return False
             entry = memoized((Fixed, self.key) + key, lambda: found[:2])
         self.entries[key] = entry
@@ -650,6 +663,15 @@ def _trace_file(fn, treedef, shapes, static) -> pathlib.Path | None:
     where = jax.config.jax_compilation_cache_dir
     if not where:
         return None
+    key = (where, fn, treedef, shapes, static)
+    if key in _trace_files:  # (a probe for a size at hand asks again: the text took ~2 ms)
+        return _trace_files[key]
+    _trace_files[key] = file = _trace_path(where, fn, treedef, shapes, static)
+    return file
+
+
+def _trace_path(where, fn, treedef, shapes, static) -> pathlib.Path | None:
+    """`_trace_file`, made."""
     static_text = repr(static)
     if _ADDRESS.search(static_text):
         return None

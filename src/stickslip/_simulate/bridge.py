@@ -575,7 +575,7 @@ class Refiner:
             C = min(C, COLD_CAPACITY)
             if any(self._ready(c, d) for c in CAPACITIES if C < c <= COLD_CAPACITY):
                 return  # a larger capacity at hand stands in (`_choose`): nothing to compile
-            if any(self._ready(c, d) for c in CAPACITIES if c < C <= 2 * _compile.STAND_IN * c):
+            if any(self._ready(c, d) for c in CAPACITIES if c < C <= _compile.STAND_IN * c):
                 return  # a smaller one at hand takes smaller batches (`_batch`)
         elif not exact:
             return  # (a loose bound: an eager run compiles what it meets)

@@ -729,8 +729,15 @@ class _Run:
             size = _buffer_size(min(paths.size, chunk_size))
             chunk = functools.partial(device.first_passages, self, size)
         else:
-            chunk_size = self._chunk_length(min(paths.size, chunk_size))
+            n = min(paths.size, chunk_size)
+            want, chunk_size = _buffer_size(n), self._chunk_length(n)
+        start = time.perf_counter()
         parts = [chunk(paths[i : i + chunk_size]) for i in range(0, paths.size, chunk_size)]
+        if self.scheduler != "device" and chunk_size < n:
+            # Chunks of a smaller buffer: the fraction of the time a buffer of the size
+            # wanted would have saved, about, is rent for it (`_compile.rent`).
+            wasted = (time.perf_counter() - start) * (1.0 - chunk_size / want)
+            _compile.rent(self._want_key(want), wasted)
         if len(parts) == 1:  # as they are (the onset states: a read-only view; callers copy)
             self.miss, self.onset_positions = parts[0][4:]
             return parts[0][:4]
@@ -831,7 +838,7 @@ class _Run:
         """The size that a call of `fixed` (a `_compile.Fixed`) on `want` paths runs on:
         `want` where it is compiled (in memory or on disk) or under the `"eager"` policy;
         else the smallest compiled size above it up to `_compile.STAND_IN` times it or `most`,
-        padded; with `smaller`, else the largest compiled size down to `1 / (2 STAND_IN)`
+        padded; with `smaller`, else the largest compiled size down to `1 / STAND_IN`
         of it (the caller then makes several calls); else `want` (compiled at the call).
         `specimen(size)`: the call's arguments after the fixed ones, for `size` paths."""
         if _compile.policy() == "eager" or fixed.ready(*specimen(want), paths=want):
@@ -842,7 +849,7 @@ class _Run:
             if fixed.ready(*specimen(size), paths=size):
                 return size
         size = _smaller_buffer(want) if smaller else 0
-        while size and size * 2 * _compile.STAND_IN >= want:
+        while size and size * _compile.STAND_IN >= want:
             if fixed.ready(*specimen(size), paths=size):
                 return size
             size = _smaller_buffer(size)
@@ -1053,14 +1060,18 @@ class _Run:
 
     def _at_hand(self, want: int):
         """`(size, past)` of a compiled stepping loop (`_ready`) for a chunk that wants a
-        buffer of `want` paths: `want` itself, else the smallest compiled one up to
-        `_compile.STAND_IN` times larger, else the largest down to `1 / (2 STAND_IN)` of it
-        (not under the `"eager"` policy); `None` if there is none."""
+        buffer of `want` paths: its own loop at `want`; else (not under the `"eager"`
+        policy, nor with `_compile.STAND_IN` 0) the other loop at `want` (one that does or
+        does not step past candidates: the same numbers), the smallest compiled size up to
+        `STAND_IN` times larger, the largest down to `1 / STAND_IN` of it; `None` if none."""
+        spec = self._speculates(want)
+        if self._loop(spec).ready(*self._loop_specimen(want), paths=want):
+            return want, spec
+        if _compile.policy() == "eager" or not _compile.STAND_IN:
+            return None
         spec = self._ready(want)
         if spec is not None:
             return want, spec
-        if _compile.policy() == "eager":
-            return None
         size = _larger_buffer(want)
         while size <= _compile.STAND_IN * want:
             spec = self._ready(size)
@@ -1068,7 +1079,7 @@ class _Run:
                 return size, spec
             size = _larger_buffer(size)
         size = _smaller_buffer(want)
-        while size and size * 2 * _compile.STAND_IN >= want:
+        while size and size * _compile.STAND_IN >= want:
             spec = self._ready(size)
             if spec is not None:
                 return size, spec
