@@ -316,6 +316,24 @@ def _zeros(shape, dtype=np.float64):
     return np.broadcast_to(np.zeros((), dtype), shape)
 
 
+def _stand_in_size(ready, want: int, most: int, smaller: bool = False):
+    """The size that stands in for `want` (`_compile.STAND_IN`) among those for which
+    `ready(size)` is true: the smallest above it, up to `STAND_IN` times it or `most`
+    (padded); with `smaller`, else the largest down to `1 / STAND_IN` of it (in more calls);
+    `None` if none."""
+    size, top = want, min(_compile.STAND_IN * want, most)
+    while size < top:
+        size = min(_larger_buffer(size), top)
+        if ready(size):
+            return size
+    size = _smaller_buffer(want) if smaller else 0
+    while size and size * _compile.STAND_IN >= want:
+        if ready(size):
+            return size
+        size = _smaller_buffer(size)
+    return None
+
+
 def _larger_buffer(size: int) -> int:
     """The next buffer size above `size` (see `_smaller_buffer`)."""
     return size * 2 if size >= FINE_BUFFER else size * 8
@@ -836,24 +854,14 @@ class _Run:
 
     def _size_at_hand(self, fixed, specimen, want: int, most: int, smaller: bool = False):
         """The size that a call of `fixed` (a `_compile.Fixed`) on `want` paths runs on:
-        `want` where it is compiled (in memory or on disk) or under the `"eager"` policy;
-        else the smallest compiled size above it up to `_compile.STAND_IN` times it or `most`,
-        padded; with `smaller`, else the largest compiled size down to `1 / STAND_IN`
-        of it (the caller then makes several calls); else `want` (compiled at the call).
+        `want` where it is compiled (in memory or on disk) or under the `"eager"` policy,
+        else a compiled one that stands in (`_stand_in_size`; with `smaller`, the caller
+        makes several calls of a smaller one), else `want` (compiled at the call).
         `specimen(size)`: the call's arguments after the fixed ones, for `size` paths."""
-        if _compile.policy() == "eager" or fixed.ready(*specimen(want), paths=want):
+        ready = lambda m: fixed.ready(*specimen(m), paths=m)  # noqa: E731
+        if _compile.policy() == "eager" or ready(want):
             return want
-        size, top = want, min(_compile.STAND_IN * want, most)
-        while size < top:
-            size = min(_larger_buffer(size), top)
-            if fixed.ready(*specimen(size), paths=size):
-                return size
-        size = _smaller_buffer(want) if smaller else 0
-        while size and size * _compile.STAND_IN >= want:
-            if fixed.ready(*specimen(size), paths=size):
-                return size
-            size = _smaller_buffer(size)
-        return want
+        return _stand_in_size(ready, want, most, smaller) or want
 
     def _chunk(self, paths):
         """First passages of one chunk of paths; see `simulate`. Also returns each path's
@@ -1062,29 +1070,17 @@ class _Run:
         """`(size, past)` of a compiled stepping loop (`_ready`) for a chunk that wants a
         buffer of `want` paths: its own loop at `want`; else (not under the `"eager"`
         policy, nor with `_compile.STAND_IN` 0) the other loop at `want` (one that does or
-        does not step past candidates: the same numbers), the smallest compiled size up to
-        `STAND_IN` times larger, the largest down to `1 / STAND_IN` of it; `None` if none."""
+        does not step past candidates: the same numbers), else a compiled size that stands
+        in (`_stand_in_size`: a larger buffer, padded, or a smaller one, in more chunks);
+        `None` if none."""
         spec = self._speculates(want)
         if self._loop(spec).ready(*self._loop_specimen(want), paths=want):
             return want, spec
         if _compile.policy() == "eager" or not _compile.STAND_IN:
             return None
-        spec = self._ready(want)
-        if spec is not None:
-            return want, spec
-        size = _larger_buffer(want)
-        while size <= _compile.STAND_IN * want:
-            spec = self._ready(size)
-            if spec is not None:
-                return size, spec
-            size = _larger_buffer(size)
-        size = _smaller_buffer(want)
-        while size and size * _compile.STAND_IN >= want:
-            spec = self._ready(size)
-            if spec is not None:
-                return size, spec
-            size = _smaller_buffer(size)
-        return None
+        ready = lambda m: self._ready(m) is not None  # noqa: E731
+        size = want if ready(want) else _stand_in_size(ready, want, 1 << 62, smaller=True)
+        return None if size is None else (size, self._ready(size))
 
     def _chunk_length(self, n: int) -> int:
         """Paths per chunk for chunks of up to `n` paths: `n`, or the size of a smaller
