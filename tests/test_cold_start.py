@@ -196,3 +196,22 @@ def test_the_shipped_traces_are_current(tmp_path):
         f"{info['traces']} traces made, {info['shipped_loaded']} shipped ones used: the "
         "shipped traces are stale; run `python -m stickslip._ship`"
     )
+    # The other usual configurations (Euler-Maruyama, noise-free, the grid monitor).
+    env = dict(os.environ, STICKSLIP_CACHE_DIR=str(tmp_path / "others"))
+    done = subprocess.run(
+        [sys.executable, "-c", OTHERS], env=env, capture_output=True, text=True, check=True,
+        timeout=600,
+    )  # fmt: skip
+    info = json.loads(done.stdout.strip().splitlines()[-1])
+    assert info["traces"] == 0 and info["shipped_loaded"] >= 8, info
+
+
+OTHERS = """
+import json
+import stickslip as ss
+base = dict(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0)
+ss.simulate(ss.get_model("langevin")(**base), 300, 0.02, 20.0, solver="euler")
+ss.simulate(ss.get_model("langevin")(**base | {"D": 0.0}, tau=0.1), 8, 0.05, 30.0)
+ss.simulate(ss.get_model("langevin")(**base, tau=0.1), 300, 0.005, 20.0, monitor="grid")
+print(json.dumps(ss.cache_info()))
+"""

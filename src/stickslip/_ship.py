@@ -11,8 +11,9 @@ make, and ignored elsewhere (a new library version, an edited source: the run tr
 
 This command makes them: it runs the built-in Langevin model's usual configurations (OU
 friction noise, the exact detector, with every buffer size; white noise, the Brownian-bridge
-detector) and the README's main job (`examples/public_reference.yaml`: its estimator kernels
-too) in a new process with an empty cache directory, then replaces
+detector; Euler-Maruyama, the grid monitor and noise-free runs at a few steps) and the
+README's main job (`examples/public_reference.yaml`: its estimator kernels too) in a new
+process with an empty cache directory, then replaces
 `src/stickslip/_data/traces/` with the traces that process wrote. Run it after editing a
 traced source (`tests/test_cold_start.py` says when the shipped ones are stale).
 """
@@ -38,6 +39,14 @@ base = dict(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0)
 ss.simulate(ss.get_model("langevin")(**base, tau=0.1), 100_000, 0.8, 50.0, seed=1)
 ss.simulate(ss.get_model("langevin")(**base, tau=0.1), 2_000, 0.1, 50.0, seed=1)
 ss.simulate(ss.get_model("langevin")(**base), 20_000, 0.1, 50.0, seed=1)
+# Other usual configurations, small: Euler-Maruyama, the grid monitor of the reference
+# convention, noise-free runs (the in-step location's node count follows dt: a few steps).
+for tau in (None, 0.1):
+    ss.simulate(ss.get_model("langevin")(**base, tau=tau), 500, 0.01, 20.0, solver="euler")
+    for dt in (0.01, 0.05, 0.1):
+        ss.simulate(ss.get_model("langevin")(**base | {"D": 0.0}, tau=tau), 8, dt, 30.0)
+for dt in (0.005, 0.01, 0.05, 0.1):
+    ss.simulate(ss.get_model("langevin")(**base, tau=0.1), 500, dt, 20.0, monitor="grid")
 if pathlib.Path(sys.argv[1]).exists():
     ss.run_study(sys.argv[1], progress=False, figures=False)
 """
