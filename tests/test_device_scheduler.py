@@ -3,8 +3,11 @@
 Checked against things it did not produce: the host scheduler's sticks path by path (the
 host scheduler is itself checked against the depth-first refinement and the reference in
 tests/test_exact_detection.py), the independent reference histograms, and the count of
-compiled calls against the number of chunks. The default-tier runs use chunks of at most
-1024 paths: one program (one compilation) serves them all.
+compiled calls against the number of chunks. The runs use chunks of at most 1024 paths:
+one program serves them all. They are in the slow tier: that program is a compilation of
+7-19 s on 2 cores (every stepping and refinement buffer of a chunk inlined), for a
+scheduler that `auto` never chooses on a CPU; the default tier keeps the checks of its
+arguments and ladders.
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ def _same_sticks(host, dev):
     assert dev.stats["unresolved"] == host.stats["unresolved"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dt", [0.8, 0.1])
 @pytest.mark.parametrize("name", ["public", "second"])
 def test_device_scheduler_finds_the_host_sticks(Langevin, name, dt):
@@ -53,6 +57,7 @@ def test_device_scheduler_finds_the_host_sticks(Langevin, name, dt):
         assert dev.stats["dispatches"] == 2 + math.ceil(n / chunk)
 
 
+@pytest.mark.slow
 def test_device_scheduler_matches_the_reference(Langevin, reference):
     """The public set at a coarse step against the independent reference (chi-square of
     the slip-time and slip-distance histograms, means within 4 standard errors)."""
@@ -70,6 +75,7 @@ def test_device_scheduler_matches_the_reference_full_size(Langevin, reference, d
     _against_reference(ens, reference)
 
 
+@pytest.mark.slow
 def test_dispatches_do_not_grow_with_paths_or_steps(Langevin):
     """One compiled call per chunk besides two per run (the slip's description, the next
     onsets), and one copy of its results, whatever the number of paths and the step; the

@@ -23,7 +23,7 @@ OUTPUTS = ("slip_time", "slip_distance", "stick_time", "period")
 # A small sweep: three points of the noise intensity.
 SWEEP = dict(
     model=dict(name="langevin", params=PUBLIC),
-    simulation=dict(n_paths=4000, dt=0.1, t_max=30, seed=4),
+    simulation=dict(n_paths=1000, dt=0.1, t_max=30, seed=4),
     analytic=[dict(method="decoupling", order=1)],
     outputs=["slip_time", "period"],
     sweep=dict(parameters={"model.params.D": [0.2, 0.4, 0.6]}),

@@ -91,7 +91,9 @@ def test_cli_run_matches_library(small, tmp_path):
 
     path = tmp_path / "study.yaml"
     path.write_text(yaml.safe_dump(small_study()))
-    res = CliRunner().invoke(main, ["run", str(path), "--out", str(tmp_path / "cli"), "-q"])
+    res = CliRunner().invoke(
+        main, ["run", str(path), "--out", str(tmp_path / "cli"), "-q", "--no-figures"]
+    )  # (the figures: test_files_written)
     assert res.exit_code == 0, res.output
     back = xr.open_dataset(tmp_path / "cli" / "results.nc", engine="h5netcdf")
     for name in ("mc_slip_time", "theory_slip_time", "mc_n1", "theory_n1"):
