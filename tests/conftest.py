@@ -32,17 +32,26 @@ def _rss() -> float:
     return pages * os.sysconf("SC_PAGE_SIZE")
 
 
+_after_release = [0.0]  # the process's size after its last release
+
+
 @pytest.fixture(autouse=True, scope="module")
 def _release_compiled_code():
     """Drop the compiled executables once a test module ends if the process holds more than
-    RELEASE_RSS: a whole suite in one process otherwise keeps every shape ever compiled
-    (several GB by the end; a full run once aborted inside XLA there). The on-disk
-    compilation cache keeps recompiling cheap."""
+    RELEASE_RSS, and half of it more than after its last release: a whole suite in one
+    process otherwise keeps every shape ever compiled (several GB by the end; a full run
+    once aborted inside XLA there). The on-disk compilation cache keeps recompiling cheap.
+    (The process does not shrink back to its size before: releasing after every module
+    from there on only made each module load its executables again.)"""
     yield
     import sys
 
-    if "stickslip._compile" in sys.modules and _rss() > RELEASE_RSS:
+    if "stickslip._compile" not in sys.modules:
+        return
+    rss = _rss()
+    if rss > max(RELEASE_RSS, _after_release[0] + RELEASE_RSS / 2):
         sys.modules["stickslip._compile"].clear_caches()
+        _after_release[0] = _rss()
 
 
 @pytest.fixture(scope="session")
