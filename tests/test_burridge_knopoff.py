@@ -2,7 +2,10 @@
 errors."""
 
 import importlib.util
+import os
 import pathlib
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -230,3 +233,30 @@ def test_bad_parameters(BK, kwargs, field):
 def test_simulate_points_to_simulate_chain(BK):
     with pytest.raises(ss.ParameterError, match="simulate_chain"):
         ss.simulate(BK.example(), 10, 0.01, 1.0)
+
+
+CHAIN = """
+import numpy as np
+import stickslip as ss
+m = ss.get_model("burridge-knopoff")(2, 5.0, 1.0, 0.05, "velocity-weakening",
+                                     {"F0": 1.0, "alpha": 2.0}, D=1e-3, tau=0.1)
+print(np.asarray(ss.simulate_chain(m, 5.0, dt=0.01, seed=1).mean_velocity).sum().hex())
+"""
+
+
+@pytest.mark.slow  # two new processes (~8 s)
+def test_a_new_process_loads_the_chain_from_the_cache(tmp_path):
+    """The chain's solve is kept in JAX's persistent cache (it had a host callback, diffrax's
+    check of runtime end points, and was compiled again by every process): the first
+    process writes its entry, the second finds it (no new entry) and gets the same run."""
+    env = dict(os.environ, STICKSLIP_CACHE_DIR=str(tmp_path))
+
+    def run():
+        done = subprocess.run([sys.executable, "-c", CHAIN], env=env, capture_output=True,
+                              text=True, check=True, timeout=300)  # fmt: skip
+        return done.stdout.split()[-1], sorted(p.name for p in tmp_path.glob("jit__segment-*"))
+
+    first, entries = run()
+    assert len(entries) == 1, entries
+    second, again = run()
+    assert again == entries and second == first

@@ -125,14 +125,16 @@ RELEASES = 4 * SEGMENT  # block releases kept per path per segment (`record_rele
 
 class _ChainStep(diffrax.AbstractSolver):
     """One step of every block of every path (see the module docstring). The solve's time
-    counts steps: step k covers [k dt, (k + 1) dt]; the time series is recorded at the end
-    of every `stride`-th step, into the slots of this segment from record `rec_lo` on."""
+    counts the segment's steps, from `offset` (the global step of its first): global step k
+    covers [k dt, (k + 1) dt]; the time series is recorded at the end of every `stride`-th
+    step, into the slots of this segment from record `rec_lo` on."""
 
     model: Any
     noise_key: Any
     strength_key: Any
     dt: Any
     rec_lo: Any
+    offset: Any
     stride: Any
     path0: Any  # the first path's index (a block of a distributed run starts past 0)
     n_paths: int = eqx.field(static=True)
@@ -155,7 +157,7 @@ class _ChainStep(diffrax.AbstractSolver):
         m = self.model
         P, N = self.n_paths, m.n_blocks
         h = self.dt
-        k = jnp.round(t0)  # global step index
+        k = jnp.round(t0) + self.offset  # global step index (whole numbers: exact)
         time0, time1 = k * h, (k + 1.0) * h
         y = dict(y0)
         # diffrax keeps the state floating-point: flags are 0/1, counters whole floats
@@ -447,8 +449,9 @@ def _chain_block(model, dt, seed, opts, start, stop, progress=False) -> ChainRun
             if record_releases:
                 y0.update(releases=np.full((P, RELEASES, 3), np.nan), n_releases=np.zeros(P))
             out = _segment(
-                _ChainStep(rec_lo=np.asarray(float(lo)), **solver_args), y0,
-                np.asarray(float(first)), np.asarray(float(first + steps)),
+                _ChainStep(rec_lo=np.asarray(float(lo)), offset=np.asarray(float(first)),
+                           **solver_args),
+                y0, np.asarray(float(steps)),
             )  # fmt: skip
             out = jax.tree.map(np.asarray, out)
             state = {name: out[name] for name in state}
@@ -565,20 +568,24 @@ def _draw_strengths(model, key, ids):
 
 
 @eqx.filter_jit
-def _segment(solver, y0, t0, t1):
-    """Steps `t0` .. `t1` - 1 of every chain (at most `SEGMENT`; the solve's time counts
-    steps, so its end points are runtime values and one compiled solve serves every
-    segment)."""
+def _segment(solver, y0, steps):
+    """`steps` steps of every chain from the solver's `offset` on (at most `SEGMENT`; one
+    compiled solve serves every segment). The solve runs from 0 towards the static
+    `SEGMENT` and an event ends it after `steps`: with end points known at trace time
+    diffrax checks them there instead of inserting a host callback, and code with host
+    callbacks is never kept in JAX's persistent cache (every new process compiled the
+    chain again, ~4 s)."""
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(lambda t, y, args: y),
         solver,
-        t0=t0,
-        t1=t1,
+        t0=0.0,
+        t1=float(SEGMENT),
         dt0=1.0,
         y0=y0,
         args=solver.model,
         saveat=diffrax.SaveAt(t1=True),
         stepsize_controller=diffrax.ConstantStepSize(),
+        event=diffrax.Event(lambda t, y, args, **kwargs: t >= steps),
         max_steps=SEGMENT + 1,
         throw=False,
         adjoint=diffrax.ForwardMode(),
