@@ -32,13 +32,21 @@ print(json.dumps({"info": ss.cache_info(), "out": out}))
 """.replace("OUTPUTS", repr(OUTPUTS))
 
 
-def _process(cache_dir, n, dt, tau, policy):
-    env = dict(os.environ, STICKSLIP_CACHE_DIR=str(cache_dir), STICKSLIP_COMPILE=policy)
+def _script(script, cache_dir, *args, policy=None):
+    """`script` run in a new Python process with its own compiled-code cache `cache_dir`;
+    the JSON object it prints last."""
+    env = dict(os.environ, STICKSLIP_CACHE_DIR=str(cache_dir))
+    if policy is not None:
+        env["STICKSLIP_COMPILE"] = policy
     done = subprocess.run(
-        [sys.executable, "-c", SCRIPT, str(n), str(dt), str(tau)], env=env,
+        [sys.executable, "-c", script, *map(str, args)], env=env,
         capture_output=True, text=True, check=True, timeout=600,
     )  # fmt: skip
     return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def _process(cache_dir, n, dt, tau, policy):
+    return _script(SCRIPT, cache_dir, n, dt, tau, policy=policy)
 
 
 @pytest.fixture
@@ -197,12 +205,7 @@ def test_the_shipped_traces_are_current(tmp_path):
         "shipped traces are stale; run `python -m stickslip._ship`"
     )
     # The other usual configurations (Euler-Maruyama, noise-free, the grid monitor).
-    env = dict(os.environ, STICKSLIP_CACHE_DIR=str(tmp_path / "others"))
-    done = subprocess.run(
-        [sys.executable, "-c", OTHERS], env=env, capture_output=True, text=True, check=True,
-        timeout=600,
-    )  # fmt: skip
-    info = json.loads(done.stdout.strip().splitlines()[-1])
+    info = _script(OTHERS, tmp_path / "others")
     assert info["traces"] == 0 and info["shipped_loaded"] >= 8, info
 
 
