@@ -91,6 +91,20 @@ def run_cli(*args, cwd=None) -> subprocess.CompletedProcess:
     return subprocess.CompletedProcess(args, result.exit_code, result.stdout, result.stderr)
 
 
+def new_process(code: str, cache_dir, *args, timeout: float = 600, **env) -> str:
+    """`python -c code *args` in a new process with its own compiled-code cache `cache_dir`
+    (and `env` added to the environment): the last line it prints. For what only a new
+    process shows (what it compiles, traces or loads from disk)."""
+    import sys
+
+    env = dict(os.environ, STICKSLIP_CACHE_DIR=str(cache_dir), **env)
+    done = subprocess.run(
+        [sys.executable, "-c", code, *map(str, args)], env=env, capture_output=True,
+        text=True, check=True, timeout=timeout,
+    )  # fmt: skip
+    return done.stdout.strip().splitlines()[-1]
+
+
 def run_script(path, *args) -> subprocess.CompletedProcess:
     """`python path *args` run in this process (as `__main__`, its stdout and stderr
     captured), returned as `subprocess.run` returns it: an example's run without a new

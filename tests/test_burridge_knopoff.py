@@ -2,14 +2,11 @@
 errors."""
 
 import importlib.util
-import os
 import pathlib
-import subprocess
-import sys
 
 import numpy as np
 import pytest
-from conftest import chi2_homogeneity
+from conftest import chi2_homogeneity, new_process
 
 import stickslip as ss
 from stickslip.friction import LinearViscous
@@ -249,12 +246,10 @@ def test_a_new_process_loads_the_chain_from_the_cache(tmp_path):
     """The chain's solve is kept in JAX's persistent cache (it had a host callback, diffrax's
     check of runtime end points, and was compiled again by every process): the first
     process writes its entry, the second finds it (no new entry) and gets the same run."""
-    env = dict(os.environ, STICKSLIP_CACHE_DIR=str(tmp_path))
 
     def run():
-        done = subprocess.run([sys.executable, "-c", CHAIN], env=env, capture_output=True,
-                              text=True, check=True, timeout=300)  # fmt: skip
-        return done.stdout.split()[-1], sorted(p.name for p in tmp_path.glob("jit__segment-*"))
+        digest = new_process(CHAIN, tmp_path, timeout=300)
+        return digest, sorted(p.name for p in tmp_path.glob("jit__segment-*"))
 
     first, entries = run()
     assert len(entries) == 1, entries

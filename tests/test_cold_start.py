@@ -5,12 +5,10 @@ every policy (`stickslip._compile.policy`)."""
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+from conftest import new_process
 
 import stickslip as ss
 from stickslip import _background, _compile
@@ -32,21 +30,8 @@ print(json.dumps({"info": ss.cache_info(), "out": out}))
 """.replace("OUTPUTS", repr(OUTPUTS))
 
 
-def _script(script, cache_dir, *args, policy=None):
-    """`script` run in a new Python process with its own compiled-code cache `cache_dir`;
-    the JSON object it prints last."""
-    env = dict(os.environ, STICKSLIP_CACHE_DIR=str(cache_dir))
-    if policy is not None:
-        env["STICKSLIP_COMPILE"] = policy
-    done = subprocess.run(
-        [sys.executable, "-c", script, *map(str, args)], env=env,
-        capture_output=True, text=True, check=True, timeout=600,
-    )  # fmt: skip
-    return json.loads(done.stdout.strip().splitlines()[-1])
-
-
 def _process(cache_dir, n, dt, tau, policy):
-    return _script(SCRIPT, cache_dir, n, dt, tau, policy=policy)
+    return json.loads(new_process(SCRIPT, cache_dir, n, dt, tau, STICKSLIP_COMPILE=policy))
 
 
 @pytest.fixture
@@ -205,7 +190,7 @@ def test_the_shipped_traces_are_current(tmp_path):
         "shipped traces are stale; run `python -m stickslip._ship`"
     )
     # The other usual configurations (Euler-Maruyama, noise-free, the grid monitor).
-    info = _script(OTHERS, tmp_path / "others")
+    info = json.loads(new_process(OTHERS, tmp_path / "others"))
     assert info["traces"] == 0 and info["shipped_loaded"] >= 8, info
 
 

@@ -11,6 +11,7 @@ import time
 
 import numpy as np
 import pytest
+from conftest import new_process
 
 import stickslip as ss
 from stickslip import _compile
@@ -28,12 +29,7 @@ print(json.dumps({"info": ss.cache_info(), "slip_time": np.nan_to_num(e.slip_tim
 
 
 def _fresh_process(cache_dir, dt, **env):
-    env = dict(os.environ, STICKSLIP_CACHE_DIR=str(cache_dir), **env)
-    out = subprocess.run(
-        [sys.executable, "-c", SCRIPT, str(dt)], env=env, capture_output=True, text=True,
-        check=True, timeout=600,
-    )  # fmt: skip
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    return json.loads(new_process(SCRIPT, cache_dir, dt, **env))
 
 
 def test_a_new_step_size_reuses_the_compiled_code():
@@ -176,12 +172,7 @@ def test_one_program_reached_from_two_places_compiles_once(tmp_path):
     by a test and one by `select_method`): the second trace loads the first one's
     executable. (Source locations in the traces made them two modules before 2026-11-26,
     and the test suite compiled ~1.5 s per buffer size again for each.)"""
-    env = dict(os.environ, STICKSLIP_CACHE_DIR=str(tmp_path))
-    out = subprocess.run(
-        [sys.executable, "-c", SHARED], env=env, capture_output=True, text=True, check=True,
-        timeout=300,
-    )  # fmt: skip
-    got = json.loads(out.stdout.strip().splitlines()[-1])
+    got = json.loads(new_process(SHARED, tmp_path, timeout=300))
     before, after = got["before"], got["after"]
     assert after["traces"] == before["traces"] + 1  # a new static key: a new trace
     assert after["compiles"] == before["compiles"]  # ... but no new compilation
