@@ -171,6 +171,30 @@ def test_a_long_run_on_few_paths_compiles_its_small_sizes(empty_cache, monkeypat
     assert ss.cache_info()["compiles"] > 4
 
 
+@pytest.mark.slow  # compiles the cycles' programs from an empty cache (~8 s)
+def test_the_cycles_prefetch_compiles_what_the_cycles_then_run(empty_cache):
+    """A study compiles the programs of its time series' cycles in a thread while its
+    ensemble runs (`prefetch_cycles`): the cycles then compile none of them again (were
+    they another buffer size or program, the prefetch were wasted). The refinement is not
+    prefetched (in a study the ensemble's larger capacity stands in for the cycles' few
+    candidates): alone, the cycles compile it."""
+    from stickslip._simulate.cycles import prefetch_cycles
+
+    def made():
+        names = ("driver._onset", "driver._advance", "cycles._record")
+        counts = {_compile._name(f): n for f, (_, n) in _compile._compiled_seconds.items()}
+        return {k: v for k, v in counts.items() if k.endswith(names)}
+
+    model = ss.get_model("langevin")(**PUBLIC, tau=0.1)
+    before = made()
+    prefetch_cycles(model, 2, 0.005, 60.0).join()
+    prefetched = made()
+    assert sum(prefetched.values()) - sum(before.values()) == 3  # onset, stepping, recording
+    series = ss.simulate_cycles(model, 2, 0.005, 60.0, seed=1)
+    assert made() == prefetched
+    assert series.cycles["period"].size > 2
+
+
 @pytest.mark.slow  # traces every shipped configuration in a new process (~10 s; CI runs it)
 def test_the_shipped_traces_are_current(tmp_path):
     """A first run of the built-in model on a new machine traces nothing: the traces shipped

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import stickslip as ss
+from stickslip._simulate.cycles import _RECORD_STEPS
 
 PUBLIC = dict(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=0.1)
 
@@ -39,6 +40,13 @@ def test_trajectories(series):
         # every slip starts at the threshold, with v = v_b
         starts = np.r_[0, np.nonzero(sticks)[0][:-1] + 1]
         np.testing.assert_allclose(X[starts, :2], [[1.0, 1.0]] * starts.size)
+        # The recording re-runs each slip with its noise: its last sample is the detector's
+        # path less than one step before the stick (travel <= dt |v|, v <= v_b), also for
+        # the slips longer than one recording solve (continued from where it ended).
+        end = np.nonzero(sticks)[0]
+        gap = np.abs(X[end, 0] - X[end - 1, 0])
+        assert np.all(gap <= 0.005 * np.maximum(1.0, np.abs(X[end - 1, 1])) + 1e-12)
+    assert np.max(c["slip_time"]) > 0.005 * _RECORD_STEPS  # (such slips are in the test)
 
 
 def test_cycles_are_distributed_like_single_slips(series, Langevin):

@@ -286,21 +286,22 @@ class Fixed:
         leaves, treedef = jax.tree_util.tree_flatten(dynamic)
         _export(self.fn, leaves, treedef, static, paths)
 
-    def ready(self, *rest, paths: int) -> bool:
+    def ready(self, *rest, paths: int, build: bool = False) -> bool:
         """Whether a call on these shapes (`rest`: arrays, or stand-ins of their shapes) runs
         without tracing or compiling: its executable is in memory or on disk (then loaded).
         An executable found missing is not looked for again for `ABSENT_SECONDS` (a look on
-        disk costs a few milliseconds; another process may write it meanwhile)."""
+        disk costs a few milliseconds; another process may write it meanwhile). With
+        `build`, one that is missing is compiled (traced if need be), and the answer is True."""
         key = (paths,) + tuple((x.shape, x.dtype) for x in rest)
         if key in self.entries:
             return True
         entry = remembered((Fixed, self.key) + key)
         if entry is None:
             seen = _absent.get((self.key,) + key)
-            if seen is not None and time.monotonic() - seen < ABSENT_SECONDS:
+            if not build and seen is not None and time.monotonic() - seen < ABSENT_SECONDS:
                 return False
             found = executable(self.fn, *self.fixed, *rest, timer=self.timer, paths=paths,
-                               build=False)  # fmt: skip
+                               build=build)  # fmt: skip
             if found is None:
                 if len(_absent) > 4 * MAX_ENTRIES:
                     _absent.clear()

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import functools
 import time
 import warnings
 from typing import Any
@@ -21,6 +23,10 @@ from .loop import solve
 
 _CYCLE_BITS = 20  # a slot's counter is path * 2**20 + cycle
 _MAX_RECORD_FLOATS = 2**25  # memory bound of one recording solve (about 256 MB)
+# Steps of one recording solve (`_record`): one compiled program for every slip length and
+# step (a longer slip takes several solves), which `prefetch_cycles` can compile ahead.
+_RECORD_STEPS = 1024
+_FIRST_BATCH = 16  # cycles of each path in the first round (then twice as many each round)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -73,15 +79,17 @@ class CycleSeries:
 
 
 @eqx.filter_jit
-def _record(model, solver, cfg, n_steps, X, k_stick, path, dt, step_key, bridge_key):
-    """The same noise as in `simulate`, saving the state after every step. Nothing sticks
-    (the slips are cut at their known stick times), so no candidate step of the exact
-    detector freezes a path early."""
+def _record(model, solver, cfg, X, k_stick, path, offset, dt, step_key, bridge_key):
+    """`_RECORD_STEPS` steps with the same noise as in `simulate`, from global step `offset`,
+    saving the state after every step. Nothing sticks (the slips are cut at their known
+    stick times), so no candidate step of the exact detector freezes a path early; a longer
+    slip takes several solves, each from where the last ended (the noise is keyed by global
+    step: the same numbers as one solve)."""
     cfg = dataclasses.replace(cfg, detect="none")
     y0 = (X, (X, k_stick, jnp.zeros(X.shape[-1])))
     sol = solve(
-        model, solver, cfg, y0, path, dt, (step_key, bridge_key), 0.0,
-        t1=float(n_steps), saveat=diffrax.SaveAt(steps=True), max_steps=n_steps,
+        model, solver, cfg, y0, path, dt, (step_key, bridge_key), offset,
+        t1=float(_RECORD_STEPS), saveat=diffrax.SaveAt(steps=True), max_steps=_RECORD_STEPS,
     )  # fmt: skip
     return sol.ys[0]
 
@@ -169,6 +177,48 @@ def simulate_cycles(
     return CycleSeries(table, traces, tuple(model.state_names), info, stats)
 
 
+def prefetch_cycles(
+    model: FrictionModel,
+    n_paths: int,
+    dt: float,
+    t_max: float,
+    *,
+    solver: str = "auto",
+    monitor: str = "continuous",
+    record: bool = True,
+):
+    """Start compiling, in a thread, the programs that `simulate_cycles` with these arguments
+    will start on (`_Run.prefetch`; with `record`, the recording solve for as many cycles as
+    its first round runs), unless they are compiled already: a caller
+    that runs other work first (a study: its ensemble) overlaps their compiling with it
+    (XLA compiles without Python's lock). Returns the thread (join it before the
+    `simulate_cycles` call, which would otherwise compile them again beside it), or `None`
+    for arguments `simulate_cycles` would refuse. Nothing changes but when they compile."""
+    import threading
+
+    try:
+        n_paths, dt, t_max, _, _ = _validate(
+            "simulate_cycles", model, n_paths, dt, t_max, 0, solver, monitor, 1
+        )
+    except Exception:  # (the call itself says why)
+        return None
+    if n_paths > 2 ** (32 - _CYCLE_BITS):
+        return None
+
+    def build():
+        with contextlib.suppress(Exception):  # (the call compiles them then, and says why)
+            root = _rng.stream_key(_rng.seed_key(0), _rng.SERIES)
+            run = _Run("simulate_cycles", model, solver, monitor, dt, t_max, root, check_dt=False)
+            run.prefetch(n_paths * _FIRST_BATCH)
+            if record:
+                d = len(model.state_names)
+                _record_size(run, _recorder(run), d, n_paths * _FIRST_BATCH, 1 << 62, build=True)
+
+    thread = threading.Thread(target=build, name="stickslip-cycles-prefetch", daemon=True)
+    thread.start()
+    return thread
+
+
 def _cycles_block(model, dt, t_max, seed, opts, start, stop) -> dict:
     """`simulate_cycles` for the paths `start` .. `stop` - 1 (a task of a distributed run)."""
     root = _rng.stream_key(_rng.seed_key(seed), _rng.SERIES)
@@ -179,7 +229,7 @@ def _cycles_block(model, dt, t_max, seed, opts, start, stop) -> dict:
     rows: list[dict[str, np.ndarray]] = []
     elapsed = np.zeros(n_paths)
     active = np.ones(n_paths, dtype=bool)
-    first, batch = 0, 16
+    first, batch = 0, _FIRST_BATCH
     while active.any() and first < max_cycles:
         count = min(batch, max_cycles - first)
         ids = np.nonzero(active)[0]
@@ -231,22 +281,13 @@ def _traces(run, table, path_ids):
     dt = run.dt
     slots = ((table["path"].astype(np.uint64) << _CYCLE_BITS) + table["cycle"]).astype(np.uint32)
     slip_time = np.where(np.isfinite(table["slip_time"]), table["slip_time"], run.n_steps * dt)
-    steps_needed = np.ceil(slip_time / dt).astype(int)
+    steps = np.where(table["immediate"], 0, np.floor(slip_time / dt + 1e-9).astype(int))
     d = table["onset"].shape[0]
-    # Group slots so that one recording solve stays within the memory bound.
-    n_rec = _next_pow2_int(max(1, int(steps_needed.max())))
+    # Group slots so that the samples of one group's solves stay within the memory bound.
+    n_rec = _RECORD_STEPS * max(1, -(-int(steps.max()) // _RECORD_STEPS))
     group = max(1, _MAX_RECORD_FLOATS // (n_rec * d * 2))
-    # The slots of a solve: the size that holds a group (at least 128), or another size of
-    # the same program at hand (`_Run._size_at_hand`: a larger one within the memory bound,
-    # padded, or a smaller one, in more solves; each slot's noise is its own).
-    fixed = _compile.Fixed(_record, run.slip, run.solver, run.cfg, n_rec, timer=run.timer)
-    want = max(128, _next_pow2_int(min(group, slots.size)))
-    n = run._size_at_hand(
-        fixed,
-        lambda m: (_zeros((d, m)), _zeros(m), _zeros(m, np.uint32), run.dt_arr,
-                   run.keys["step"], run.keys["bridge"]),
-        want, max(want, 1 << (group.bit_length() - 1)), smaller=True,
-    )  # fmt: skip
+    fixed = _recorder(run)
+    n = _record_size(run, fixed, d, min(group, slots.size), group)
     group = min(group, n)
     samples = []
     for start in range(0, slots.size, group):
@@ -257,16 +298,15 @@ def _traces(run, table, path_ids):
             [np.where(table["immediate"][idx], INACTIVE, SLIPPING), np.full(pad, INACTIVE)]
         )
         path = np.concatenate([slots[idx], np.zeros(pad, dtype=np.uint32)])
-        # `paths`: kept on disk, as the stepping's programs (without it every process
-        # compiled it again, 0.5-3 s)
-        ys = np.asarray(
-            run._counted(
-                fixed(X0, ks, path, run.dt_arr, run.keys["step"], run.keys["bridge"], paths=n)
-            )
-        )
+        X, parts = X0, []
+        for first in range(0, int(steps[idx].max()), _RECORD_STEPS):
+            offset = np.asarray(float(first))
+            ys = np.asarray(run._counted(fixed(X, ks, path, offset, *_record_tail(run), paths=n)))
+            parts.append(ys)
+            X = ys[-1]
+        ys = np.concatenate(parts, axis=0) if parts else np.zeros((0, d, n))
         for col, row in enumerate(idx):
-            k = int(np.floor(slip_time[row] / dt + 1e-9)) if not table["immediate"][row] else 0
-            k = min(k, n_rec)
+            k = steps[row]
             samples.append(np.concatenate([X0[:, col : col + 1], ys[:k, :, col].T], axis=1))
     traces = []
     for p in path_ids:
@@ -284,6 +324,39 @@ def _traces(run, table, path_ids):
                 flags.append([False])
         traces.append((np.concatenate(ts), np.concatenate(xs, axis=1).T, np.concatenate(flags)))
     return tuple(traces)
+
+
+def _record_tail(run):
+    """`_record`'s arguments after the buffer and its offset: the step and the keys."""
+    return run.dt_arr, run.keys["step"], run.keys["bridge"]
+
+
+def _record_specimen(run, d: int, m: int):
+    """Stand-ins for `_record`'s arguments after its fixed ones, for `m` slots."""
+    return (_zeros((d, m)), _zeros(m), _zeros(m, np.uint32), _zeros(()), *_record_tail(run))
+
+
+def _recorder(run) -> _compile.Fixed:
+    """`_record` with the run's slip phase, solver and configuration."""
+    return _compile.Fixed(_record, run.slip, run.solver, run.cfg, timer=run.timer)
+
+
+def _record_size(run, fixed, d: int, count: int, most: int, build: bool = False) -> int:
+    """The slots of a recording solve for `count` slips (at least 128; `most`: the memory
+    bound): that size where it is compiled, else another size of the same program at hand
+    (`_Run._size_at_hand`: a larger one within the bound, padded, or a smaller one, in more
+    solves; each slot's noise is its own), else that size (compiled then, or here with
+    `build`)."""
+    want = max(128, _next_pow2_int(count))
+    specimen = functools.partial(_record_specimen, run, d)
+    n = run._size_at_hand(
+        fixed, specimen, want, max(want, 1 << (most.bit_length() - 1)), smaller=True
+    )
+    if build:
+        # (`paths`: kept on disk, as the stepping's programs: without it every process
+        # compiled it again, 0.5-3 s)
+        fixed.ready(*specimen(n), paths=n, build=True)
+    return n
 
 
 def _next_pow2_int(n: int) -> int:

@@ -594,8 +594,11 @@ class _Run:
 
     def __init__(
         self, owner, model, solver, monitor, dt, t_max, root, bar=None,
-        crossing_tol=DEFAULT_CROSSING_TOL, scheduler="host",
+        crossing_tol=DEFAULT_CROSSING_TOL, scheduler="host", check_dt=True,
     ):  # fmt: skip
+        # (`check_dt`: refuse or warn about a step too coarse for the slip's time scale;
+        # False only for a run made for its programs alone, `prefetch`, whose caller's run
+        # checks)
         self.timer = _compile.Timer()
         # Compiled calls made and arrays they handed back (`count_call`).
         self.stats = {"dispatches": 0, "transfers": 0}
@@ -632,9 +635,11 @@ class _Run:
         # Interpolation nodes of the in-step location (`_locate`; the exact solver's only
         # dt-dependent static). The stepping loop never interpolates: its solver has a fixed
         # count, so one compiled loop serves every dt.
-        if solver == "exact":
+        if solver == "exact" and check_dt:
             _check_time_scales(owner, lg, dt, detect)
-        self.nodes = _nodes_for(lg.A, dt, detect == "cubic") if solver == "exact" else 1
+        self.nodes = 1
+        if solver == "exact":
+            self.nodes = _nodes_for(lg.A, dt, detect == "cubic" and check_dt)
         self.depths = None  # (location, certification) levels of the bridge detector
         # The crossing functional and level on the host (`_chunk`'s speculative stepping).
         self.crossing = np.asarray(lg.crossing, dtype=np.float64) if lg is not None else None
@@ -1092,6 +1097,20 @@ class _Run:
         if found is not None and found[0] < want and not self._compile_here(want):
             return found[0]
         return n
+
+    def prefetch(self, count: int) -> None:
+        """Compile the programs that a chunk of `count` paths will start on, unless a compiled
+        stepping loop is at hand for it (`_at_hand`): its onset and its stepping loop at the
+        buffer size it wants. For a caller that runs them later and has the compiling, which
+        XLA does without Python's lock, overlap other work (in a thread). Nothing changes
+        but when they are compiled."""
+        want = _buffer_size(count)
+        if self._at_hand(want) is not None:
+            return
+        d = len(self.model.state_names)
+        stand_ins = (self.keys["onset"], _zeros(want, np.uint32), np.uint32(0), _zeros((d, want)))
+        self.onset.ready(*stand_ins, paths=want, build=True)
+        self._loop(self._speculates(want)).ready(*self._loop_specimen(want), paths=want, build=True)
 
     def _first_buffer(self, want: int):
         """The buffer size (and whether it steps past candidates) that a chunk wanting a

@@ -233,6 +233,17 @@ def _simulate(point: Point, progress: bool, say, client, outs, sources):
     s = point.study
     model = s.model.instance
     sim = s.simulation
+    cycles = sim is not None and ("time_series" in outs or "phase_portrait" in outs)
+    ahead = None
+    if cycles and client is None:
+        # The cycles' stepping programs (another buffer size, at their own step) compile in
+        # a thread while the ensemble compiles and runs, instead of after it.
+        from .._simulate.cycles import prefetch_cycles
+
+        ahead = prefetch_cycles(
+            model, sim.cycles.n_paths, sim.cycles.dt or sim.dt, sim.cycles.t_max,
+            solver=sim.solver, monitor=sim.monitor,
+        )  # fmt: skip
     if sim is not None and any(q in outs for q in (*DENSITIES, "n1", "n2")):
         record = sim.upcrossings if ("n1" in outs or "n2" in outs or "empirical" in sources) else 0
         say(f"simulate: {sim.n_paths} paths, dt={sim.dt:g}, solver={sim.solver}")
@@ -252,7 +263,9 @@ def _simulate(point: Point, progress: bool, say, client, outs, sources):
         point.ensemble = ens
         point.timings["simulation"] = ens.stats["wall_seconds"]
         point.timings["simulation_compile"] = ens.stats["compile_seconds"]
-    if sim is not None and ("time_series" in outs or "phase_portrait" in outs):
+    if cycles:
+        if ahead is not None:
+            ahead.join()
         say(f"simulate_cycles: {sim.cycles.n_paths} paths to t={sim.cycles.t_max:g}")
         t0 = time.perf_counter()
         point.cycles = ss.simulate_cycles(
