@@ -189,11 +189,11 @@ def prefetch_cycles(
 ):
     """Start compiling, in a thread, the programs that `simulate_cycles` with these arguments
     will start on (`_Run.prefetch`; with `record`, the recording solve for as many cycles as
-    its first round runs), unless they are compiled already: a caller
-    that runs other work first (a study: its ensemble) overlaps their compiling with it
-    (XLA compiles without Python's lock). Returns the thread (join it before the
-    `simulate_cycles` call, which would otherwise compile them again beside it), or `None`
-    for arguments `simulate_cycles` would refuse. Nothing changes but when they compile."""
+    its first round runs), unless they are compiled already: a caller that runs other work
+    first (a study: its ensemble) overlaps their compiling with it (XLA compiles without
+    Python's lock). Returns the thread (join it before the `simulate_cycles` call, which
+    would otherwise compile them again beside it), or `None` for arguments
+    `simulate_cycles` would refuse. Nothing changes but when they compile."""
     import threading
 
     try:
