@@ -850,12 +850,12 @@ class _Run:
         size = _padded_size(n)
         if size > DEFAULT_CHUNK:
             return size
+        return self._size_at_hand(self.onset, self._onset_specimen, size, DEFAULT_CHUNK)
+
+    def _onset_specimen(self, size: int):
+        """Stand-ins for `_onset`'s arguments after its fixed ones, for `size` paths."""
         d = len(self.model.state_names)
-        return self._size_at_hand(
-            self.onset, lambda m: (self.keys["onset"], _zeros(m, np.uint32), np.uint32(0),
-                                   _zeros((d, m))),
-            size, DEFAULT_CHUNK,
-        )  # fmt: skip
+        return self.keys["onset"], _zeros(size, np.uint32), np.uint32(0), _zeros((d, size))
 
     def _size_at_hand(self, fixed, specimen, want: int, most: int, smaller: bool = False):
         """The size that a call of `fixed` (a `_compile.Fixed`) on `want` paths runs on:
@@ -1107,9 +1107,7 @@ class _Run:
         want = _buffer_size(count)
         if self._at_hand(want) is not None:
             return
-        d = len(self.model.state_names)
-        stand_ins = (self.keys["onset"], _zeros(want, np.uint32), np.uint32(0), _zeros((d, want)))
-        self.onset.ready(*stand_ins, paths=want, build=True)
+        self.onset.ready(*self._onset_specimen(want), paths=want, build=True)
         self._loop(self._speculates(want)).ready(*self._loop_specimen(want), paths=want, build=True)
 
     def _first_buffer(self, want: int):
