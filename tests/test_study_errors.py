@@ -450,6 +450,51 @@ def test_console_script_exit_code(tmp_path):
     assert proc.stdout == ""
 
 
+_QUICK_EXIT = """
+import atexit, sys, threading, time
+import stickslip.cli as cli
+atexit.register(lambda: print("exit handler ran"))  # (stdout is a pipe: block-buffered)
+mode, path, plain_exit = sys.argv[1], sys.argv[2], cli.quick_exit
+def late():
+    time.sleep(0.5)
+    open(path, "w").write("done")
+def quick_exit(code):  # a plugin's thread, not a daemon, still working at the end
+    if mode == "thread":
+        threading.Thread(target=late).start()
+    plain_exit(code)
+cli.quick_exit = quick_exit
+sys.argv = ["stickslip", *sys.argv[3:]]
+cli.console()
+"""
+
+
+@pytest.mark.parametrize("thread", ["none", "thread"])
+def test_the_quick_exit_runs_exit_handlers_flushes_and_waits_for_threads(tmp_path, thread):
+    """`console` leaves without the interpreter's teardown (`cli.quick_exit`), but as the
+    ordinary exit would: exit handlers run, buffered output is written, the exit code kept,
+    and a thread that is not a daemon finishes its work."""
+    marker = tmp_path / "thread.txt"
+
+    def command(*argv):
+        return subprocess.run(
+            [sys.executable, "-c", _QUICK_EXIT, thread, str(marker), *argv],
+            capture_output=True, text=True, timeout=120,
+            env={**os.environ, "JAX_PLATFORMS": "cpu"},
+        )  # fmt: skip
+
+    proc = command("models")
+    assert proc.returncode == 0, proc.stderr
+    assert "langevin" in proc.stdout
+    assert proc.stdout.rstrip().endswith("exit handler ran")
+    assert marker.exists() == (thread == "thread")
+    if thread == "thread":
+        assert marker.read_text() == "done"
+    proc = command("validate", str(tmp_path / "missing.yaml"))
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("error: ") and "missing.yaml" in proc.stderr
+    assert proc.stdout == "exit handler ran\n"
+
+
 # -- nothing already written is lost or corrupted ---------------------------------------------
 def _snapshot(root: pathlib.Path) -> dict[str, bytes]:
     return {
