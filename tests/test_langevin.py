@@ -2,6 +2,7 @@
 
 import math
 
+import equinox as eqx
 import numpy as np
 import pytest
 
@@ -62,6 +63,34 @@ def test_linear_gaussian_matches_drift_and_diffusion(Langevin, tau):
     y0 = m.onset_state(jax.random.key(0))
     np.testing.assert_array_equal(y0, lg.m0)
     assert float(m.crossing(y0)) == m.stick_level == GOOD["v_b"]
+
+
+@pytest.mark.parametrize("tau", [None, 0.1])
+def test_linear_gaussian_is_numpy_for_numbers_and_traceable(Langevin, tau):
+    """Of given parameters the description is plain NumPy (nothing for JAX to compile: the
+    simulator then reads it without a compiled call), and of traced ones (a compiled caller,
+    a gradient) it is the same arrays: the drift and diffusion at a traced omega0."""
+    from stickslip._simulate.driver import _traces_nothing
+
+    m = Langevin(**GOOD, tau=tau)
+    lg = m.linear_gaussian()
+    fields = ("A", "b", "B", "crossing", "position", "m0", "P0")
+    assert all(type(getattr(lg, f)) is np.ndarray for f in fields)
+    assert _traces_nothing(m.linear_gaussian)
+    assert not _traces_nothing(lambda: jnp.eye(2))  # (a plugin's in JAX: one compiled call)
+
+    @jax.jit
+    def traced(omega0):  # (as the simulator's compiled calls see a model: arrays as leaves)
+        lg = eqx.tree_at(lambda model: model.omega0, m, omega0).linear_gaussian()
+        return [getattr(lg, f) for f in fields]
+
+    for f, x in zip(fields, traced(jnp.asarray(GOOD["omega0"])), strict=True):
+        np.testing.assert_array_equal(x, getattr(lg, f), err_msg=f)
+    # d(A)/d(omega0): only the spring term, -2 omega0, depends on it
+    dA = jax.jacfwd(lambda w: traced(w)[0])(jnp.asarray(1.5))
+    expect = np.zeros_like(lg.A)
+    expect[1, 0] = -3.0
+    np.testing.assert_array_equal(dA, expect)
 
 
 def test_ou_noise_has_the_stated_correlation(Langevin):

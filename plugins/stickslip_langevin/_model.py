@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import equinox as eqx
+import numpy as np
 
 from stickslip import FrictionModel, LinearGaussian, ParameterError
 from stickslip.plugin import check_choice, check_nonnegative, check_positive, jax, jnp
@@ -100,25 +101,30 @@ class LangevinSlip(FrictionModel):
         return jnp.stack([x0, jnp.asarray(self.v_b, float), eta])
 
     def linear_gaussian(self):
+        # NumPy unless a parameter is traced (a compiled caller, a gradient): each jax.numpy
+        # operation outside a trace is compiled on its first use in a process, ~20 small
+        # programs (0.3-0.5 s) for these few arrays in every new process.
+        params = (self.omega0, self.zeta, self.D, self.v_b, self.tau, self.mean_threshold())
+        xp = jnp if any(isinstance(p, jax.core.Tracer) for p in params) else np
         w2, z = self.omega0**2, self.zeta
         if self.tau is None:
-            A = jnp.array([[0.0, 1.0], [-w2, -z]])
-            B = jnp.array([[0.0], [jnp.sqrt(2.0 * self.D)]])
-            m0 = jnp.array([self.mean_threshold(), self.v_b])
-            P0 = jnp.zeros((2, 2))
+            A = xp.array([[0.0, 1.0], [-w2, -z]])
+            B = xp.array([[0.0], [xp.sqrt(2.0 * self.D)]])
+            m0 = xp.array([self.mean_threshold(), self.v_b])
+            P0 = xp.zeros((2, 2))
         else:
-            A = jnp.array([[0.0, 1.0, 0.0], [-w2, -z, 1.0], [0.0, 0.0, -1.0 / self.tau]])
-            B = jnp.array([[0.0], [0.0], [jnp.sqrt(2.0 * self.D) / self.tau]])
-            m0 = jnp.array([self.mean_threshold(), self.v_b, 0.0])
+            A = xp.array([[0.0, 1.0, 0.0], [-w2, -z, 1.0], [0.0, 0.0, -1.0 / self.tau]])
+            B = xp.array([[0.0], [0.0], [xp.sqrt(2.0 * self.D) / self.tau]])
+            m0 = xp.array([self.mean_threshold(), self.v_b, 0.0])
             eta_var = 0.0 if self.eta0 == "zero" else self.D / self.tau
-            P0 = jnp.diag(jnp.array([0.0, 0.0, eta_var]))
+            P0 = xp.diag(xp.array([0.0, 0.0, eta_var]))
         d = A.shape[0]
         return LinearGaussian(
             A=A,
-            b=jnp.zeros(d),
+            b=xp.zeros(d),
             B=B,
-            crossing=jnp.eye(d)[1],
-            position=jnp.eye(d)[0],
+            crossing=xp.eye(d)[1],
+            position=xp.eye(d)[0],
             m0=m0,
             P0=P0,
         )

@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 
 from .._errors import ParameterError, check_choice, check_int, check_positive
-from .._jax import jnp
+from .._jax import jax
 from .._model import FrictionModel, _to_arrays, time_scales
 from . import gaussian as G
 from . import series
@@ -204,10 +204,10 @@ class CrossingEstimator:
         else:
             cvar = check_positive(owner, "closure_variance", closure_variance)
         self.closure_variance = cvar
-        cr = G.Crossing(
-            jnp.asarray(lg.A), jnp.asarray(lg.b), jnp.asarray(lg.B), jnp.asarray(lg.crossing),
-            jnp.asarray(lg.position), jnp.asarray(self.level), jnp.asarray(cvar),
-        )  # fmt: skip
+        # (`device_put`: `jnp.asarray` would compile a conversion per shape in each process)
+        cr = G.Crossing(*jax.device_put(tuple(np.asarray(x, float) for x in (
+            lg.A, lg.b, lg.B, lg.crossing, lg.position, self.level, cvar
+        ))))  # fmt: skip
         return GaussianSource(
             cr, model.onset_mixture(quadrature_nodes),
             exact=self.exact, quadrature_nodes=quadrature_nodes, x_points=x_points,

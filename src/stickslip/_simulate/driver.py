@@ -154,8 +154,20 @@ class _Config:
 
 @eqx.filter_jit
 def _linear_gaussian(model):
-    lg = model.linear_gaussian()
+    return _lg_arrays(model.linear_gaussian())
+
+
+def _lg_arrays(lg: LinearGaussian | None):
     return None if lg is None else tuple(getattr(lg, f) for f in _LG_FIELDS)
+
+
+def _traces_nothing(fn) -> bool:
+    """Whether `fn()` computes without a JAX operation (in NumPy, or constants): then it
+    needs no compiling."""
+    try:
+        return not jax.make_jaxpr(fn)().eqns
+    except Exception:  # (the compiled call meets it again, and raises)
+        return False
 
 
 _LG_FIELDS = tuple(f.name for f in dataclasses.fields(LinearGaussian))
@@ -609,9 +621,13 @@ class _Run:
         slip = model.slip_phase()
         self.slip = self.model if slip is model else _to_arrays(slip)
         self._fixed: dict = {}  # `call`'s executables with the model as first argument
-        # The slip's linear-Gaussian description on the host (one compiled call: evaluated
-        # op by op, its first use in a process compiles each operation).
-        lg = self.call(_linear_gaussian, self.model, paths=0)
+        # The slip's linear-Gaussian description on the host: as it is where it computes in
+        # NumPy (nothing to trace: the built-in models), else by one compiled call (evaluated
+        # op by op, its first use in a process would compile each operation).
+        if _traces_nothing(self.model.linear_gaussian):
+            lg = _lg_arrays(self.model.linear_gaussian())
+        else:
+            lg = self.call(_linear_gaussian, self.model, paths=0)
         if lg is not None:
             lg = LinearGaussian(**{f: np.asarray(x) for f, x in zip(_LG_FIELDS, lg, strict=True)})
         if solver == "auto":
