@@ -62,10 +62,13 @@ def console():
     quick_exit(0)
 
 
+_POOL = "stickslip-refine"  # the refinement pool's threads (`_simulate.bridge._pool`)
+
+
 def quick_exit(code):
     """Leave as `sys.exit(code)` would, without the interpreter's teardown after it.
 
-    Once a run is done, freeing its compiled programs and modules one by one took 0.6-1.1 s
+    Once a run is done, freeing its compiled programs and modules one by one took 0.55-1.15 s
     on 2 cores (the README's main job and a simulation of the public set: the time from the
     command's end to the process's, measured against `os._exit`). Here the exit handlers all
     run (`atexit`: JAX's, logging's, Dask's), the streams are flushed, and the process ends.
@@ -74,12 +77,15 @@ def quick_exit(code):
     pool of idle refinement threads is shut down first)."""
     if code is not None and not isinstance(code, int):
         sys.exit(code)
+    main_thread = threading.main_thread()
+    if any(
+        t is not main_thread and not t.daemon and not t.name.startswith(_POOL)
+        for t in threading.enumerate()
+    ):
+        sys.exit(code)
     bridge = sys.modules.get("stickslip._simulate.bridge")
     if bridge is not None and bridge._pool.cache_info().currsize:
         bridge._pool().shutdown(wait=True)
-    main_thread = threading.main_thread()
-    if any(t is not main_thread and not t.daemon for t in threading.enumerate()):
-        sys.exit(code)
     atexit._run_exitfuncs()
     for stream in (sys.stdout, sys.stderr):
         try:
