@@ -104,18 +104,19 @@ class LangevinSlip(FrictionModel):
         # NumPy unless a parameter is traced (a compiled caller, a gradient): each jax.numpy
         # operation outside a trace is compiled on its first use in a process, ~20 small
         # programs (0.3-0.5 s) for these few arrays in every new process.
-        params = (self.omega0, self.zeta, self.D, self.v_b, self.tau, self.mean_threshold())
+        x0 = self.mean_threshold()
+        params = (self.omega0, self.zeta, self.D, self.v_b, self.tau, x0)
         xp = jnp if any(isinstance(p, jax.core.Tracer) for p in params) else np
         w2, z = self.omega0**2, self.zeta
         if self.tau is None:
             A = xp.array([[0.0, 1.0], [-w2, -z]])
             B = xp.array([[0.0], [xp.sqrt(2.0 * self.D)]])
-            m0 = xp.array([self.mean_threshold(), self.v_b])
+            m0 = xp.array([x0, self.v_b])
             P0 = xp.zeros((2, 2))
         else:
             A = xp.array([[0.0, 1.0, 0.0], [-w2, -z, 1.0], [0.0, 0.0, -1.0 / self.tau]])
             B = xp.array([[0.0], [0.0], [xp.sqrt(2.0 * self.D) / self.tau]])
-            m0 = xp.array([self.mean_threshold(), self.v_b, 0.0])
+            m0 = xp.array([x0, self.v_b, 0.0])
             eta_var = 0.0 if self.eta0 == "zero" else self.D / self.tau
             P0 = xp.diag(xp.array([0.0, 0.0, eta_var]))
         d = A.shape[0]

@@ -527,11 +527,14 @@ def _threads() -> int:
     return 2 if cpu and (os.cpu_count() or 1) >= 2 else 1
 
 
+POOL_THREADS = "stickslip-refine"  # the names of the refinement pool's threads begin so
+
+
 @functools.cache
 def _pool():
     from concurrent.futures import ThreadPoolExecutor
 
-    return ThreadPoolExecutor(2, thread_name_prefix="stickslip-refine")
+    return ThreadPoolExecutor(2, thread_name_prefix=POOL_THREADS)
 
 
 # A forked child has none of the parent's threads: it makes a pool of its own.

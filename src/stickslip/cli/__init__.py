@@ -62,9 +62,6 @@ def console():
     quick_exit(0)
 
 
-_POOL = "stickslip-refine"  # the refinement pool's threads (`_simulate.bridge._pool`)
-
-
 def quick_exit(code):
     """Leave as `sys.exit(code)` would, without the interpreter's teardown after it.
 
@@ -77,13 +74,14 @@ def quick_exit(code):
     pool of idle refinement threads is shut down first)."""
     if code is not None and not isinstance(code, int):
         sys.exit(code)
+    bridge = sys.modules.get("stickslip._simulate.bridge")  # (not imported: no pool)
+    ours = bridge.POOL_THREADS if bridge is not None else None
     main_thread = threading.main_thread()
     if any(
-        t is not main_thread and not t.daemon and not t.name.startswith(_POOL)
+        t is not main_thread and not t.daemon and not (ours and t.name.startswith(ours))
         for t in threading.enumerate()
     ):
         sys.exit(code)
-    bridge = sys.modules.get("stickslip._simulate.bridge")
     if bridge is not None and bridge._pool.cache_info().currsize:
         bridge._pool().shutdown(wait=True)
     atexit._run_exitfuncs()
