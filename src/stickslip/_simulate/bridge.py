@@ -380,14 +380,15 @@ def _refine_levels(
         # Each half: ends above the level, bound on an upcrossing inside (l: left, r: right).
         above_l, above_r = valid & (vm >= level), valid & (vb >= level)
         # The bounds are computed in a branch of their own so that they are materialised once
-        # (XLA re-derived them inside each consumer; an optimization barrier did not stop it).
+        # (XLA re-derived them inside each consumer; an optimization barrier did not stop it),
+        # both halves by one expression over a stacked axis: one copy of the quadrature's
+        # code to compile instead of two, element for element the same arithmetic.
         p_l, p_r = jax.lax.cond(
             count >= 0,
-            lambda: (
-                expected_upcrossings(Tc, a, Xm, level),
-                expected_upcrossings(Tc, Xm, b, level),
+            lambda: jax.vmap(lambda u, w: expected_upcrossings(Tc, u, w, level))(
+                jnp.stack([a, Xm]), jnp.stack([Xm, b])
             ),
-            lambda: (jnp.zeros(C), jnp.zeros(C)),
+            lambda: jnp.zeros((2, C)),
         )
         # Keep each owner's halves up to and including its first one that ends above (halves
         # in time order: 2i + r).
