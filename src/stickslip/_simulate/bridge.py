@@ -382,7 +382,9 @@ def _refine_levels(
         # The bounds are computed in a branch of their own so that they are materialised once
         # (XLA re-derived them inside each consumer; an optimization barrier did not stop it),
         # both halves by one expression over a stacked axis: one copy of the quadrature's
-        # code to compile instead of two, element for element the same arithmetic.
+        # code to compile instead of two, element for element the same arithmetic. (The
+        # stacked array leaves the branch whole: halves sliced inside it were fused again,
+        # each with a copy of the quadrature.)
         p_l, p_r = jax.lax.cond(
             count >= 0,
             lambda: jax.vmap(lambda u, w: expected_upcrossings(Tc, u, w, level))(
