@@ -15,6 +15,7 @@ from stickslip._solver import PathwiseBrownian, SlipTerm, exact
 # function and shape instead of one per primitive and shape (op by op: 12 s of a cold run).
 transition = jax.jit(exact.transition)
 psd_factor = jax.jit(exact.psd_factor)
+# (Give it the step as an array: a Python float is a static argument, one compilation per step.)
 traced_solver = eqx.filter_jit(ExactGaussian)
 dense_nodes = eqx.filter_jit(lambda solver, m, y0, y1, h: solver.dense_nodes(m, y0, y1, h))
 
@@ -87,7 +88,7 @@ def test_exact_step_has_the_transition_law(Langevin):
     n, h = 200_000, 0.01
     m = Langevin(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=0.1)
     lg = m.linear_gaussian()
-    solver = traced_solver(lg.A, lg.b, lg.B, h)
+    solver = traced_solver(lg.A, lg.b, lg.B, jnp.asarray(h))  # (8 nodes: as the tests below)
     model, terms, y0 = _setup(Langevin, solver, n)
     X1 = np.asarray(_first_step(solver, terms, y0, model, 0.0, 1.0)[0])
     Phi, c, Sigma = (np.asarray(a) for a in transition(lg.A, lg.b, lg.B, h))
@@ -124,7 +125,7 @@ def test_bridge_mean_nodes(Langevin, nodes):
     h = 0.02
     m = Langevin(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=0.1)
     lg = m.linear_gaussian()
-    solver = traced_solver(lg.A, lg.b, lg.B, h, nodes=nodes)
+    solver = traced_solver(lg.A, lg.b, lg.B, jnp.asarray(h), nodes=nodes)
     rng = np.random.default_rng(0)
     y0 = rng.normal(size=(3, 5))
     y1 = rng.normal(size=(3, 5))
@@ -161,14 +162,14 @@ def test_noise_free_nodes_are_the_flow(Langevin):
     h = 0.05
     m = Langevin(omega0=1.0, zeta=0.1, D=0.0, v_b=1.0, x0=1.0, tau=0.1)
     lg = m.linear_gaussian()
-    solver = traced_solver(lg.A, lg.b, lg.B, h, nodes=4)
+    solver = traced_solver(lg.A, lg.b, lg.B, jnp.asarray(h), nodes=8)
     y0 = np.array([[1.0], [1.0], [0.0]])
     y1 = scipy.linalg.expm(np.asarray(lg.A) * h) @ y0
     values, slopes = (
         np.asarray(a) for a in dense_nodes(solver, m, jnp.asarray(y0), jnp.asarray(y1), h)
     )
-    for j in range(5):
-        flow = scipy.linalg.expm(np.asarray(lg.A) * h * j / 4) @ y0
+    for j in range(9):
+        flow = scipy.linalg.expm(np.asarray(lg.A) * h * j / 8) @ y0
         np.testing.assert_allclose(values[j], flow, rtol=1e-13, atol=1e-14)
         np.testing.assert_allclose(slopes[j], np.asarray(lg.A) @ flow, rtol=1e-12, atol=1e-14)
 
