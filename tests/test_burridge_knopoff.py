@@ -2,6 +2,7 @@
 errors."""
 
 import importlib.util
+import json
 import pathlib
 
 import numpy as np
@@ -233,25 +234,25 @@ def test_simulate_points_to_simulate_chain(BK):
 
 
 CHAIN = """
+import json
 import numpy as np
 import stickslip as ss
 m = ss.get_model("burridge-knopoff")(2, 5.0, 1.0, 0.05, "velocity-weakening",
                                      {"F0": 1.0, "alpha": 2.0}, D=1e-3, tau=0.1)
-print(np.asarray(ss.simulate_chain(m, 5.0, dt=0.01, seed=1).mean_velocity).sum().hex())
+run = ss.simulate_chain(m, 5.0, dt=0.01, seed=1)
+print(json.dumps([np.asarray(run.mean_velocity).sum().hex(), ss.cache_info()]))
 """
 
 
 @pytest.mark.slow  # two new processes (~8 s)
 def test_a_new_process_loads_the_chain_from_the_cache(tmp_path):
-    """The chain's solve is kept in JAX's persistent cache (it had a host callback, diffrax's
-    check of runtime end points, and was compiled again by every process): the first
-    process writes its entry, the second finds it (no new entry) and gets the same run."""
-
-    def run():
-        digest = new_process(CHAIN, tmp_path, timeout=300)
-        return digest, sorted(p.name for p in tmp_path.glob("jit__segment-*"))
-
-    first, entries = run()
-    assert len(entries) == 1, entries
-    second, again = run()
-    assert again == entries and second == first
+    """The chain's solve is traced and compiled once and kept on disk (it once had a host
+    callback, diffrax's check of runtime end points, and every process compiled it again;
+    then every process traced it again): the second process neither traces nor compiles
+    it, loads both, and gets the same run."""
+    first, info = json.loads(new_process(CHAIN, tmp_path, timeout=300))
+    assert info["traces"] >= 1 and info["compiles"] >= 1, info
+    second, again = json.loads(new_process(CHAIN, tmp_path, timeout=300))
+    assert again["traces"] == 0 and again["compiles"] == 0, again
+    assert again["exported_loaded"] >= 1 and again["executables_loaded"] >= 1, again
+    assert second == first
