@@ -182,7 +182,7 @@ def executable(fn, *args, timer: Timer | None = None, paths: int | None = None, 
     executable already in memory or on disk, else `None`."""
     dynamic, static = eqx.partition(args, eqx.is_array)
     leaves, treedef = jax.tree_util.tree_flatten(dynamic)
-    key = (fn, treedef, tuple((x.shape, str(x.dtype)) for x in leaves), static)
+    key = (fn, treedef, tuple((x.shape, str(x.dtype)) for x in leaves), _static_key(static))
     entry = _cache.get(key)
     if entry is None:
         start = time.perf_counter()
@@ -217,6 +217,14 @@ def _on_device(x):
         else:
             _resident.move_to_end(key)
         return out
+
+
+def _static_key(static):
+    """The non-array part of a call's arguments as a dictionary key: its tree structure and
+    leaves, as `eqx.filter_jit` keys it (the part itself may not be hashable: a dict of
+    arrays leaves a dict of `None`s)."""
+    leaves, treedef = jax.tree_util.tree_flatten(static)
+    return treedef, tuple(leaves)
 
 
 class _Key:
@@ -259,7 +267,8 @@ class Fixed:
         leaves, treedef = jax.tree_util.tree_flatten(dynamic)
         # What the executable depends on in `fixed` (as `executable`'s key): the entries are
         # shared with every `Fixed` of the same structure (the runs of one configuration).
-        self.key = _interned((fn, treedef, tuple((x.shape, x.dtype) for x in leaves), static))
+        shapes = tuple((x.shape, x.dtype) for x in leaves)
+        self.key = _interned((fn, treedef, shapes, _static_key(static)))
         self.leaves = [_on_device(x) for x in leaves]
         self.entries: dict = {}
 
@@ -481,7 +490,7 @@ def _export(fn, leaves, treedef, static, paths, build=True):
     new trace unless `build` is false); `None` where it cannot be exported."""
     specs = _poly_specs(leaves, paths)
     poly_shapes = tuple((str(s.shape), str(s.dtype)) for s in specs)
-    key = (fn, treedef, poly_shapes, static)
+    key = (fn, treedef, poly_shapes, _static_key(static))
     if key in _exported:
         return _exported[key]
     file = _trace_file(fn, treedef, poly_shapes, static)
@@ -664,7 +673,7 @@ def _trace_file(fn, treedef, shapes, static) -> pathlib.Path | None:
     where = jax.config.jax_compilation_cache_dir
     if not where:
         return None
-    key = (where, fn, treedef, shapes, static)
+    key = (where, fn, treedef, shapes, _static_key(static))
     if key in _trace_files:  # (a probe for a size at hand asks again: the text took ~2 ms)
         return _trace_files[key]
     _trace_files[key] = file = _trace_path(where, fn, treedef, shapes, static)

@@ -448,12 +448,11 @@ def _chain_block(model, dt, seed, opts, start, stop, progress=False) -> ChainRun
             )  # fmt: skip
             if record_releases:
                 y0.update(releases=np.full((P, RELEASES, 3), np.nan), n_releases=np.zeros(P))
-            leaves, tree = jax.tree_util.tree_flatten(y0)
             out = _compile.call(
                 _segment,
                 _ChainStep(rec_lo=np.asarray(float(lo)), offset=np.asarray(float(first)),
                            **solver_args),
-                tree, tuple(leaves), np.asarray(float(steps)), paths=0,
+                y0, np.asarray(float(steps)), paths=0,
             )  # fmt: skip
             out = jax.tree.map(np.asarray, out)
             state = {name: out[name] for name in state}
@@ -570,15 +569,13 @@ def _draw_strengths(model, key, ids):
 
 
 @eqx.filter_jit
-def _segment(solver, tree, leaves, steps):
+def _segment(solver, y0, steps):
     """`steps` steps of every chain from the solver's `offset` on (at most `SEGMENT`; one
-    compiled solve serves every segment), from the state with structure `tree` and arrays
-    `leaves` (a dict is no key of the compiled-code cache; its structure is). Its trace
-    and executable are kept on disk (`_compile.call`): a new process neither traces nor
-    compiles the chain again. The solve runs from 0 towards the static `SEGMENT` and an
-    event ends it after `steps`: with end points known at trace time diffrax checks them
-    there instead of inserting a host callback, which could not be exported."""
-    y0 = jax.tree_util.tree_unflatten(tree, leaves)
+    compiled solve serves every segment). Its trace and executable are kept on disk
+    (`_compile.call`): a new process neither traces nor compiles the chain again. The
+    solve runs from 0 towards the static `SEGMENT` and an event ends it after `steps`:
+    with end points known at trace time diffrax checks them there instead of inserting a
+    host callback, which could not be exported."""
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(lambda t, y, args: y),
         solver,
