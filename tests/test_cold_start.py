@@ -5,6 +5,9 @@ every policy (`stickslip._compile.policy`)."""
 from __future__ import annotations
 
 import json
+import pathlib
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -106,6 +109,30 @@ def test_the_background_compiler_makes_what_the_eager_run_needs(tmp_path):
     again = _process(tmp_path, 3000, 0.2, 0.1, "eager")
     assert again["info"]["compiles"] == 0 and again["info"]["traces"] == 0, again["info"]
     assert again["out"] == first["out"]
+
+
+@pytest.mark.skipif(
+    not pathlib.Path("/proc/self/autogroup").exists(), reason="no autogroups (Linux only)"
+)
+def test_the_background_compiler_nices_its_session_too():
+    """Where Linux shares the CPU between sessions first (autogrouping), the worker, alone in
+    its session (`_spawn`), nices the session as well as itself: the kernel reports both
+    (a niced process in a session of its own took a core of two from the foreground)."""
+    code = (
+        "import os, pathlib\n"
+        "from stickslip import _background\n"
+        "before = os.nice(0)\n"
+        "_background._lower_priority()\n"
+        "print(before, os.nice(0), pathlib.Path('/proc/self/autogroup').read_text())\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+        start_new_session=True,
+    )  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    before, after, group = out.stdout.split(maxsplit=2)
+    assert int(after) == min(19, int(before) + _background.NICE)  # (19: the most there is)
+    assert group.split()[-2:] == ["nice", str(_background.NICE)], group
 
 
 def test_a_bad_policy_is_one_line(monkeypatch):
