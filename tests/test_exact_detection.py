@@ -301,26 +301,41 @@ def _depth_first(T_levels, key, level, depths, tol, Xa, Xb, path, step):
 @pytest.mark.parametrize("dt", [0.1, 1.6])
 def test_compiled_refinement_is_the_depth_first_one(Langevin, dt, monkeypatch):
     """Candidate steps of a real run, refined by the simulator (breadth first, compiled,
-    small buffers so that every hand-back is exercised) and by the depth-first reference:
-    the same sticks, to rounding. The breadth-first miss bound may be larger: it sums the
-    bounds of halves that a crossing found later, at a deeper level, places after the
-    stick."""
+    small buffers and batches so that every hand-back is exercised) and by the depth-first
+    reference: the same sticks, to rounding. The breadth-first miss bound may be larger: it
+    sums the bounds of halves that a crossing found later, at a deeper level, places after
+    the stick. The run's own candidates are mostly decided within a level or two, so the
+    same candidates are refined again moved just below the level, where their halves stay
+    open level after level and outgrow their buffer (`_GROW`)."""
     from stickslip._simulate import driver
 
     monkeypatch.setattr(bridge, "CAPACITIES", (256, 512))
+    monkeypatch.setattr(bridge, "BATCH", 256)
     model = Langevin(**PUBLIC)
     run = driver._Run("test", driver._to_arrays(model), "auto", "continuous", dt, 30.0,
                       ss._rng.seed_key(5))  # fmt: skip
-    got = []
-    original = bridge.Refiner.first_crossing
+    got, statuses = [], []
+    original, call = bridge.Refiner.first_crossing, bridge.Refiner._call
 
     def spy(self, Xa, Xb, path, step):
         out = original(self, Xa, Xb, path, step)
         got.append(((Xa, Xb, path, step), out))
         return out
 
+    def spy_call(self, *args, **kwargs):
+        out = call(self, *args, **kwargs)
+        statuses.append(int(out[-1]))
+        return out
+
     monkeypatch.setattr(bridge.Refiner, "first_crossing", spy)
+    monkeypatch.setattr(bridge.Refiner, "_call", spy_call)
     run.first_passages(np.arange(600, dtype=np.uint32), 600)
+    (Xa, Xb, path, step), _ = got[0]
+    near = Xa.copy(), Xb.copy()
+    for X in near:
+        X[1] = PUBLIC["v_b"] * (1 - 1e-5)  # v, the crossing variable
+    run.refiner().first_crossing(*near, path, step)  # (through the spy: checked below)
+    assert {bridge._GROW, bridge._SHRINK, bridge._DONE} <= set(statuses), set(statuses)
     T = run.solver.bridge
     levels = [jax.tree_util.tree_map(lambda x, j=j: np.asarray(x)[..., j : j + 1], T)
               for j in range(bridge.MAX_DEPTH + 1)]  # fmt: skip
@@ -335,7 +350,7 @@ def test_compiled_refinement_is_the_depth_first_one(Langevin, dt, monkeypatch):
             # Each candidate's miss bound bounds the depth-first one.
             assert miss[i] >= ref[3] * (1 - 1e-9)
             checked += 1
-    assert checked > 150 and sum(np.sum(o[0]) for _, o in got) > 100
+    assert checked > 300 and sum(np.sum(o[0]) for _, o in got) > 100
 
 
 def test_stepping_past_candidates_finds_the_same_sticks(Langevin, monkeypatch):
