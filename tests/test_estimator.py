@@ -453,11 +453,17 @@ def test_grid_K2_equals_the_lag_rule_evaluated_directly(Langevin, params):
     K = src.second_order(src.grid(13.0, h), 1301)[0]
     for k in (1, 7, 150, 777, 1300):
         tau, w = sources.lag_rule(np.arange(1301)[k] * h)
-        # one length for every k (one compiled evaluation): repeat the last node, weight 0
-        tau, w = (np.pad(a, (0, 320 - a.size), mode=m) for a, m in ((tau, "edge"), (w, "constant")))
+        # in blocks of one length for every k (one compiled evaluation, the length of
+        # test_n2_equals_an_independent_implementation's): the last node repeated, weight 0
+        B = 64
+        tau, w = (np.pad(a, (0, -a.size % B), mode=m) for a, m in ((tau, "edge"), (w, "constant")))
         ms, Ps = src.moments(np.maximum(k * h - tau, 0.0))
         prop = kernels.lag_propagators(src.cr, tau)
-        direct = w @ np.asarray(kernels.n2_pairs(src.cr, ms[0], Ps[0], *prop, tau))
+        direct = 0.0
+        for i in range(0, tau.size, B):
+            part = (ms[0], Ps[0], *prop, tau)
+            n2 = kernels.n2_pairs(src.cr, *(np.asarray(a)[i : i + B] for a in part))
+            direct += w[i : i + B] @ np.asarray(n2)
         assert K[k] == pytest.approx(direct, rel=1e-11), k
 
 
