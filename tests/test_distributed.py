@@ -18,6 +18,8 @@ import stickslip as ss
 
 distributed = pytest.importorskip("distributed")
 
+pytestmark = pytest.mark.early  # (clusters of worker processes: ~10 s in 3 tests)
+
 PUBLIC = dict(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=0.1)
 OUTPUTS = ("slip_time", "slip_distance", "stick_time", "period")
 # A small sweep: three points of the noise intensity.

@@ -18,6 +18,10 @@ import subprocess
 import sys
 import textwrap
 
+import pytest
+
+pytestmark = pytest.mark.early  # (a package build and a new process: 8-10 s)
+
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 PYPROJECT = """\
