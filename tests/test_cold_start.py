@@ -135,6 +135,23 @@ def test_the_background_compiler_nices_its_session_too():
     assert group.split()[-2:] == ["nice", str(_background.NICE)], group
 
 
+def test_the_worker_holds_the_queue_while_it_waits_for_its_run(tmp_path, monkeypatch):
+    """The worker takes the queue's lock before it waits for the run that started it, so
+    that the run's later requests find a worker and start no other (a first main job
+    started eight, each a new Python process)."""
+    seen = []
+
+    def wait_for(pid, timeout):  # (the run has not exited yet: is the queue held?)
+        with _background._try_lock(tmp_path / "stickslip-queue" / "worker.lock") as free:
+            seen.append(free)
+
+    monkeypatch.setattr(_background, "_wait_for", wait_for)
+    monkeypatch.setattr(_background, "_lower_priority", lambda: None)  # (this process)
+    monkeypatch.setenv("STICKSLIP_COMPILE", "reuse")  # (`main` sets its own: restored)
+    assert _background.main([str(tmp_path), "1"]) == 0
+    assert seen == [False]
+
+
 def test_a_bad_policy_is_one_line(monkeypatch):
     monkeypatch.setenv("STICKSLIP_COMPILE", "fastest")
     model = ss.get_model("langevin")(**PUBLIC)

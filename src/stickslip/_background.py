@@ -14,10 +14,11 @@ which keeps it on disk where the runs look for it, and exits when the queue is e
 run that asked does not wait for it; a later run (or a later round of a long one) loads the
 executable from disk.
 
-One worker per cache directory (an exclusive `flock` on `stickslip-queue/worker.lock`); a
-job is the pickled function and arguments, the arrays replaced by their shapes, named by
-its digest and removed once done or failed (a model whose class a new process cannot import,
-say one defined in a notebook, fails there: the run then compiles it when that pays).
+One worker per cache directory (an exclusive `flock` on `stickslip-queue/worker.lock`, taken
+as it starts, before it waits for its run); a job is the pickled function and arguments, the
+arrays replaced by their shapes, named by its digest and removed once done or failed (a
+model whose class a new process cannot import, say one defined in a notebook, fails there:
+the run then compiles it when that pays).
 Nothing here can change a result.
 """
 
@@ -235,14 +236,18 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     cache_dir = pathlib.Path(argv[0])
     _lower_priority()
-    if len(argv) > 1:
-        _wait_for(int(argv[1]), PARENT_WAIT)
     os.environ["STICKSLIP_COMPILE"] = "eager"  # (what this process compiles, it compiles)
     queue = cache_dir / "stickslip-queue"
+    first = True
     while True:
         with _try_lock(queue / "worker.lock") as mine:
             if not mine:
                 return 0  # another worker has the queue
+            if first and len(argv) > 1:
+                # Waiting with the lock held: the run's later requests see a worker and
+                # start no other (a cold main job started 8, each a new Python process).
+                _wait_for(int(argv[1]), PARENT_WAIT)
+            first = False
             _work(queue)
         if not pending(cache_dir):  # (a job queued while this one was finishing: go on)
             return 0
