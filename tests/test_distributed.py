@@ -183,6 +183,25 @@ def test_missing_dask_is_one_line(model, monkeypatch):
         ss.simulate(model, 100, 0.1, 5.0, client="local")
 
 
+@pytest.mark.skipif(
+    not hasattr(os, "sched_setaffinity") or (os.cpu_count() or 1) < 2,
+    reason="needs CPU affinity and two CPUs",
+)
+def test_a_local_cluster_takes_the_cpus_the_process_may_use():
+    """`client="local"` starts one worker per CPU the process may use, not per core of the
+    machine: a process held to one CPU (as a batch job's share) would start one."""
+    code = (
+        "import os\n"
+        "os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})\n"
+        "from stickslip import _distributed\n"
+        "print(os.cpu_count(), _distributed.local_workers())\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    machine, workers = map(int, out.stdout.split())
+    assert machine >= 2 and workers == 1
+
+
 @pytest.mark.slow
 def test_command_line_sweep_on_a_local_cluster(tmp_path):
     """`stickslip sweep ... --dask local` starts a cluster, runs the points there and writes

@@ -38,11 +38,22 @@ def _import_distributed(owner: str):
     return distributed
 
 
+def local_workers() -> int:
+    """The worker processes of `client="local"`: one per CPU this process may use, as Dask
+    counts them (its CPU affinity and its cgroup's CPU quota, as a batch job or a container
+    sets them), not one per core of the machine (`os.cpu_count()`: a job given 2 of a node's
+    64 cores would start 64 processes, each importing JAX and compiling)."""
+    from dask.system import CPU_COUNT
+
+    return max(1, int(CPU_COUNT))
+
+
 def connect(owner: str, client) -> tuple[Any, bool]:
     """The `distributed.Client` for `client`: a client as it is, or a scheduler address
     (`"tcp://host:8786"`) or `"local"` (a local cluster of one single-threaded worker
-    process per core). Returns `(client, owned)`: an owned client is closed by `close`. A
-    scheduler that cannot be reached is one `ParameterError` line."""
+    process per CPU this process may use, `local_workers`). Returns `(client, owned)`: an
+    owned client is closed by `close`. A scheduler that cannot be reached is one
+    `ParameterError` line."""
     distributed = _import_distributed(owner)
     if isinstance(client, distributed.Client):
         return client, False
@@ -54,7 +65,7 @@ def connect(owner: str, client) -> tuple[Any, bool]:
     address = client.strip()
     if address == "local":
         cluster = distributed.LocalCluster(
-            n_workers=os.cpu_count() or 1, threads_per_worker=1, processes=True,
+            n_workers=local_workers(), threads_per_worker=1, processes=True,
             dashboard_address=":0",
         )  # fmt: skip
         return distributed.Client(cluster), True

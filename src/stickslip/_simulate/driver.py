@@ -470,9 +470,10 @@ def simulate(
       the certified steps, a bound on the chance that a path's stick was missed, are
       reported as `Ensemble.stats["miss_bound"]` (mean over paths).
     - `client`: run blocks of paths as tasks on a Dask cluster: a `dask.distributed.Client`,
-      a scheduler address, or `"local"` (a local cluster, one worker process per core). The
-      numbers are identical to a local run with the same seed (docs/distributed.md); the
-      blocks hold about four per worker thread, at most `chunk_size` paths each.
+      a scheduler address, or `"local"` (a local cluster, one worker process per CPU it may
+      use). The numbers are identical to a local run with the same seed
+      (docs/distributed.md); the blocks hold about four per worker thread, at most
+      `chunk_size` paths each.
     - `scheduler`: how a chunk is run. `"host"`: a sequence of short compiled calls with
       the compaction and refinement batches cut on the host (the fastest on a CPU);
       `"device"`: one compiled program per chunk, stepping, refinement and resolution on

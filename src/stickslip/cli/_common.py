@@ -97,7 +97,7 @@ def dask_option(func):
         metavar="ADDRESS|local",
         default=None,
         help="Run on a Dask cluster: a scheduler address (tcp://host:8786) or 'local' (one "
-        "worker process per core); sweep points run as tasks, a single point's paths as "
+        "worker process per CPU it may use); sweep points run as tasks, a single point's paths as "
         'blocks. Needs pip install "stickslip[dask]".',
     )(func)
 
