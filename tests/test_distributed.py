@@ -187,19 +187,21 @@ def test_missing_dask_is_one_line(model, monkeypatch):
     not hasattr(os, "sched_setaffinity") or (os.cpu_count() or 1) < 2,
     reason="needs CPU affinity and two CPUs",
 )
-def test_a_local_cluster_takes_the_cpus_the_process_may_use():
+def test_a_process_held_to_one_cpu_uses_one():
     """`client="local"` starts one worker per CPU the process may use, not per core of the
-    machine: a process held to one CPU (as a batch job's share) would start one."""
+    machine, and the exact refinement's threads follow the same count: a process held to
+    one CPU (as a batch job's share of a node) starts one worker and refines in one thread."""
     code = (
         "import os\n"
         "os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})\n"
         "from stickslip import _distributed\n"
-        "print(os.cpu_count(), _distributed.local_workers())\n"
+        "from stickslip._simulate import bridge\n"
+        "print(os.cpu_count(), _distributed.local_workers(), bridge._threads())\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
-    machine, workers = map(int, out.stdout.split())
-    assert machine >= 2 and workers == 1
+    machine, workers, threads = map(int, out.stdout.split())
+    assert machine >= 2 and workers == 1 and threads == 1
 
 
 @pytest.mark.slow

@@ -525,9 +525,14 @@ def _shrink_at(C: int) -> int:
 @functools.cache
 def _threads() -> int:
     """Threads for the refinement: 2 on a CPU with 2 cores or more (measured there), 1 on
-    one core or on an accelerator (one call keeps it busy)."""
+    one core or on an accelerator (one call keeps it busy). The cores are those the process
+    may use (its affinity: a batch job's share of a node), where the system says."""
     cpu = jax.default_backend() == "cpu"
-    return 2 if cpu and (os.cpu_count() or 1) >= 2 else 1
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # (not Linux)
+        cores = os.cpu_count() or 1
+    return 2 if cpu and cores >= 2 else 1
 
 
 POOL_THREADS = "stickslip-refine"  # the names of the refinement pool's threads begin so
