@@ -233,11 +233,10 @@ def _lower_priority() -> None:
     for _ in range(5):  # (raising a niceness needs no privilege)
         try:
             pathlib.Path("/proc/self/autogroup").write_text(str(NICE))
+            return
         except BlockingIOError:  # unprivileged: one such write per 0.1 s on the machine
             time.sleep(0.1)
         except OSError:
-            return
-        else:
             return
 
 
