@@ -459,10 +459,10 @@ def test_grid_K2_equals_the_lag_rule_evaluated_directly(Langevin, params):
         tau, w = (np.pad(a, (0, -a.size % B), mode=m) for a, m in ((tau, "edge"), (w, "constant")))
         ms, Ps = src.moments(np.maximum(k * h - tau, 0.0))
         prop = kernels.lag_propagators(src.cr, tau)
+        pairs = [np.asarray(a) for a in (ms[0], Ps[0], *prop, tau)]
         direct = 0.0
         for i in range(0, tau.size, B):
-            part = (ms[0], Ps[0], *prop, tau)
-            n2 = kernels.n2_pairs(src.cr, *(np.asarray(a)[i : i + B] for a in part))
+            n2 = kernels.n2_pairs(src.cr, *(a[i : i + B] for a in pairs))
             direct += w[i : i + B] @ np.asarray(n2)
         assert K[k] == pytest.approx(direct, rel=1e-11), k
 
