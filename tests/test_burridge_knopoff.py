@@ -146,6 +146,26 @@ def test_noise_free_single_block_is_periodic(BK):
     assert d.size > 5 and np.ptp(d) < 2e-3 and np.ptp(s) < 2e-3
 
 
+def test_a_longer_run_compiles_nothing_and_begins_as_the_shorter(BK):
+    """Twice the `t_max` doubles the default spacing of the time series (t_max / 1000: every
+    100, then every 200 steps), which once changed the segment's compiled shape: now the
+    same program runs (no trace, compilation or load), and the longer run's first half is
+    the shorter run (the noise-free chain is deterministic; the samples fall on the same
+    steps)."""
+    chain = BK(1, 0.0, 1.0, 0.5, LinearViscous(static=2.0, viscosity=0.2, kinetic=1.0))
+    short = ss.simulate_chain(chain, 200.0, dt=0.002, seed=0)
+    counts = {k: ss.cache_info()[k] for k in ("traces", "compiles", "executables_loaded")}
+    long = ss.simulate_chain(chain, 400.0, dt=0.002, seed=0)
+    assert {k: ss.cache_info()[k] for k in counts} == counts
+    assert long.t.size == short.t.size == 1001
+    np.testing.assert_array_equal(long.t[:501], short.t[::2])
+    np.testing.assert_array_equal(long.mean_force[:, :501], short.mean_force[:, ::2])
+    n = short.start[0].size - 1  # the shorter run's events but the one its end may cut
+    assert long.start[0].size > 2 * n
+    for q in ("start", "duration", "slip"):
+        np.testing.assert_array_equal(getattr(long, q)[0][:n], getattr(short, q)[0][:n])
+
+
 @pytest.mark.slow
 def test_hundred_blocks_broad_event_sizes(BK):
     """N = 100 with noise over 1e4 time units: sizes span 1 to N, and P(s) falls over two

@@ -29,8 +29,9 @@ blocks that slipped, its slip the sum of their displacements (Carlson and Langer
 
 The run is a sequence of segments of `SEGMENT` steps, each one solve of fixed size: the
 events, quiet times, releases and time series of a segment are handed to the host and
-appended, so memory does not grow with `t_max` beyond the events themselves, and a new
-`t_max` compiles nothing.
+appended, so memory does not grow with `t_max` beyond the events themselves. A segment's
+time-series buffer holds its samples rounded up to a few sizes (`_series_slots`), so a new
+`t_max` or `record_dt` compiles nothing unless its spacing in steps moves to another size.
 """
 
 from __future__ import annotations
@@ -381,13 +382,30 @@ def simulate_chain(
     return _join_chains(parts)
 
 
+def _series_slots(stride: int) -> int:
+    """The slots of a segment's time-series buffer for samples every `stride` steps: the
+    samples a segment can hold (`ceil(SEGMENT / stride)`, and the one at its start) rounded
+    up to a power of two, or to a power of 8 where that is at most `SEGMENT / 8`. The
+    buffer's shape is part of the compiled solve, so the slots come in a few sizes (7 for
+    4096 steps a segment) rather than one per spacing: a new `t_max` (the default spacing is
+    `t_max / 1000`) or `record_dt` compiles again only when it moves to another size.
+    Rounding up costs little memory: at most twice the samples where the buffer is large,
+    and where it is rounded to a power of 8 it stays below the events' buffers (three
+    values per path and step of the segment)."""
+    need = -(-SEGMENT // stride)
+    size = 1
+    while size < need:
+        size *= 8 if 8 * size <= SEGMENT // 8 else 2
+    return min(size, SEGMENT) + 1
+
+
 def _chain_bytes(N, P, n_steps, dt, record_dt, record_blocks, record_releases) -> float:
     """Peak memory of `_chain_block` (bytes, an estimate from above): per chain the state
     (six arrays of N), a segment's buffers (events, quiet times, series samples, releases)
     three times over (the initial state, the solve's carry and its result), and the time
     series kept (the segments' parts, then joined)."""
     stride = max(1, int(round(record_dt / dt)))
-    rec_cap = -(-SEGMENT // stride) + 1
+    rec_cap = _series_slots(stride)
     width = 3 + (N if record_blocks else 0)
     segment = 6 * N + 4 * (SEGMENT // 2 + 1) + SEGMENT + rec_cap * width
     segment += 3 * RELEASES if record_releases else 0
@@ -422,7 +440,7 @@ def _chain_block(model, dt, seed, opts, start, stop, progress=False) -> ChainRun
     counts = np.zeros(P, dtype=np.int64)
     n_quiet, n_rel = np.zeros(P, dtype=np.int64), np.zeros(P, dtype=np.int64)
     dropped = 0  # releases beyond a segment's buffer
-    rec_cap = -(-SEGMENT // stride) + 1
+    rec_cap = _series_slots(stride)
     solver_args = dict(
         model=_to_arrays(model), noise_key=keys[_rng.STEP], strength_key=keys[_rng.THRESHOLD],
         dt=np.asarray(dt), stride=np.asarray(float(stride)), path0=np.uint32(start), n_paths=P,
