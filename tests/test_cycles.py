@@ -49,6 +49,45 @@ def test_trajectories(series):
     assert np.max(c["slip_time"]) > 0.005 * _RECORD_STEPS  # (such slips are in the test)
 
 
+def test_a_longer_run_records_on_a_compiled_size(series, Langevin, monkeypatch):
+    """Five times the t_max: about 180 slips to record where the fixture recorded about 36
+    (on 128 slots), so the recording solve wants 256 slots. A compiled size stands in
+    (`_record_size` searches the powers of two; on the simulator's buffer sizes, steps of
+    8, it found none and compiled 256): nothing is traced or compiled, and the slips both
+    runs hold are recorded alike, whatever solve and column each ran in."""
+    from stickslip import _rng
+    from stickslip._simulate import cycles, driver
+
+    monkeypatch.setenv("STICKSLIP_COMPILE", "reuse")
+    counts = {k: ss.cache_info()[k] for k in ("traces", "compiles")}
+    longer = ss.simulate_cycles(Langevin(**PUBLIC), 3, 0.005, 300.0, seed=4)
+    assert {k: ss.cache_info()[k] for k in counts} == counts
+    for p in range(3):
+        t, X, slipping = series.trajectory(p)
+        t2, X2, slipping2 = longer.trajectory(p)
+        n = np.nonzero(~slipping)[0][-2] + 1  # up to the last stick before the fixture's end
+        np.testing.assert_array_equal(t2[:n], t[:n])
+        np.testing.assert_array_equal(X2[:n], X[:n])
+    # The search itself, on a run whose recording solve is compiled at the sizes given.
+    root = _rng.stream_key(_rng.seed_key(0), _rng.SERIES)
+    run = driver._Run("simulate_cycles", Langevin(**PUBLIC), "auto", "continuous", 0.005,
+                      300.0, root)  # fmt: skip
+
+    class Compiled:
+        def __init__(self, *sizes):
+            self.sizes = sizes
+
+        def ready(self, *args, paths):
+            return paths in self.sizes
+
+    def size(count, *compiled):
+        return cycles._record_size(run, Compiled(*compiled), 3, count, 1 << 20)
+
+    assert size(557, 256) == 256 and size(557, 128, 512) == 512  # smaller, in more solves
+    assert size(557, 2048, 8192) == 2048  # larger, padded, up to 8 times
+    assert size(557, 16384) == size(557) == 1024  # none within 8 times: compiled at the call
+
+
 def test_cycles_are_distributed_like_single_slips(series, Langevin):
     """Every cycle starts afresh (the paper's sharp reset): cycle slip times follow the
     one-cycle distribution (means within 4 standard errors)."""

@@ -347,11 +347,10 @@ def _record_size(run, fixed, d: int, count: int, most: int, build: bool = False)
     (`_Run._size_at_hand`: a larger one within the bound, padded, or a smaller one, in more
     solves; each slot's noise is its own), else that size (compiled then, or here with
     `build`)."""
-    want = max(128, _next_pow2_int(count))
+    want = max(_MIN_RECORD, _next_pow2_int(count))
     specimen = functools.partial(_record_specimen, run, d)
-    n = run._size_at_hand(
-        fixed, specimen, want, max(want, 1 << (most.bit_length() - 1)), smaller=True
-    )
+    top = max(want, 1 << (most.bit_length() - 1))
+    n = run._size_at_hand(fixed, specimen, want, top, smaller=True, ladder=_RECORD_LADDER)
     if build:
         # (`paths`: kept on disk, as the stepping's programs: without it every process
         # compiled it again, 0.5-3 s)
@@ -361,3 +360,11 @@ def _record_size(run, fixed, d: int, count: int, most: int, build: bool = False)
 
 def _next_pow2_int(n: int) -> int:
     return 1 << max(0, (int(n) - 1).bit_length())
+
+
+_MIN_RECORD = 128  # slots of the smallest recording solve
+# The recording solve's sizes (powers of two from `_MIN_RECORD`): the ladder on which another
+# compiled size stands in for the one wanted (`_record_size`). Searched on the simulator's
+# buffer sizes (steps of 8 below 8192) it passed over the powers of two between, so every
+# new count of cycles (another t_max or number of paths) compiled the solve again.
+_RECORD_LADDER = (lambda size: 2 * size, lambda size: size // 2 if size > _MIN_RECORD else 0)

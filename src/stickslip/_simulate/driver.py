@@ -328,21 +328,23 @@ def _zeros(shape, dtype=np.float64):
     return np.broadcast_to(np.zeros((), dtype), shape)
 
 
-def _stand_in_size(ready, want: int, most: int, smaller: bool = False):
+def _stand_in_size(ready, want: int, most: int, smaller: bool = False, ladder=None):
     """The size that stands in for `want` (`_compile.STAND_IN`) among those for which
     `ready(size)` is true: the smallest above it, up to `STAND_IN` times it or `most`
     (padded); with `smaller`, else the largest down to `1 / STAND_IN` of it (in more calls);
-    `None` if none."""
+    `None` if none. `ladder`: the caller's sizes, as the functions `(larger, smaller)` of
+    a size (default: the buffer sizes, `_larger_buffer` and `_smaller_buffer`)."""
+    larger, lower = ladder or (_larger_buffer, _smaller_buffer)
     size, top = want, min(_compile.STAND_IN * want, most)
     while size < top:
-        size = min(_larger_buffer(size), top)
+        size = min(larger(size), top)
         if ready(size):
             return size
-    size = _smaller_buffer(want) if smaller else 0
+    size = lower(want) if smaller else 0
     while size and size * _compile.STAND_IN >= want:
         if ready(size):
             return size
-        size = _smaller_buffer(size)
+        size = lower(size)
     return None
 
 
@@ -874,16 +876,19 @@ class _Run:
         d = len(self.model.state_names)
         return self.keys["onset"], _zeros(size, np.uint32), np.uint32(0), _zeros((d, size))
 
-    def _size_at_hand(self, fixed, specimen, want: int, most: int, smaller: bool = False):
+    def _size_at_hand(
+        self, fixed, specimen, want: int, most: int, smaller: bool = False, ladder=None
+    ):
         """The size that a call of `fixed` (a `_compile.Fixed`) on `want` paths runs on:
         `want` where it is compiled (in memory or on disk) or under the `"eager"` policy,
-        else a compiled one that stands in (`_stand_in_size`; with `smaller`, the caller
-        makes several calls of a smaller one), else `want` (compiled at the call).
-        `specimen(size)`: the call's arguments after the fixed ones, for `size` paths."""
+        else a compiled one that stands in (`_stand_in_size`, on `ladder`; with `smaller`,
+        the caller makes several calls of a smaller one), else `want` (compiled at the
+        call). `specimen(size)`: the call's arguments after the fixed ones, for `size`
+        paths."""
         ready = lambda m: fixed.ready(*specimen(m), paths=m)  # noqa: E731
         if _compile.policy() == "eager" or ready(want):
             return want
-        return _stand_in_size(ready, want, most, smaller) or want
+        return _stand_in_size(ready, want, most, smaller, ladder) or want
 
     def _chunk(self, paths):
         """First passages of one chunk of paths; see `simulate`. Also returns each path's
