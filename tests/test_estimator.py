@@ -426,6 +426,24 @@ def test_joint_density_integrates_to_n1(exact, Langevin):
     np.testing.assert_allclose(joint.sum(axis=0) * 0.25, emp.n1(cells_t), rtol=1e-9)
 
 
+def test_fewer_upcrossings_per_path_run_the_same_program(Langevin):
+    """K = 12 after K = 16 (each K compiled a program of its own): one program with 16 rows
+    serves both, nothing is traced or compiled, and the first 12 upcrossings of every path
+    are those of the K = 16 record (the K = 12 run stops once every path has 12, so it
+    counts no more than the other)."""
+    args = (Langevin(**PUBLIC), 2000, 0.005, 8.0)
+    sixteen = ss.simulate(*args, seed=21, record_upcrossings=16).upcrossings
+    counts = {k: ss.cache_info()[k] for k in ("traces", "compiles")}
+    twelve = ss.simulate(*args, seed=21, record_upcrossings=12).upcrossings
+    assert {k: ss.cache_info()[k] for k in counts} == counts
+    assert twelve.times.shape == (2000, 12) and np.isfinite(twelve.times).sum() > 2000
+    np.testing.assert_array_equal(twelve.times, sixteen.times[:, :12])
+    np.testing.assert_array_equal(twelve.positions, sixteen.positions[:, :12])
+    assert np.all(twelve.count <= sixteen.count)
+    full = twelve.count < 12  # paths that ended (t_max) before their 12th: counted alike
+    np.testing.assert_array_equal(twelve.count[full], sixteen.count[full])
+
+
 @pytest.mark.slow
 def test_white_noise_closure_second_order(Langevin):
     """The closure's n2 diverges like tau^-1/2 on the diagonal (integrable): the second-order

@@ -818,7 +818,7 @@ class _Run:
 
     def upcrossings(self, paths, X0, immediate, max_crossings, chunk_size):
         """The free run (no absorption) of the paths, recording their upcrossings."""
-        from .upcrossings import Upcrossings, record
+        from .upcrossings import Upcrossings, crossing_slots, record
 
         n = paths.size
         times = np.full((n, max_crossings), np.nan)
@@ -836,11 +836,11 @@ class _Run:
             c, t, x = self.call(
                 record, self.slip, self.solver, cfg, X, p, self.dt_arr,
                 self.keys["step"], self.keys["bridge"], np.asarray(float(self.n_steps)),
-                max_crossings, paths=size,
+                np.asarray(float(max_crossings)), crossing_slots(max_crossings), paths=size,
             )  # fmt: skip
             count[rows] = np.asarray(c)[: rows.size].astype(np.int64)
-            times[rows] = np.asarray(t)[:, : rows.size].T
-            positions[rows] = np.asarray(x)[:, : rows.size].T
+            times[rows] = np.asarray(t)[:max_crossings, : rows.size].T
+            positions[rows] = np.asarray(x)[:max_crossings, : rows.size].T
         pos = np.array(self.onset_positions, dtype=float)  # (of X0: the last first passages)
         return Upcrossings(times, positions, count, immediate.copy(), pos, self.t_max, self.dt)
 

@@ -102,11 +102,14 @@ class UpcrossingRecorder(AbstractCrossingSolver):
 
 
 @eqx.filter_jit
-def record(model, solver, cfg, X, path, dt, step_key, bridge_key, n_steps, max_crossings):
+def record(model, solver, cfg, X, path, dt, step_key, bridge_key, n_steps, max_crossings, slots):
     """Run the free process from the onset states X for `n_steps` (a runtime value: one
-    compiled solve serves every t_max), logging upcrossings."""
+    compiled solve serves every t_max) or until every path has `max_crossings` upcrossings
+    (a runtime value too), logging them into `slots` rows (static, at least
+    `max_crossings`: `crossing_slots`; the rows past `max_crossings` are the caller's to
+    drop)."""
     n = X.shape[1]
-    empty = jnp.full((max_crossings, n), jnp.nan)
+    empty = jnp.full((slots, n), jnp.nan)
 
     def done(t, y, args, **kwargs):
         return jnp.all(y[1][0] >= max_crossings) | (t >= n_steps)
@@ -118,3 +121,11 @@ def record(model, solver, cfg, X, path, dt, step_key, bridge_key, n_steps, max_c
     )  # fmt: skip
     _, (count, times, positions) = sol.ys
     return count[0], times[0], positions[0]
+
+
+def crossing_slots(max_crossings: int) -> int:
+    """The rows of `record`'s buffer for `max_crossings` upcrossings a path: a power of two
+    (at least 4). The rows are part of the compiled solve, so K = 12 and 16 share one
+    program, and 20 to 32 another, where each K compiled (and traced) its own; the stopping
+    rule takes K itself, so the record is the same to the last bit."""
+    return 1 << max(2, (int(max_crossings) - 1).bit_length())
