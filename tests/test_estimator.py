@@ -440,8 +440,8 @@ def test_fewer_upcrossings_per_path_run_the_same_program(Langevin):
     np.testing.assert_array_equal(twelve.times, sixteen.times[:, :12])
     np.testing.assert_array_equal(twelve.positions, sixteen.positions[:, :12])
     assert np.all(twelve.count <= sixteen.count)
-    full = twelve.count < 12  # paths that ended (t_max) before their 12th: counted alike
-    np.testing.assert_array_equal(twelve.count[full], sixteen.count[full])
+    ended = twelve.count < 12  # paths that reached t_max before their 12th: counted alike
+    np.testing.assert_array_equal(twelve.count[ended], sixteen.count[ended])
 
 
 @pytest.mark.slow
