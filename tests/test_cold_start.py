@@ -257,9 +257,10 @@ def test_the_shipped_traces_are_current(tmp_path):
         f"{info['traces']} traces made, {info['shipped_loaded']} shipped ones used: the "
         "shipped traces are stale; run `python -m stickslip._ship`"
     )
-    # The other usual configurations (Euler-Maruyama, noise-free, the grid monitor).
+    # The other usual configurations (Euler-Maruyama, noise-free, the grid monitor, the
+    # upcrossings of the docs' empirical estimator, the docs' chain).
     info = json.loads(new_process(OTHERS, tmp_path / "others"))
-    assert info["traces"] == 0 and info["shipped_loaded"] >= 8, info
+    assert info["traces"] == 0 and info["shipped_loaded"] >= 10, info
 
 
 OTHERS = """
@@ -269,5 +270,7 @@ base = dict(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0)
 ss.simulate(ss.get_model("langevin")(**base), 300, 0.02, 20.0, solver="euler")
 ss.simulate(ss.get_model("langevin")(**base | {"D": 0.0}, tau=0.1), 8, 0.05, 30.0)
 ss.simulate(ss.get_model("langevin")(**base, tau=0.1), 300, 0.005, 20.0, monitor="grid")
+ss.simulate(ss.get_model("langevin")(**base, tau=0.1), 300, 0.005, 10.0, record_upcrossings=12)
+ss.simulate_chain(ss.get_model("burridge-knopoff").example(), 20.0, dt=0.02, record_dt=0.2)
 print(json.dumps(ss.cache_info()))
 """

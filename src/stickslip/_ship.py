@@ -11,7 +11,8 @@ make, and ignored elsewhere (a new library version, an edited source: the run tr
 
 This command makes them: it runs the built-in Langevin model's usual configurations (OU
 friction noise, the exact detector, with every buffer size; white noise, the Brownian-bridge
-detector; Euler-Maruyama, the grid monitor and noise-free runs at a few steps) and the
+detector; Euler-Maruyama, the grid monitor and noise-free runs at a few steps; upcrossings
+recorded for the empirical estimator), the chain of the docs and the examples, and the
 README's main job (`examples/public_reference.yaml`: its estimator kernels too) in a new
 process with an empty cache directory, then replaces
 `src/stickslip/_data/traces/` with the traces that process wrote. Run it after editing a
@@ -47,6 +48,15 @@ for tau in (None, 0.1):
         ss.simulate(ss.get_model("langevin")(**base | {"D": 0.0}, tau=tau), 8, dt, 30.0)
 for dt in (0.005, 0.01, 0.05, 0.1):
     ss.simulate(ss.get_model("langevin")(**base, tau=0.1), 500, dt, 20.0, monitor="grid")
+# Upcrossings for the empirical estimator: K up to 16 (the docs' 12, the examples' 16) and 40
+# (figs. 4 of the examples).
+for K in (16, 40):
+    ss.simulate(ss.get_model("langevin")(**base, tau=0.1), 500, 0.005, 8.0, record_upcrossings=K)
+# The chain of the docs and of the example study (`BurridgeKnopoff.example()`, one chain; time
+# series every 10 and every 500 steps: the docs' 200 time units, the study's 10^4).
+for record_dt in (None, 10.0):
+    chain = ss.get_model("burridge-knopoff").example()
+    ss.simulate_chain(chain, 200.0, dt=0.02, seed=1, record_dt=record_dt)
 if pathlib.Path(sys.argv[1]).exists():
     ss.run_study(sys.argv[1], progress=False, figures=False)
 """
