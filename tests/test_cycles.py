@@ -54,7 +54,8 @@ def test_a_longer_run_records_on_a_compiled_size(series, Langevin, monkeypatch):
     (on 128 slots), so the recording solve wants 256 slots. A compiled size stands in
     (`_record_size` searches the powers of two; on the simulator's buffer sizes, steps of
     8, it found none and compiled 256): nothing is traced or compiled, and the slips both
-    runs hold are recorded alike, whatever solve and column each ran in."""
+    runs hold are recorded alike, whatever solve and column each ran in. A stand-in asks
+    the background compiler for the size itself (under its policy), as the stepping does."""
     from stickslip import _rng
     from stickslip._simulate import cycles, driver
 
@@ -74,18 +75,25 @@ def test_a_longer_run_records_on_a_compiled_size(series, Langevin, monkeypatch):
                       300.0, root)  # fmt: skip
 
     class Compiled:
+        fn, fixed = cycles._record, ()
+
         def __init__(self, *sizes):
             self.sizes = sizes
 
         def ready(self, *args, paths):
             return paths in self.sizes
 
+    asked = []  # what the background compiler is asked for (under its policy)
+    monkeypatch.setattr(cycles._background, "request", lambda *a, paths: asked.append(paths))
+
     def size(count, *compiled):
         return cycles._record_size(run, Compiled(*compiled), 3, count, 1 << 20)
 
     assert size(557, 256) == 256 and size(557, 128, 512) == 512  # smaller, in more solves
     assert size(557, 2048, 8192) == 2048  # larger, padded, up to 8 times
+    assert asked == [1024] * 3  # the size itself, for later runs
     assert size(557, 16384) == size(557) == 1024  # none within 8 times: compiled at the call
+    assert size(557, 1024) == 1024 and asked == [1024] * 3
 
 
 def test_cycles_are_distributed_like_single_slips(series, Langevin):

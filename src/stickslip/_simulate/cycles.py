@@ -13,7 +13,7 @@ import diffrax
 import equinox as eqx
 import numpy as np
 
-from .. import _compile, _rng
+from .. import _background, _compile, _rng
 from .._errors import ParameterError, check_int
 from .._jax import jnp
 from .._model import FrictionModel
@@ -345,12 +345,15 @@ def _record_size(run, fixed, d: int, count: int, most: int, build: bool = False)
     """The slots of a recording solve for `count` slips (at least 128; `most`: the memory
     bound): that size where it is compiled, else another size of the same program at hand
     (`_Run._size_at_hand`: a larger one within the bound, padded, or a smaller one, in more
-    solves; each slot's noise is its own), else that size (compiled then, or here with
+    solves; each slot's noise is its own; the background compiler is asked for the size
+    itself, as for the stepping loop), else that size (compiled then, or here with
     `build`)."""
     want = max(_MIN_RECORD, _next_pow2_int(count))
     specimen = functools.partial(_record_specimen, run, d)
     top = max(want, 1 << (most.bit_length() - 1))
     n = run._size_at_hand(fixed, specimen, want, top, smaller=True, ladder=_RECORD_LADDER)
+    if n != want:
+        _background.request(fixed.fn, *fixed.fixed, *specimen(want), paths=want)
     if build:
         # (`paths`: kept on disk, as the stepping's programs: without it every process
         # compiled it again, 0.5-3 s)
