@@ -17,7 +17,7 @@ from .. import _background, _compile, _rng
 from .._errors import ParameterError, check_int
 from .._jax import jnp
 from .._model import FrictionModel
-from .driver import _Run, _validate, _zeros, check_memory
+from .driver import _next_pow2, _Run, _validate, _zeros, check_memory
 from .hybrid import INACTIVE, SLIPPING
 from .loop import solve
 
@@ -348,7 +348,7 @@ def _record_size(run, fixed, d: int, count: int, most: int, build: bool = False)
     solves; each slot's noise is its own; the background compiler is asked for the size
     itself, as for the stepping loop), else that size (compiled then, or here with
     `build`)."""
-    want = max(_MIN_RECORD, _next_pow2_int(count))
+    want = max(_MIN_RECORD, _next_pow2(count))
     specimen = functools.partial(_record_specimen, run, d)
     top = max(want, 1 << (most.bit_length() - 1))
     n = run._size_at_hand(fixed, specimen, want, top, smaller=True, ladder=_RECORD_LADDER)
@@ -359,10 +359,6 @@ def _record_size(run, fixed, d: int, count: int, most: int, build: bool = False)
         # compiled it again, 0.5-3 s)
         fixed.ready(*specimen(n), paths=n, build=True)
     return n
-
-
-def _next_pow2_int(n: int) -> int:
-    return 1 << max(0, (int(n) - 1).bit_length())
 
 
 _MIN_RECORD = 128  # slots of the smallest recording solve
