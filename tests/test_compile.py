@@ -271,3 +271,36 @@ def test_the_in_process_cache_is_bounded_and_can_be_cleared(monkeypatch):
     assert ss.cache_info()["entries"] == 0
     b = ss.simulate(model, 300, 0.1, 20.0, seed=2)
     np.testing.assert_array_equal(a.slip_time, b.slip_time)
+
+
+def test_quick_programs_give_the_numbers_of_optimised_ones(monkeypatch):
+    """The onset, the stick locator and the cycles' recording are compiled with XLA's
+    elemental emitters (`_compile.QUICK`: a third less compile time). Compiled with its
+    default fusion emitters instead (kept apart on disk: they compile again), they give the
+    same sticks, slips and trajectories to the last bit: an Euler run (cubic stick
+    location) and an exact one, and a cycle series."""
+    from stickslip._simulate import cycles, driver
+
+    assert {_compile._name(f) for f in (driver._onset, driver._locate, cycles._record)} <= (
+        _compile._quick
+    )
+    model = ss.get_model("langevin")(**WHITE, tau=0.1)
+
+    def runs():
+        euler = ss.simulate(model, 100, 0.02, 20.0, seed=4, solver="euler")
+        exact = ss.simulate(model, 100, 0.3, 20.0, seed=4)
+        series = ss.simulate_cycles(model, 1, 0.05, 30.0, seed=4)
+        return [
+            *(np.stack([e.slip_time, e.stick_time, e.slip_distance]) for e in (euler, exact)),
+            *series.trajectory(0)[:2],
+        ]
+
+    quick = runs()
+    _compile.clear_caches()
+    monkeypatch.setattr(_compile, "_quick", set())
+    before = ss.cache_info()["compiles"]
+    optimised = runs()
+    assert ss.cache_info()["compiles"] >= before + 3  # not the quick executables again
+    _compile.clear_caches()  # (none of the optimised ones stays in memory for later tests)
+    for a, b in zip(quick, optimised, strict=True):
+        np.testing.assert_array_equal(a, b)

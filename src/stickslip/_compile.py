@@ -406,7 +406,7 @@ def _compile(fn, args, leaves, treedef, static, paths, build=True):
         if exported is None and not build:
             return None
         if exported is not None:
-            file = _executable_file(exported, leaves)
+            file = _executable_file(exported, leaves, _options(fn))
             compiled = _load_executable(file)
             if compiled is None and not build:
                 return None
@@ -419,7 +419,7 @@ def _compile(fn, args, leaves, treedef, static, paths, build=True):
                         stats["compiles"] += 1
                         hits = _cache_hits[0]
                         start = time.perf_counter()
-                        compiled = _fresh(jax.jit(exported.call).lower(*leaves))
+                        compiled = _fresh(jax.jit(exported.call).lower(*leaves), _options(fn))
                         _count_compile(fn, time.perf_counter() - start)
                         # An executable that JAX itself loaded from its persistent cache
                         # cannot be serialised again (XLA's CPU runtime then loses its
@@ -436,7 +436,7 @@ def _compile(fn, args, leaves, treedef, static, paths, build=True):
     stats["compiles"] += 1
     start = time.perf_counter()
     jitted = fn if hasattr(fn, "lower") else eqx.filter_jit(fn)
-    compiled = jitted.lower(*args).compile()
+    compiled = jitted.lower(*args).compile(compiler_options=_options(fn))
     _count_compile(fn, time.perf_counter() - start)
     return compiled, False
 
@@ -445,8 +445,32 @@ def _compile(fn, args, leaves, treedef, static, paths, build=True):
 # of JAX's persistent cache: see `_fresh`.
 _OWN_KEY = {"xla_cpu_enable_fast_math": False}
 
+# XLA's CPU backend writes each fused kernel with its fusion emitters (its default) or with its
+# older elemental emitters. The older ones emit the same arithmetic in fewer, plainer LLVM
+# modules: a third less compile time (the stepping loop 15-17 s against 10-12 s for ten buffer
+# sizes, the stick locator 0.85 against 0.5 s, the same ensembles to the last bit), but the
+# stepping loop ran ~12 % slower and the refinement ~35 % (10^5 paths of the public set at
+# dt = 0.8). The programs that run briefly (once per chunk or per batch of sticks: the onset,
+# the locator, the tables, the cycles' recording) are compiled with them (`quick`); the hot
+# loops and the estimator's kernels (whose densities moved in the last bits, and ran slower)
+# are not.
+QUICK = {"xla_cpu_use_fusion_emitters": False}
+_quick: set = set()  # names (`_name`) of the functions compiled with `QUICK`
 
-def _fresh(lowered):
+
+def quick(fn):
+    """Compile `fn` (a function of the package's) with `QUICK`: for programs whose run time
+    is small beside their compile time. Returns `fn`."""
+    _quick.add(_name(fn))
+    return fn
+
+
+def _options(fn) -> dict:
+    """The XLA compile options of `fn`'s executables (see `QUICK`)."""
+    return {**_OWN_KEY, **QUICK} if _name(fn) in _quick else _OWN_KEY
+
+
+def _fresh(lowered, options=_OWN_KEY):
     """Compile `lowered` into an executable this module can keep on disk. One that JAX
     loaded from its own persistent cache cannot be serialised again (see `_compile`), and
     an entry there without one here would be loaded from JAX's cache by every new process
@@ -458,7 +482,7 @@ def _fresh(lowered):
             jax.config.update("jax_persistent_cache_min_compile_time_secs", float("inf"))
         _fresh_open.append(None)
     try:
-        return lowered.compile(compiler_options=_OWN_KEY)
+        return lowered.compile(compiler_options=options)
     finally:
         with _fresh_lock:
             _fresh_open.pop()
@@ -695,15 +719,18 @@ def _trace_path(where, fn, treedef, shapes, static) -> pathlib.Path | None:
     return pathlib.Path(where) / "stickslip-exported" / f"{digest}.bin"
 
 
-def _executable_file(exported, leaves) -> pathlib.Path | None:
-    """The disk entry of the executable of `exported` for these concrete shapes: keyed by
-    the traced module itself (so a source change that leaves the trace alone keeps it)."""
+def _executable_file(exported, leaves, options=_OWN_KEY) -> pathlib.Path | None:
+    """The disk entry of the executable of `exported` for these concrete shapes and compile
+    `options`: keyed by the traced module itself (so a source change that leaves the trace
+    alone keeps it)."""
     where = jax.config.jax_compilation_cache_dir
     if not where:
         return None
     digest = hashlib.sha256(_environment(sources=False).encode())
     # XLA's options change the code it emits (`_jax`'s vector width, or the user's own).
     digest.update(os.environ.get("XLA_FLAGS", "").encode())
+    if options != _OWN_KEY:
+        digest.update(repr(sorted(options.items())).encode())
     digest.update(bytes(exported.mlir_module_serialized))
     digest.update(repr([(tuple(x.shape), str(x.dtype)) for x in leaves]).encode())
     return pathlib.Path(where) / "stickslip-executable" / f"{digest.hexdigest()[:40]}.bin"

@@ -78,6 +78,7 @@ class CycleSeries:
         )
 
 
+@_compile.quick
 @eqx.filter_jit
 def _record(model, solver, cfg, X, k_stick, path, offset, dt, step_key, bridge_key):
     """`_RECORD_STEPS` steps with the same noise as in `simulate`, from global step `offset`,

@@ -152,6 +152,7 @@ class _Config:
     detect: str  # the in-step test: "grid", "cubic", "brownian", "bridge" or "none"
 
 
+@_compile.quick
 @eqx.filter_jit
 def _linear_gaussian(model):
     return _lg_arrays(model.linear_gaussian())
@@ -211,6 +212,7 @@ def _detector(lg, solver: str, monitor: str, smooth: bool) -> str:
     return "cubic"  # noise-free (exact flow) or Euler-Maruyama
 
 
+@_compile.quick
 @eqx.filter_jit
 def _onset(model, smooth: bool, key, path, counter, stick_state):
     """Per-path helpers, one program (each program is a compilation on a fresh machine):
@@ -255,6 +257,7 @@ def _advance(
     return (X[0], X_prev[0], k_stick[0], miss[0], sol.ts[0]) + tuple(r[0] for r in record)
 
 
+@_compile.quick
 @eqx.filter_jit
 def _locate(model, solver, cfg, X_prev, X, k_stick, path, dt, z_key, u_key):
     """Locate each stick inside the step (from X_prev to X) in which it happened."""
