@@ -436,7 +436,7 @@ def _compile(fn, args, leaves, treedef, static, paths, build=True):
     stats["compiles"] += 1
     start = time.perf_counter()
     jitted = fn if hasattr(fn, "lower") else eqx.filter_jit(fn)
-    compiled = jitted.lower(*args).compile(compiler_options=_options(fn))
+    compiled = jitted.lower(*args).compile(compiler_options=QUICK if _is_quick(fn) else None)
     _count_compile(fn, time.perf_counter() - start)
     return compiled, False
 
@@ -465,9 +465,13 @@ def quick(fn):
     return fn
 
 
+def _is_quick(fn) -> bool:
+    return _name(fn) in _quick
+
+
 def _options(fn) -> dict:
-    """The XLA compile options of `fn`'s executables (see `QUICK`)."""
-    return {**_OWN_KEY, **QUICK} if _name(fn) in _quick else _OWN_KEY
+    """The XLA compile options of `fn`'s executables on disk (see `QUICK`, `_fresh`)."""
+    return {**_OWN_KEY, **QUICK} if _is_quick(fn) else _OWN_KEY
 
 
 def _fresh(lowered, options=_OWN_KEY):
