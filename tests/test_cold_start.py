@@ -258,9 +258,10 @@ def test_the_shipped_traces_are_current(tmp_path):
         "shipped traces are stale; run `python -m stickslip._ship`"
     )
     # The other usual configurations (Euler-Maruyama, noise-free, the grid monitor, the
-    # upcrossings of the docs' empirical estimator, the docs' chain).
+    # upcrossings of the docs' empirical estimator, the docs' chain) and the other built-in
+    # models (the friction block, a threshold law), with other parameters than `_ship`'s.
     info = json.loads(new_process(OTHERS, tmp_path / "others"))
-    assert info["traces"] == 0 and info["shipped_loaded"] >= 10, info
+    assert info["traces"] == 0 and info["shipped_loaded"] >= 16, info
 
 
 OTHERS = """
@@ -272,5 +273,10 @@ ss.simulate(ss.get_model("langevin")(**base | {"D": 0.0}, tau=0.1), 8, 0.05, 30.
 ss.simulate(ss.get_model("langevin")(**base, tau=0.1), 300, 0.005, 20.0, monitor="grid")
 ss.simulate(ss.get_model("langevin")(**base, tau=0.1), 300, 0.005, 10.0, record_upcrossings=12)
 ss.simulate_chain(ss.get_model("burridge-knopoff").example(), 20.0, dt=0.02, record_dt=0.2)
+ss.simulate(ss.get_model("langevin")(**base), 300, 0.2, 20.0, monitor="grid")
+ss.simulate(ss.get_model("friction-block").example(), 300, 0.02, 20.0)
+law = {"threshold": "weibull", "threshold_params": {"shape": 3.0, "scale": 1.1}}
+rt = ss.get_model("random-threshold")(omega0=1.0, zeta=0.1, D=0.2, v_b=1.0, tau=0.1, **law)
+ss.simulate(rt, 300, 0.2, 20.0)
 print(json.dumps(ss.cache_info()))
 """

@@ -12,7 +12,8 @@ make, and ignored elsewhere (a new library version, an edited source: the run tr
 This command makes them: it runs the built-in Langevin model's usual configurations (OU
 friction noise, the exact detector, with every buffer size; white noise, the Brownian-bridge
 detector; Euler-Maruyama, the grid monitor and noise-free runs at a few steps; upcrossings
-recorded for the empirical estimator), the chain of the docs and the examples, and the
+recorded for the empirical estimator), the friction block with each friction law, each
+threshold law of the random threshold, the chain of the docs and the examples, and the
 README's main job (`examples/public_reference.yaml`: its estimator kernels too) in a new
 process with an empty cache directory, then replaces
 `src/stickslip/_data/traces/` with the traces that process wrote. Run it after editing a
@@ -46,8 +47,32 @@ for tau in (None, 0.1):
     ss.simulate(ss.get_model("langevin")(**base, tau=tau), 500, 0.01, 20.0, solver="euler")
     for dt in (0.01, 0.05, 0.1):
         ss.simulate(ss.get_model("langevin")(**base | {"D": 0.0}, tau=tau), 8, dt, 30.0)
-for dt in (0.005, 0.01, 0.05, 0.1):
+for dt in (0.005, 0.01, 0.05, 0.1, 0.2):
     ss.simulate(ss.get_model("langevin")(**base, tau=0.1), 500, dt, 20.0, monitor="grid")
+# White noise on the grid monitor (its in-step location's node count, 2 to 64 here, follows
+# dt), and Euler-Maruyama on it.
+for dt in (0.005, 0.05, 0.2, 0.4, 0.8):
+    ss.simulate(ss.get_model("langevin")(**base), 500, dt, 20.0, monitor="grid")
+for tau in (None, 0.1):
+    ss.simulate(ss.get_model("langevin")(**base, tau=tau), 500, 0.01, 20.0, solver="euler",
+                monitor="grid")
+# The other built-in models: the friction block with each friction law (Euler-Maruyama, its
+# solver, with OU noise), and each threshold law's release and description (their slips run
+# on the Langevin model's loops above).
+block = dict(k=1.0, v_b=0.5, D=0.01, tau=0.1)
+laws = {"coulomb": {"static": 1.0, "kinetic": 0.8},
+        "viscous": {"static": 1.0, "viscosity": 0.5, "kinetic": 0.5},
+        "velocity-weakening": {"F0": 1.0, "alpha": 1.0, "sigma": 0.2},
+        "stribeck": {"static": 1.0, "coulomb": 0.8, "v_stribeck": 0.2}}
+for law, params in laws.items():
+    m = ss.get_model("friction-block")(**block, friction=law, friction_params=params)
+    ss.simulate(m, 500, 0.01, 20.0, seed=1)
+thresholds = {"lognormal": {"median": 1.0, "sigma": 0.4}, "normal": {"mean": 1.0, "sd": 0.2},
+              "uniform": {"low": 0.8, "high": 1.2}, "weibull": {"shape": 5.0, "scale": 1.0}}
+for law, params in thresholds.items():
+    m = ss.get_model("random-threshold")(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, tau=0.1,
+                                         threshold=law, threshold_params=params)
+    ss.simulate(m, 500, 0.1, 20.0, seed=1)
 # Upcrossings for the empirical estimator: K up to 16 (the docs' 12, the examples' 16) and 40
 # (figs. 4 of the examples).
 for K in (16, 40):
