@@ -64,11 +64,15 @@ laws = {"coulomb": {"static": 1.0, "kinetic": 0.8},
         "viscous": {"static": 1.0, "viscosity": 0.5, "kinetic": 0.5},
         "velocity-weakening": {"F0": 1.0, "alpha": 1.0, "sigma": 0.2},
         "stribeck": {"static": 1.0, "coulomb": 0.8, "v_stribeck": 0.2}}
+from stickslip.friction import FRICTION_LAWS
+assert set(laws) == set(FRICTION_LAWS), f"friction laws to ship: {sorted(FRICTION_LAWS)}"
 for law, params in laws.items():
     m = ss.get_model("friction-block")(**block, friction=law, friction_params=params)
     ss.simulate(m, 500, 0.01, 20.0, seed=1)
 thresholds = {"lognormal": {"median": 1.0, "sigma": 0.4}, "normal": {"mean": 1.0, "sd": 0.2},
               "uniform": {"low": 0.8, "high": 1.2}, "weibull": {"shape": 5.0, "scale": 1.0}}
+from stickslip_random_threshold import THRESHOLD_LAWS
+assert set(thresholds) == set(THRESHOLD_LAWS), f"threshold laws to ship: {sorted(THRESHOLD_LAWS)}"
 for law, params in thresholds.items():
     m = ss.get_model("random-threshold")(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, tau=0.1,
                                          threshold=law, threshold_params=params)
