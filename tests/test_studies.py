@@ -85,6 +85,21 @@ def test_files_written(small):
     assert not list(out.parent.glob(".results.partial-*"))
 
 
+def test_results_file_is_the_one_xarray_writes(small, tmp_path):
+    """`results.nc` goes through the h5netcdf store directly (not `to_netcdf`, which would
+    import `distributed` to ask Dask for its scheduler): the bytes `to_netcdf` writes for the
+    same Dataset, booleans stored as int8."""
+    from stickslip.study.write import save_netcdf
+
+    ds, _ = small
+    ds = ds.assign(flag=("slip_time", np.arange(ds.sizes["slip_time"]) % 3 == 0))
+    save_netcdf(ds, tmp_path / "ours.nc")
+    ds.assign(flag=ds["flag"].astype(np.int8)).to_netcdf(
+        tmp_path / "xarray.nc", engine="h5netcdf", invalid_netcdf=False
+    )
+    assert (tmp_path / "ours.nc").read_bytes() == (tmp_path / "xarray.nc").read_bytes()
+
+
 def test_cli_run_matches_library(small, tmp_path):
     ds, _ = small
     import yaml
