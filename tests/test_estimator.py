@@ -501,6 +501,23 @@ def test_shared_panels_are_those_of_the_graded_rule():
             np.testing.assert_array_equal(np.r_[w_sh[: used[i]], w_last[i]], w)
 
 
+def test_branch_of_follows_genz_rule():
+    """The formula chosen per correlation, against Genz's rule written out: 6 nodes for
+    |r| < 0.3, 12 for |r| < 0.75, 20 for |r| < 0.925, else the expansion (NaN: the last)."""
+    from stickslip._estimate.bvn import BRANCHES, branch_of
+
+    edges = np.array([0.3, 0.75, 0.925])
+    r = np.concatenate([
+        np.linspace(-1.2, 1.2, 2401), edges, -edges, np.nextafter(edges, 0),
+        np.nextafter(-edges, 0), [1.0, -1.0, 0.0, -0.0, np.inf, -np.inf, np.nan],
+    ])  # fmt: skip
+    a = np.abs(r)
+    rule = np.where(
+        a < 0.3, "mid6", np.where(a < 0.75, "mid12", np.where(a < 0.925, "mid20", "high"))
+    )
+    assert [BRANCHES[i] for i in branch_of(r)] == list(rule)
+
+
 @pytest.mark.slow  # compiles every branch (~8 s CPU)
 def test_bivariate_normal_branches_equal_the_full_formula():
     """E[a1+ a2+] with only the branch of the bivariate normal each correlation needs

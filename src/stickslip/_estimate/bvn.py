@@ -50,10 +50,14 @@ _MID_RULES[20] = (_X20, _W20)
 BRANCHES = ("mid6", "mid12", "mid20", "high")  # `branch_of` maps r to one of these
 
 
+_BRANCH_EDGES = np.array([0.3, 0.75, 0.925])  # |r| from which `BRANCHES[1:]` apply
+
+
 def branch_of(r):
-    """Index into `BRANCHES` of the formula `bvn_upper` uses at correlation r (NumPy)."""
-    a = np.abs(np.clip(r, -1.0 + 1e-15, 1.0 - 1e-15))
-    return np.where(a < 0.3, 0, np.where(a < 0.75, 1, np.where(a < 0.925, 2, 3)))
+    """Index into `BRANCHES` of the formula `bvn_upper` uses at correlation r (NumPy; NaN
+    gives the last). One binary search per value: the table kernels' host side calls this
+    on millions of pairs."""
+    return np.searchsorted(_BRANCH_EDGES, np.abs(r), side="right")
 
 
 def _bvn_mid(h, k, r, nodes=20):

@@ -26,6 +26,7 @@ def _kept(fn):
     def run(*args):
         return _compile.call(jitted, *args, paths=0)
 
+    run.jitted = jitted  # (for `_compile.Fixed`: calls that share their leading arguments)
     return run
 
 
@@ -170,47 +171,61 @@ def table_pairs(cr, ms, Ps, table, rows, tau, positions=None):
     needs (Genz's rule for the bivariate normal: a 6-, 12- or 20-node quadrature, or the
     expansion near |r| = 1; evaluated for every pair under `vmap`, the costliest of them
     would be paid each time). `positions`: a table (n_t, J) and each pair's row in it (the
-    positions of its later time)."""
+    positions of its later time). Each pass hands every chunk to XLA before it reads any
+    result (the calls return at once), so that the host's work on one chunk overlaps the
+    kernels of the others."""
     from .bvn import BRANCHES, branch_of
 
-    if positions is not None:
-        xs, k = positions
     n = tau.shape[0]
-    parts = []
+    if n == 0:
+        return np.zeros((0,) if positions is None else (0, 0))
+    # Every chunk shares the tables: partitioned and put on the device once (`_compile.Fixed`;
+    # a generic call costs ~1 ms on the host, and a block makes a few hundred).
+    kernel = n2_parts_chunk if positions is None else n2_joint_parts_chunk
+    parts_of = _compile.Fixed(kernel.jitted, cr, ms, Ps, table)
+    if positions is not None:
+        xs = jnp.asarray(positions[0])
+    pending = []
     for lo in range(0, n, _TABLE_CHUNK):
         hi = min(lo + _TABLE_CHUNK, n)
-        pad = _TABLE_CHUNK - (hi - lo)
-        r = np.pad(rows[lo:hi], ((0, pad), (0, 0))).astype(np.int32)  # row 0: harmless
-        t = np.pad(tau[lo:hi], (0, pad), constant_values=1.0)
+        r = np.zeros((_TABLE_CHUNK, rows.shape[1]), np.int32)  # row 0: harmless
+        r[: hi - lo] = rows[lo:hi]
+        t = np.ones(_TABLE_CHUNK)
+        t[: hi - lo] = tau[lo:hi]
         if positions is None:
-            out = n2_parts_chunk(cr, ms, Ps, table, r, t)
+            pending.append((hi - lo, parts_of(r, t, paths=0)))
         else:
-            kk = np.pad(k[lo:hi], (0, pad)).astype(np.int32)
-            out = n2_joint_parts_chunk(cr, ms, Ps, table, r, t, xs, kk)
-        parts.append([np.asarray(a)[: hi - lo] for a in out])
-    if not parts:
-        return np.zeros((0,) if positions is None else (0, 0))
+            kk = np.zeros(_TABLE_CHUNK, np.int32)
+            kk[: hi - lo] = positions[1][lo:hi]
+            pending.append((hi - lo, parts_of(r, t, xs, kk, paths=0)))
+    parts = [[np.asarray(a)[:m] for a in out] for m, out in pending]
     pre, m1, m2, s1, s2, rho = (np.concatenate(a) for a in zip(*parts, strict=True))
-    shape = pre.shape
-    s1, s2, rho = (np.broadcast_to(a.reshape(a.shape + (1,) * (pre.ndim - 1)), shape).ravel()
-                   for a in (s1, s2, rho))  # fmt: skip
+    # (s1, s2, rho) are the pair's, whatever the position: indexed by pair, not copied J times
+    shape, J = pre.shape, (pre.shape[1] if pre.ndim > 1 else 1)
     pre, m1, m2 = pre.ravel(), m1.ravel(), m2.ravel()
     value = np.zeros(pre.size)
-    branch = branch_of(rho)
+    branch = np.repeat(branch_of(rho), J)
+    pending = []
     for b, name in enumerate(BRANCHES):
+        product = _compile.Fixed(product_chunk.jitted, name)
         (idx,) = np.nonzero((branch == b) & (pre != 0))
         for lo in range(0, idx.size, _TABLE_CHUNK):
             sel = idx[lo : lo + _TABLE_CHUNK]
-            args = [np.pad(a[sel], (0, _TABLE_CHUNK - sel.size), constant_values=1.0)
-                    for a in (m1, m2, s1, s2)]  # fmt: skip
-            args.append(np.pad(rho[sel], (0, _TABLE_CHUNK - sel.size)))
-            prod = np.asarray(product_chunk(*args, name))[: sel.size]
-            value[sel] = pre[sel] * prod
+            pair = sel // J if J > 1 else sel
+            args = []
+            for a, i, fill in ((m1, sel, 1.0), (m2, sel, 1.0), (s1, pair, 1.0), (s2, pair, 1.0),
+                               (rho, pair, 0.0)):  # fmt: skip
+                padded = np.full(_TABLE_CHUNK, fill)
+                padded[: sel.size] = a[i]
+                args.append(padded)
+            pending.append((sel, product(*args, paths=0)))
+    for sel, prod in pending:
+        value[sel] = pre[sel] * np.asarray(prod)[: sel.size]
     return value.reshape(shape)
 
 
 @_kept
-def product_chunk(m1, m2, s1, s2, rho, branch):
+def product_chunk(branch, m1, m2, s1, s2, rho):
     """E[a1^+ a2^+] for a chunk, by one formula of the bivariate normal (`bvn_upper`)."""
     from .bvn import positive_product_mean
 
