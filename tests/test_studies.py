@@ -88,7 +88,7 @@ def test_files_written(small):
 def test_results_file_is_the_one_xarray_writes(small, tmp_path):
     """`results.nc` goes through the h5netcdf store directly (not `to_netcdf`, which would
     import `distributed` to ask Dask for its scheduler): the bytes `to_netcdf` writes for the
-    same Dataset, booleans stored as int8."""
+    same Dataset, booleans stored as int8; a Dask-backed Dataset is computed and written."""
     from stickslip.study.write import save_netcdf
 
     ds, _ = small
