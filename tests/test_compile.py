@@ -136,7 +136,7 @@ def test_a_new_process_neither_traces_nor_compiles(tmp_path):
     first one's trace) with the same result."""
     first = _fresh_process(tmp_path, 0.1)
     assert first["info"]["compiles"] > 1
-    entries = sorted((tmp_path / "stickslip-executable").glob("*.bin"))
+    entries = sorted(_compile.executable_dir(tmp_path).glob("*.bin"))
     assert len(entries) == first["info"]["compiles"]
     entries[0].write_bytes(b"not an executable")
     second = _fresh_process(tmp_path, 0.1)
@@ -244,6 +244,70 @@ def test_other_xla_options_compile_again_with_the_same_numbers(tmp_path):
     other = _fresh_process(tmp_path, 0.1, XLA_FLAGS="--xla_cpu_prefer_vector_width=256")
     assert other["info"]["compiles"] > 0 and other["info"]["executables_loaded"] == 0
     assert other["slip_time"] == first["slip_time"]
+
+
+def test_the_cpu_kind_follows_the_instruction_sets():
+    """A CPU's kind (the compiled code's key on disk) is its maker, family, model and
+    instruction-set flags, whatever their order: a CPU with AVX-512 beside one without, or
+    another maker's, is another kind."""
+    from stickslip._jax import _cpu_kind
+
+    zen3 = {
+        "vendor_id": "AuthenticAMD", "cpu family": "25", "model": "1",
+        "flags": "fpu sse2 avx avx2 fma", "bogomips": "4890.8", "cpu MHz": "2445.4",
+    }  # fmt: skip
+    same = dict(zen3, flags="fma avx2 avx sse2  fpu", bogomips="4891.0", **{"cpu MHz": "3000"})
+    assert _cpu_kind(zen3) == _cpu_kind(same)
+    for change in ({"flags": zen3["flags"] + " avx512f"}, {"vendor_id": "GenuineIntel"},
+                   {"model": "17"}, {"cpu family": "26"}):  # fmt: skip
+        assert _cpu_kind(zen3 | change) != _cpu_kind(zen3), change
+
+
+def test_compiled_code_on_disk_is_kept_per_cpu_kind(monkeypatch, tmp_path):
+    """The executables' folder, and the key of JAX's own persistent cache (which holds CPU
+    entries under "cpu" alone), name the CPU kind: a node of another kind sharing the cache
+    directory finds none of this one's code."""
+    from jax._src import cache_key
+
+    from stickslip import _jax
+
+    here, hook = _compile.executable_dir(tmp_path), cache_key.custom_hook()
+    assert here.parent == tmp_path / "stickslip-executable" and _jax.CPU_KIND in hook
+    monkeypatch.setattr(_jax, "CPU_KIND", "another-kind")
+    assert _compile.executable_dir(tmp_path) != here
+    assert cache_key.custom_hook() != hook and "another-kind" in cache_key.custom_hook()
+
+
+OTHER_CPU = """
+import json, sys
+import numpy as np
+from stickslip import _jax
+_jax.CPU_KIND = sys.argv[2]
+import stickslip as ss
+m = ss.get_model("langevin")(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0)
+e = ss.simulate(m, 300, float(sys.argv[1]), 50.0, seed=3)
+from stickslip._compile import _cache_hits, jax  # a program JAX itself keeps on disk
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+jax.jit(lambda x: 2.0 * x + 1.0)(np.arange(3.0))
+print(json.dumps({"info": ss.cache_info(), "jax_hits": _cache_hits[0],
+                  "slip_time": np.nan_to_num(e.slip_time).tolist()}))
+"""
+
+
+@pytest.mark.slow  # three new processes, two compiling from scratch (~15 s)
+def test_a_node_of_another_cpu_kind_compiles_its_own_code(tmp_path):
+    """A cache directory shared by nodes of two CPU kinds: the second kind loads none of the
+    first's executables nor JAX's own entries (XLA would load them with only a logged
+    error, and code for another CPU may stop on an illegal instruction), compiles its own
+    with the same numbers, and the first kind's next process still finds all of its own."""
+    first = json.loads(new_process(OTHER_CPU, tmp_path, 0.1, "kind-a"))
+    other = json.loads(new_process(OTHER_CPU, tmp_path, 0.1, "kind-b"))
+    assert other["info"]["executables_loaded"] == 0 and other["jax_hits"] == 0
+    assert other["info"]["compiles"] == first["info"]["compiles"] > 0
+    assert other["info"]["traces"] == 0  # the traces (portable) are shared
+    again = json.loads(new_process(OTHER_CPU, tmp_path, 0.1, "kind-a"))
+    assert again["info"]["compiles"] == 0 and again["jax_hits"] == 1
+    assert again["slip_time"] == other["slip_time"] == first["slip_time"]
 
 
 @pytest.mark.slow  # two new processes compiling from scratch (~10 s)

@@ -37,6 +37,7 @@ import warnings
 import equinox as eqx
 import numpy as np
 
+from . import _jax
 from ._jax import jax
 
 MAX_ENTRIES = 64  # compiled executables kept in memory (least recently used dropped)
@@ -125,7 +126,7 @@ def cold_note() -> str | None:
     where = jax.config.jax_compilation_cache_dir
     if not where:
         return None
-    folder = pathlib.Path(where) / "stickslip-executable"
+    folder = executable_dir(where)
     if folder.is_dir() and any(folder.glob("*.bin")):
         return None
     return (
@@ -737,7 +738,15 @@ def _executable_file(exported, leaves, options=_OWN_KEY) -> pathlib.Path | None:
         digest.update(repr(sorted(options.items())).encode())
     digest.update(bytes(exported.mlir_module_serialized))
     digest.update(repr([(tuple(x.shape), str(x.dtype)) for x in leaves]).encode())
-    return pathlib.Path(where) / "stickslip-executable" / f"{digest.hexdigest()[:40]}.bin"
+    return executable_dir(where) / f"{digest.hexdigest()[:40]}.bin"
+
+
+def executable_dir(where) -> pathlib.Path:
+    """The folder of the executables under the cache directory `where`: one per CPU kind
+    (`_jax.CPU_KIND`). XLA emits code for the CPU it compiles on, and loads an executable
+    made for another with only a logged error (it may then stop on an illegal instruction),
+    so the nodes of a cluster sharing one cache directory each find their own kind's."""
+    return pathlib.Path(where) / "stickslip-executable" / _jax.CPU_KIND
 
 
 def _load_exported(file):

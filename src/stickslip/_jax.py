@@ -10,6 +10,7 @@ compiled code is kept on disk between runs (JAX's persistent compilation cache) 
 disable it. A cache directory the user configured for JAX is left alone.
 """
 
+import hashlib
 import os
 import pathlib
 
@@ -31,12 +32,46 @@ _FLAGS = {
 }
 
 
-def _has_avx512() -> bool:
+def _cpu_description() -> dict:
+    """The first processor's entries in `/proc/cpuinfo` (`{}` where there is none)."""
+    found = {}
     try:
         with open("/proc/cpuinfo") as f:
-            return any(line.startswith("flags") and " avx512f" in line for line in f)
-    except OSError:  # not Linux: leave XLA's default
-        return False
+            for line in f:
+                if not line.strip():
+                    if found:
+                        break
+                    continue
+                name, _, value = line.partition(":")
+                found[name.strip()] = value.strip()
+    except OSError:
+        pass
+    return found
+
+
+def _cpu_kind(description: dict) -> str:
+    """The CPU kind XLA compiles for: its maker, family, model and instruction-set flags (from
+    which LLVM picks the target and its features); elsewhere than Linux, what `platform`
+    says of the machine."""
+    if description:
+        keys = ("vendor_id", "cpu family", "model", "flags")
+        text = "\n".join(f"{k}={' '.join(sorted(description.get(k, '').split()))}" for k in keys)
+    else:
+        import platform
+
+        text = f"{platform.system()} {platform.machine()} {platform.processor()}"
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+_CPU = _cpu_description()
+# XLA compiles for the CPU it runs on and loads an executable made for another CPU with only a
+# logged error (then the code may stop on an illegal instruction): the compiled code on disk is
+# keyed by this (`stickslip._compile`, and JAX's own entries through its cache key's hook).
+CPU_KIND = _cpu_kind(_CPU)
+
+
+def _has_avx512() -> bool:
+    return "avx512f" in _CPU.get("flags", "").split()  # (not Linux: XLA's default)
 
 
 if _has_avx512():
@@ -66,6 +101,28 @@ def _enable_compilation_cache() -> None:
     jax.config.update("jax_compilation_cache_dir", where)
     # Only the costly compilations (the simulator's loops) are worth a disk entry.
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
+    _key_by_cpu()
+
+
+def _key_by_cpu() -> None:
+    """Add the CPU kind to the keys of JAX's persistent cache, whose CPU entries are
+    otherwise keyed by `platform_version` "cpu" alone: one cache directory shared by the
+    nodes of a cluster then holds one executable per CPU kind instead of handing a node code
+    compiled for another. (A hook JAX keeps for this, `jax._src.cache_key.custom_hook`;
+    without it, as in another JAX version, the cache is left as it is.)"""
+    try:
+        from jax._src import cache_key
+    except ImportError:  # pragma: no cover - another JAX
+        return
+    before = getattr(cache_key, "custom_hook", None)
+    if not callable(before) or getattr(before, "_stickslip", False):
+        return
+
+    def custom_hook() -> str:
+        return before() + f"stickslip-cpu:{CPU_KIND}"
+
+    custom_hook._stickslip = True
+    cache_key.custom_hook = custom_hook
 
 
 _enable_compilation_cache()
