@@ -271,6 +271,7 @@ def test_compiled_code_on_disk_is_kept_per_cpu_kind(monkeypatch, tmp_path):
 
     from stickslip import _jax
 
+    _jax._key_by_cpu()  # (done at import where stickslip set the cache directory; once only)
     here, hook = _compile.executable_dir(tmp_path), cache_key.custom_hook()
     assert here.parent == tmp_path / "stickslip-executable" and _jax.CPU_KIND in hook
     monkeypatch.setattr(_jax, "CPU_KIND", "another-kind")
