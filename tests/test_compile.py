@@ -261,6 +261,9 @@ def test_the_cpu_kind_follows_the_instruction_sets():
     for change in ({"flags": zen3["flags"] + " avx512f"}, {"vendor_id": "GenuineIntel"},
                    {"model": "17"}, {"cpu family": "26"}):  # fmt: skip
         assert _cpu_kind(zen3 | change) != _cpu_kind(zen3), change
+    arm = {"CPU implementer": "0x41", "CPU part": "0xd0c", "Features": "fp asimd atomics"}
+    assert _cpu_kind(arm) != _cpu_kind(arm | {"Features": "fp asimd atomics sve"})
+    assert _cpu_kind(arm) != _cpu_kind(arm | {"CPU part": "0xd40"})
 
 
 def test_compiled_code_on_disk_is_kept_per_cpu_kind(monkeypatch, tmp_path):

@@ -49,13 +49,21 @@ def _cpu_description() -> dict:
     return found
 
 
+# The entries naming a CPU's maker, model and instruction sets: x86, then ARM.
+_CPU_ENTRIES = (
+    "vendor_id", "cpu family", "model", "flags",
+    "CPU implementer", "CPU architecture", "CPU variant", "CPU part", "Features",
+)  # fmt: skip
+
+
 def _cpu_kind(description: dict) -> str:
-    """The CPU kind XLA compiles for: its maker, family, model and instruction-set flags (from
-    which LLVM picks the target and its features); elsewhere than Linux, what `platform`
-    says of the machine."""
-    if description:
-        keys = ("vendor_id", "cpu family", "model", "flags")
-        text = "\n".join(f"{k}={' '.join(sorted(description.get(k, '').split()))}" for k in keys)
+    """The CPU kind XLA compiles for: its maker, model and instruction-set flags (from which
+    LLVM picks the target and its features); elsewhere than Linux, what `platform` says of
+    the machine."""
+    if any(description.get(k) for k in _CPU_ENTRIES):
+        text = "\n".join(
+            f"{k}={' '.join(sorted(description.get(k, '').split()))}" for k in _CPU_ENTRIES
+        )
     else:
         import platform
 
