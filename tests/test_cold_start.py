@@ -142,7 +142,7 @@ def test_the_worker_holds_the_queue_while_it_waits_for_its_run(tmp_path, monkeyp
     seen = []
 
     def wait_for(pid, timeout):  # (the run has not exited yet: is the queue held?)
-        with _background._try_lock(tmp_path / "stickslip-queue" / "worker.lock") as free:
+        with _background._try_lock(_background.queue_dir(tmp_path) / "worker.lock") as free:
             seen.append(free)
 
     monkeypatch.setattr(_background, "_wait_for", wait_for)
@@ -150,6 +150,24 @@ def test_the_worker_holds_the_queue_while_it_waits_for_its_run(tmp_path, monkeyp
     monkeypatch.setenv("STICKSLIP_COMPILE", "reuse")  # (`main` sets its own: restored)
     assert _background.main([str(tmp_path), "1"]) == 0
     assert seen == [False]
+
+
+def test_each_cpu_kind_has_its_own_queue(tmp_path, monkeypatch):
+    """Nodes of two CPU kinds sharing a cache directory: a job queued on one is not pending
+    for the other, and the other's worker leaves it (it would compile for its own CPU, into
+    its own kind's executables, and the node that asked would never find it)."""
+    from stickslip import _jax
+
+    job = _background.queue_dir(tmp_path) / "queued-here.job"
+    job.parent.mkdir(parents=True)
+    job.write_bytes(b"a job of this CPU kind")
+    assert _background.pending(tmp_path) == 1
+    monkeypatch.setattr(_jax, "CPU_KIND", "another-kind")
+    monkeypatch.setattr(_background, "_lower_priority", lambda: None)  # (this process)
+    monkeypatch.setenv("STICKSLIP_COMPILE", "reuse")  # (`main` sets its own: restored)
+    assert _background.pending(tmp_path) == 0 and _background.wait(tmp_path, timeout=5)
+    assert _background.main([str(tmp_path)]) == 0
+    assert job.exists()
 
 
 def test_a_bad_policy_is_one_line(monkeypatch):

@@ -14,11 +14,11 @@ which keeps it on disk where the runs look for it, and exits when the queue is e
 run that asked does not wait for it; a later run (or a later round of a long one) loads the
 executable from disk.
 
-One worker per cache directory (an exclusive `flock` on `stickslip-queue/worker.lock`, taken
-as it starts, before it waits for its run); a job is the pickled function and arguments, the
-arrays replaced by their shapes, named by its digest and removed once done or failed (a
-model whose class a new process cannot import, say one defined in a notebook, fails there:
-the run then compiles it when that pays).
+One worker per cache directory and CPU kind (an exclusive `flock` on the queue's
+`worker.lock`, taken as it starts, before it waits for its run); a job is the pickled
+function and arguments, the arrays replaced by their shapes, named by its digest and
+removed once done or failed (a model whose class a new process cannot import, say one
+defined in a notebook, fails there: the run then compiles it when that pays).
 Nothing here can change a result.
 """
 
@@ -42,10 +42,19 @@ NICE = 10  # the worker's niceness: a run in the foreground keeps the cores it n
 PARENT_WAIT = 10.0
 
 
+def queue_dir(cache_dir) -> pathlib.Path:
+    """The queue of the cache directory `cache_dir` for this machine's CPU kind
+    (`_jax.CPU_KIND`): where the nodes of a cluster share one cache directory, a worker
+    compiles only for the CPU it runs on, so it serves the runs of its own kind."""
+    from . import _jax
+
+    return pathlib.Path(cache_dir) / "stickslip-queue" / _jax.CPU_KIND
+
+
 def _queue() -> pathlib.Path:
     from ._jax import jax
 
-    return pathlib.Path(jax.config.jax_compilation_cache_dir) / "stickslip-queue"
+    return queue_dir(jax.config.jax_compilation_cache_dir)
 
 
 class _Shape:
@@ -141,7 +150,7 @@ def request(fn, *args, paths: int) -> bool:
     with _try_lock(queue / "worker.lock") as free:
         pass
     if free:  # no worker holds the queue: start one (it takes the lock itself)
-        _spawn(queue.parent)
+        _spawn(pathlib.Path(jax.config.jax_compilation_cache_dir))
     return True
 
 
@@ -158,7 +167,7 @@ def _spawn(cache_dir: pathlib.Path) -> None:
 
 def pending(cache_dir) -> int:
     """Jobs still queued in the cache directory `cache_dir`."""
-    return len(list((pathlib.Path(cache_dir) / "stickslip-queue").glob("*.job")))
+    return len(list(queue_dir(cache_dir).glob("*.job")))
 
 
 def wait(cache_dir, timeout: float = 600.0) -> bool:
@@ -166,7 +175,7 @@ def wait(cache_dir, timeout: float = 600.0) -> bool:
     benchmarks); returns whether it is."""
     import time
 
-    queue = pathlib.Path(cache_dir) / "stickslip-queue"
+    queue = queue_dir(cache_dir)
     end = time.monotonic() + timeout
     while time.monotonic() < end:
         with _try_lock(queue / "worker.lock") as free:
@@ -245,7 +254,7 @@ def main(argv=None) -> int:
     cache_dir = pathlib.Path(argv[0])
     _lower_priority()
     os.environ["STICKSLIP_COMPILE"] = "eager"  # (what this process compiles, it compiles)
-    queue = cache_dir / "stickslip-queue"
+    queue = queue_dir(cache_dir)
     first = True
     while True:
         with _try_lock(queue / "worker.lock") as mine:
