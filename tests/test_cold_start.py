@@ -201,10 +201,16 @@ def test_rent_compiles_once_the_waste_passes_a_compilation(monkeypatch):
     assert not _compile.due("loop") and _compile._rent["loop"] == pytest.approx(0.1)
 
 
-def test_the_cold_note_says_when_the_cache_is_empty(empty_cache):
+def test_the_cold_note_says_when_the_cache_is_empty(empty_cache, monkeypatch):
+    """The note comes when this CPU kind has no executables: an empty cache, or one that
+    holds only another kind's (a cache directory shared by the nodes of a cluster)."""
+    from stickslip import _jax
+
     assert "first run" in _compile.cold_note()
     ss.simulate(ss.get_model("langevin")(**PUBLIC), 100, 0.4, 5.0)
     assert _compile.cold_note() is None
+    monkeypatch.setattr(_jax, "CPU_KIND", "another-kind")
+    assert "first run" in _compile.cold_note()
 
 
 @pytest.mark.slow
