@@ -264,6 +264,27 @@ def test_the_cpu_kind_follows_the_instruction_sets():
     arm = {"CPU implementer": "0x41", "CPU part": "0xd0c", "Features": "fp asimd atomics"}
     assert _cpu_kind(arm) != _cpu_kind(arm | {"Features": "fp asimd atomics sve"})
     assert _cpu_kind(arm) != _cpu_kind(arm | {"CPU part": "0xd40"})
+    power9 = {"cpu": "POWER9 (raw), altivec supported", "revision": "2.2 (pvr 004e 1202)"}
+    assert _cpu_kind(power9) != _cpu_kind({**power9, "cpu": "POWER10 (raw), altivec supported"})
+    s390 = {"vendor_id": "IBM/S390", "features": "esan3 zarch stfle msa vx vxd vxe"}
+    assert _cpu_kind(s390) != _cpu_kind(s390 | {"features": s390["features"] + " vxe2"})
+    riscv = {"isa": "rv64imafdc", "uarch": "sifive,u74-mc"}
+    assert _cpu_kind(riscv) != _cpu_kind(riscv | {"isa": "rv64imafdcv"})
+
+
+def test_the_cpu_description_is_the_first_processors(tmp_path):
+    """Linux's CPU description read up to the first processor's end: a blank line, or the
+    next processor's first entry where no blank line parts them; lines without an entry
+    skipped."""
+    from stickslip._jax import _cpu_description
+
+    text = "\nprocessor\t: 0\nvendor_id\t: AuthenticAMD\nnot an entry\nflags\t\t: fpu avx2\n"
+    apart, joined = tmp_path / "apart", tmp_path / "joined"
+    apart.write_text(text + "\nprocessor\t: 1\nflags\t\t: fpu avx512f\n")
+    joined.write_text(text + "processor\t: 1\nflags\t\t: fpu avx512f\n")
+    first = {"processor": "0", "vendor_id": "AuthenticAMD", "flags": "fpu avx2"}
+    assert _cpu_description(str(apart)) == _cpu_description(str(joined)) == first
+    assert _cpu_description(str(tmp_path / "absent")) == {}
 
 
 def test_compiled_code_on_disk_is_kept_per_cpu_kind(monkeypatch, tmp_path):
@@ -274,8 +295,11 @@ def test_compiled_code_on_disk_is_kept_per_cpu_kind(monkeypatch, tmp_path):
 
     from stickslip import _jax
 
-    _jax._key_by_cpu()  # (done at import where stickslip set the cache directory; once only)
+    if _jax.CACHE_SET_HERE:  # (the default: stickslip set the cache directory at import)
+        assert _jax.CPU_KIND in cache_key.custom_hook()
+    _jax._key_by_cpu()  # (once only: a second call adds nothing)
     here, hook = _compile.executable_dir(tmp_path), cache_key.custom_hook()
+    assert hook.count(_jax.CPU_KIND) == 1
     assert here.parent == tmp_path / "stickslip-executable" and _jax.CPU_KIND in hook
     monkeypatch.setattr(_jax, "CPU_KIND", "another-kind")
     assert _compile.executable_dir(tmp_path) != here

@@ -32,43 +32,64 @@ _FLAGS = {
 }
 
 
-def _cpu_description() -> dict:
-    """The first processor's entries in `/proc/cpuinfo` (`{}` where there is none)."""
+def _cpu_description(path: str = "/proc/cpuinfo") -> dict:
+    """The first processor's entries in `path` (Linux's CPU description; `{}` where there
+    is none): up to a blank line, or to an entry it has already given (the next processor's,
+    where no blank line parts them)."""
     found = {}
     try:
-        with open("/proc/cpuinfo") as f:
+        with open(path) as f:
             for line in f:
-                if not line.strip():
-                    if found:
+                name, colon, value = line.partition(":")
+                name = name.strip()
+                if not name or not colon:
+                    if found and not line.strip():
                         break
                     continue
-                name, _, value = line.partition(":")
-                found[name.strip()] = value.strip()
-    except OSError:
+                if name in found:
+                    break
+                found[name] = value.strip()
+    except (OSError, UnicodeDecodeError):
         pass
     return found
 
 
-# The entries naming a CPU's maker, model and instruction sets: x86, then ARM.
+# The entries naming a CPU's maker, model and instruction sets: x86; ARM; POWER, s390x,
+# RISC-V and others.
 _CPU_ENTRIES = (
     "vendor_id", "cpu family", "model", "flags",
     "CPU implementer", "CPU architecture", "CPU variant", "CPU part", "Features",
+    "cpu", "revision", "features", "isa", "uarch", "model name",
 )  # fmt: skip
 
 
 def _cpu_kind(description: dict) -> str:
-    """The CPU kind XLA compiles for: its maker, model and instruction-set flags (from which
-    LLVM picks the target and its features); elsewhere than Linux, what `platform` says of
-    the machine."""
+    """The CPU kind XLA compiles for: its maker, model and instruction sets (from which LLVM
+    picks the target and its features), from Linux's CPU description; elsewhere, what the
+    system says (macOS's `sysctl`, Python's `platform`)."""
     if any(description.get(k) for k in _CPU_ENTRIES):
         text = "\n".join(
             f"{k}={' '.join(sorted(description.get(k, '').split()))}" for k in _CPU_ENTRIES
         )
     else:
-        import platform
-
-        text = f"{platform.system()} {platform.machine()} {platform.processor()}"
+        text = _cpu_elsewhere()
     return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _cpu_elsewhere() -> str:
+    import platform
+
+    text = f"{platform.system()} {platform.machine()} {platform.processor()}"
+    if platform.system() == "Darwin":  # (the model, and Intel's instruction sets)
+        import subprocess
+
+        keys = ("machdep.cpu.brand_string", "machdep.cpu.features", "machdep.cpu.leaf7_features")
+        try:
+            said = subprocess.run(["sysctl", "-n", *keys], capture_output=True, timeout=5)
+            text += " " + " ".join(said.stdout.decode(errors="replace").split())
+        except (OSError, subprocess.SubprocessError):
+            pass
+    return text
 
 
 _CPU = _cpu_description()
@@ -110,6 +131,11 @@ def _enable_compilation_cache() -> None:
     # Only the costly compilations (the simulator's loops) are worth a disk entry.
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
     _key_by_cpu()
+    global CACHE_SET_HERE
+    CACHE_SET_HERE = True
+
+
+CACHE_SET_HERE = False  # whether this module set JAX's cache directory (and its CPU key)
 
 
 def _key_by_cpu() -> None:
