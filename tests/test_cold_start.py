@@ -156,18 +156,32 @@ def test_each_cpu_kind_has_its_own_queue(tmp_path, monkeypatch):
     """Nodes of two CPU kinds sharing a cache directory: a job queued on one is not pending
     for the other, and the other's worker leaves it (it would compile for its own CPU, into
     its own kind's executables, and the node that asked would never find it)."""
-    from stickslip import _jax
+    from stickslip import _cpu
 
     job = _background.queue_dir(tmp_path) / "queued-here.job"
     job.parent.mkdir(parents=True)
     job.write_bytes(b"a job of this CPU kind")
     assert _background.pending(tmp_path) == 1
-    monkeypatch.setattr(_jax, "CPU_KIND", "another-kind")
+    monkeypatch.setattr(_cpu, "KIND", "another-kind")
     monkeypatch.setattr(_background, "_lower_priority", lambda: None)  # (this process)
     monkeypatch.setenv("STICKSLIP_COMPILE", "reuse")  # (`main` sets its own: restored)
     assert _background.pending(tmp_path) == 0 and _background.wait(tmp_path, timeout=5)
     assert _background.main([str(tmp_path)]) == 0
     assert job.exists()
+
+
+def test_the_worker_finds_its_queue_without_importing_jax(tmp_path):
+    """The worker takes its queue's lock before anything slow: a run's requests that find
+    the queue free meanwhile each start another worker (a first call started 12, each
+    importing JAX beside the run, and took 1-2 s longer, when the CPU kind came with JAX)."""
+    code = (
+        "import sys; from stickslip._background import queue_dir; queue_dir(sys.argv[1]); "
+        "print(sorted(m for m in ('jax', 'jaxlib', 'numpy') if m in sys.modules))"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True, check=True
+    )
+    assert done.stdout.strip() == "[]"
 
 
 def test_a_bad_policy_is_one_line(monkeypatch):
@@ -204,12 +218,12 @@ def test_rent_compiles_once_the_waste_passes_a_compilation(monkeypatch):
 def test_the_cold_note_says_when_the_cache_is_empty(empty_cache, monkeypatch):
     """The note comes when this CPU kind has no executables: an empty cache, or one that
     holds only another kind's (a cache directory shared by the nodes of a cluster)."""
-    from stickslip import _jax
+    from stickslip import _cpu
 
     assert "first run" in _compile.cold_note()
     ss.simulate(ss.get_model("langevin")(**PUBLIC), 100, 0.4, 5.0)
     assert _compile.cold_note() is None
-    monkeypatch.setattr(_jax, "CPU_KIND", "another-kind")
+    monkeypatch.setattr(_cpu, "KIND", "another-kind")
     assert "first run" in _compile.cold_note()
 
 

@@ -250,58 +250,58 @@ def test_the_cpu_kind_follows_the_instruction_sets():
     """A CPU's kind (the compiled code's key on disk) is its maker, family, model and
     instruction-set flags, whatever their order: a CPU with AVX-512 beside one without, or
     another maker's, is another kind."""
-    from stickslip._jax import _cpu_kind
+    from stickslip._cpu import kind
 
     zen3 = {
         "vendor_id": "AuthenticAMD", "cpu family": "25", "model": "1",
         "flags": "fpu sse2 avx avx2 fma", "bogomips": "4890.8", "cpu MHz": "2445.4",
     }  # fmt: skip
     same = dict(zen3, flags="fma avx2 avx sse2  fpu", bogomips="4891.0", **{"cpu MHz": "3000"})
-    assert _cpu_kind(zen3) == _cpu_kind(same)
+    assert kind(zen3) == kind(same)
     for change in ({"flags": zen3["flags"] + " avx512f"}, {"vendor_id": "GenuineIntel"},
                    {"model": "17"}, {"cpu family": "26"}):  # fmt: skip
-        assert _cpu_kind(zen3 | change) != _cpu_kind(zen3), change
+        assert kind(zen3 | change) != kind(zen3), change
     arm = {"CPU implementer": "0x41", "CPU part": "0xd0c", "Features": "fp asimd atomics"}
-    assert _cpu_kind(arm) != _cpu_kind(arm | {"Features": "fp asimd atomics sve"})
-    assert _cpu_kind(arm) != _cpu_kind(arm | {"CPU part": "0xd40"})
+    assert kind(arm) != kind(arm | {"Features": "fp asimd atomics sve"})
+    assert kind(arm) != kind(arm | {"CPU part": "0xd40"})
     power9 = {"cpu": "POWER9 (raw), altivec supported", "revision": "2.2 (pvr 004e 1202)"}
-    assert _cpu_kind(power9) != _cpu_kind({**power9, "cpu": "POWER10 (raw), altivec supported"})
+    assert kind(power9) != kind({**power9, "cpu": "POWER10 (raw), altivec supported"})
     s390 = {"vendor_id": "IBM/S390", "features": "esan3 zarch stfle msa vx vxd vxe"}
-    assert _cpu_kind(s390) != _cpu_kind(s390 | {"features": s390["features"] + " vxe2"})
+    assert kind(s390) != kind(s390 | {"features": s390["features"] + " vxe2"})
     riscv = {"isa": "rv64imafdc", "uarch": "sifive,u74-mc"}
-    assert _cpu_kind(riscv) != _cpu_kind(riscv | {"isa": "rv64imafdcv"})
+    assert kind(riscv) != kind(riscv | {"isa": "rv64imafdcv"})
 
 
 def test_the_cpu_description_is_the_first_processors(tmp_path):
     """Linux's CPU description read up to the first processor's end: a blank line, or the
     next processor's first entry where no blank line parts them; lines without an entry
     skipped."""
-    from stickslip._jax import _cpu_description
+    from stickslip._cpu import description
 
     text = "\nprocessor\t: 0\nvendor_id\t: AuthenticAMD\nnot an entry\nflags\t\t: fpu avx2\n"
     apart, joined = tmp_path / "apart", tmp_path / "joined"
     apart.write_text(text + "\nprocessor\t: 1\nflags\t\t: fpu avx512f\n")
     joined.write_text(text + "processor\t: 1\nflags\t\t: fpu avx512f\n")
     first = {"processor": "0", "vendor_id": "AuthenticAMD", "flags": "fpu avx2"}
-    assert _cpu_description(str(apart)) == _cpu_description(str(joined)) == first
-    assert _cpu_description(str(tmp_path / "absent")) == {}
+    assert description(str(apart)) == description(str(joined)) == first
+    assert description(str(tmp_path / "absent")) == {}
 
 
-def test_compiled_code_on_disk_is_kept_per_cpu_kind(monkeypatch, tmp_path):
+def test_compiled_code_on_disk_is_kept_perkind(monkeypatch, tmp_path):
     """The executables' folder, and the key of JAX's own persistent cache (which holds CPU
     entries under "cpu" alone), name the CPU kind: a node of another kind sharing the cache
     directory finds none of this one's code."""
     from jax._src import cache_key
 
-    from stickslip import _jax
+    from stickslip import _cpu, _jax
 
     if _jax.CACHE_SET_HERE:  # (the default: stickslip set the cache directory at import)
-        assert _jax.CPU_KIND in cache_key.custom_hook()
+        assert _cpu.KIND in cache_key.custom_hook()
     _jax._key_by_cpu()  # (once only: a second call adds nothing)
     here, hook = _compile.executable_dir(tmp_path), cache_key.custom_hook()
-    assert hook.count(_jax.CPU_KIND) == 1
-    assert here.parent == tmp_path / "stickslip-executable" and _jax.CPU_KIND in hook
-    monkeypatch.setattr(_jax, "CPU_KIND", "another-kind")
+    assert hook.count(_cpu.KIND) == 1
+    assert here.parent == tmp_path / "stickslip-executable" and _cpu.KIND in hook
+    monkeypatch.setattr(_cpu, "KIND", "another-kind")
     assert _compile.executable_dir(tmp_path) != here
     assert cache_key.custom_hook() != hook and "another-kind" in cache_key.custom_hook()
 
@@ -309,8 +309,8 @@ def test_compiled_code_on_disk_is_kept_per_cpu_kind(monkeypatch, tmp_path):
 OTHER_CPU = """
 import json, sys
 import numpy as np
-from stickslip import _jax
-_jax.CPU_KIND = sys.argv[2]
+from stickslip import _cpu
+_cpu.KIND = sys.argv[2]
 import stickslip as ss
 m = ss.get_model("langevin")(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0)
 e = ss.simulate(m, 300, float(sys.argv[1]), 50.0, seed=3)

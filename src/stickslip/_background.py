@@ -44,11 +44,11 @@ PARENT_WAIT = 10.0
 
 def queue_dir(cache_dir) -> pathlib.Path:
     """The queue of the cache directory `cache_dir` for this machine's CPU kind
-    (`_jax.CPU_KIND`): where the nodes of a cluster share one cache directory, a worker
+    (`_cpu.KIND`): where the nodes of a cluster share one cache directory, a worker
     compiles only for the CPU it runs on, so it serves the runs of its own kind."""
-    from . import _jax
+    from . import _cpu  # (not JAX: the worker reads this before it takes the queue's lock)
 
-    return pathlib.Path(cache_dir) / "stickslip-queue" / _jax.CPU_KIND
+    return pathlib.Path(cache_dir) / "stickslip-queue" / _cpu.KIND
 
 
 def _queue() -> pathlib.Path:

@@ -37,7 +37,7 @@ import warnings
 import equinox as eqx
 import numpy as np
 
-from . import _jax
+from . import _cpu
 from ._jax import jax
 
 MAX_ENTRIES = 64  # compiled executables kept in memory (least recently used dropped)
@@ -693,6 +693,7 @@ def _environment(sources: bool = True) -> str:
 _UNTRACED = (
     "study", "cli", "_inference", "_extract", "selection.py", "stability.py",
     "__init__.py", "extract.py", "units.py", "_background.py", "_output.py", "_ship.py",
+    "_cpu.py",
 )  # fmt: skip
 
 
@@ -743,10 +744,10 @@ def _executable_file(exported, leaves, options=_OWN_KEY) -> pathlib.Path | None:
 
 def executable_dir(where) -> pathlib.Path:
     """The folder of the executables under the cache directory `where`: one per CPU kind
-    (`_jax.CPU_KIND`). XLA emits code for the CPU it compiles on, and loads an executable
+    (`_cpu.KIND`). XLA emits code for the CPU it compiles on, and loads an executable
     made for another with only a logged error (it may then stop on an illegal instruction),
     so the nodes of a cluster sharing one cache directory each find their own kind's."""
-    return pathlib.Path(where) / "stickslip-executable" / _jax.CPU_KIND
+    return pathlib.Path(where) / "stickslip-executable" / _cpu.KIND
 
 
 def _load_exported(file):

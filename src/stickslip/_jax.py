@@ -10,9 +10,10 @@ compiled code is kept on disk between runs (JAX's persistent compilation cache) 
 disable it. A cache directory the user configured for JAX is left alone.
 """
 
-import hashlib
 import os
 import pathlib
+
+from . import _cpu
 
 # XLA's CPU runtime can deadlock on these workloads (seen here on 2 cores; a known issue,
 # e.g. PyAutoFit #1528): a call waits forever with every worker idle.
@@ -30,80 +31,7 @@ _FLAGS = {
     "xla_cpu_multi_thread_eigen": "false",
     "xla_cpu_enable_concurrency_optimized_scheduler": "false",
 }
-
-
-def _cpu_description(path: str = "/proc/cpuinfo") -> dict:
-    """The first processor's entries in `path` (Linux's CPU description; `{}` where there
-    is none): up to a blank line, or to an entry it has already given (the next processor's,
-    where no blank line parts them)."""
-    found = {}
-    try:
-        with open(path) as f:
-            for line in f:
-                name, colon, value = line.partition(":")
-                name = name.strip()
-                if not name or not colon:
-                    if found and not line.strip():
-                        break
-                    continue
-                if name in found:
-                    break
-                found[name] = value.strip()
-    except (OSError, UnicodeDecodeError):
-        pass
-    return found
-
-
-# The entries naming a CPU's maker, model and instruction sets: x86; ARM; POWER, s390x,
-# RISC-V and others.
-_CPU_ENTRIES = (
-    "vendor_id", "cpu family", "model", "flags",
-    "CPU implementer", "CPU architecture", "CPU variant", "CPU part", "Features",
-    "cpu", "revision", "features", "isa", "uarch", "model name",
-)  # fmt: skip
-
-
-def _cpu_kind(description: dict) -> str:
-    """The CPU kind XLA compiles for: its maker, model and instruction sets (from which LLVM
-    picks the target and its features), from Linux's CPU description; elsewhere, what the
-    system says (macOS's `sysctl`, Python's `platform`)."""
-    if any(description.get(k) for k in _CPU_ENTRIES):
-        text = "\n".join(
-            f"{k}={' '.join(sorted(description.get(k, '').split()))}" for k in _CPU_ENTRIES
-        )
-    else:
-        text = _cpu_elsewhere()
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
-
-
-def _cpu_elsewhere() -> str:
-    import platform
-
-    text = f"{platform.system()} {platform.machine()} {platform.processor()}"
-    if platform.system() == "Darwin":  # (the model, and Intel's instruction sets)
-        import subprocess
-
-        keys = ("machdep.cpu.brand_string", "machdep.cpu.features", "machdep.cpu.leaf7_features")
-        try:
-            said = subprocess.run(["sysctl", "-n", *keys], capture_output=True, timeout=5)
-            text += " " + " ".join(said.stdout.decode(errors="replace").split())
-        except (OSError, subprocess.SubprocessError):
-            pass
-    return text
-
-
-_CPU = _cpu_description()
-# XLA compiles for the CPU it runs on and loads an executable made for another CPU with only a
-# logged error (then the code may stop on an illegal instruction): the compiled code on disk is
-# keyed by this (`stickslip._compile`, and JAX's own entries through its cache key's hook).
-CPU_KIND = _cpu_kind(_CPU)
-
-
-def _has_avx512() -> bool:
-    return "avx512f" in _CPU.get("flags", "").split()  # (not Linux: XLA's default)
-
-
-if _has_avx512():
+if _cpu.has_avx512():
     _FLAGS["xla_cpu_prefer_vector_width"] = "512"
 for _flag, _value in _FLAGS.items():
     if _flag not in os.environ.get("XLA_FLAGS", ""):
@@ -153,7 +81,7 @@ def _key_by_cpu() -> None:
         return
 
     def custom_hook() -> str:
-        return before() + f"stickslip-cpu:{CPU_KIND}"
+        return before() + f"stickslip-cpu:{_cpu.KIND}"
 
     custom_hook._stickslip = True
     cache_key.custom_hook = custom_hook

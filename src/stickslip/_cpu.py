@@ -1,0 +1,76 @@
+"""The CPU this process runs on, as the compiled code on disk is keyed by it (no JAX import:
+the background compiler reads it before it takes its queue's lock).
+
+XLA compiles for the CPU it runs on and loads an executable made for another CPU with only a
+logged error (then the code may stop on an illegal instruction): `KIND` names the folder of
+the executables (`stickslip._compile.executable_dir`), the background compiler's queue
+(`stickslip._background.queue_dir`) and enters JAX's own cache keys (`stickslip._jax`).
+"""
+
+import hashlib
+
+
+def description(path: str = "/proc/cpuinfo") -> dict:
+    """The first processor's entries in `path` (Linux's CPU description; `{}` where there
+    is none): up to a blank line, or to an entry it has already given (the next processor's,
+    where no blank line parts them)."""
+    found = {}
+    try:
+        with open(path) as f:
+            for line in f:
+                name, colon, value = line.partition(":")
+                name = name.strip()
+                if not name or not colon:
+                    if found and not line.strip():
+                        break
+                    continue
+                if name in found:
+                    break
+                found[name] = value.strip()
+    except (OSError, UnicodeDecodeError):
+        pass
+    return found
+
+
+# The entries naming a CPU's maker, model and instruction sets: x86; ARM; POWER, s390x,
+# RISC-V and others.
+ENTRIES = (
+    "vendor_id", "cpu family", "model", "flags",
+    "CPU implementer", "CPU architecture", "CPU variant", "CPU part", "Features",
+    "cpu", "revision", "features", "isa", "uarch", "model name",
+)  # fmt: skip
+
+
+def kind(described: dict) -> str:
+    """The CPU kind XLA compiles for: its maker, model and instruction sets (from which LLVM
+    picks the target and its features), from Linux's CPU description; elsewhere, what the
+    system says (macOS's `sysctl`, Python's `platform`)."""
+    if any(described.get(k) for k in ENTRIES):
+        text = "\n".join(f"{k}={' '.join(sorted(described.get(k, '').split()))}" for k in ENTRIES)
+    else:
+        text = _elsewhere()
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _elsewhere() -> str:
+    import platform
+
+    text = f"{platform.system()} {platform.machine()} {platform.processor()}"
+    if platform.system() == "Darwin":  # (the model, and Intel's instruction sets)
+        import subprocess
+
+        keys = ("machdep.cpu.brand_string", "machdep.cpu.features", "machdep.cpu.leaf7_features")
+        try:
+            said = subprocess.run(["sysctl", "-n", *keys], capture_output=True, timeout=5)
+            text += " " + " ".join(said.stdout.decode(errors="replace").split())
+        except (OSError, subprocess.SubprocessError):
+            pass
+    return text
+
+
+DESCRIPTION = description()
+KIND = kind(DESCRIPTION)
+
+
+def has_avx512() -> bool:
+    return "avx512f" in DESCRIPTION.get("flags", "").split()  # (not Linux: XLA's default)
