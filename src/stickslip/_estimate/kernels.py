@@ -155,6 +155,14 @@ def _table_pair(cr, ms, Ps, table, moment, carry, first, second):
 _TABLE_CHUNK = 1 << 14  # pairs per call of the table kernels
 
 
+def _full_chunk(a, fill, dtype=np.float64):
+    """`a` (at most `_TABLE_CHUNK` rows) padded with `fill` to a whole chunk: the kernels
+    see one shape."""
+    out = np.full((_TABLE_CHUNK,) + a.shape[1:], fill, dtype)
+    out[: a.shape[0]] = a
+    return out
+
+
 def _bucket(n):
     """Table length padded to a power of two (>= 64), so that few shapes get compiled."""
     return max(64, 1 << (int(n) - 1).bit_length())
@@ -188,15 +196,12 @@ def table_pairs(cr, ms, Ps, table, rows, tau, positions=None):
     pending = []
     for lo in range(0, n, _TABLE_CHUNK):
         hi = min(lo + _TABLE_CHUNK, n)
-        r = np.zeros((_TABLE_CHUNK, rows.shape[1]), np.int32)  # row 0: harmless
-        r[: hi - lo] = rows[lo:hi]
-        t = np.ones(_TABLE_CHUNK)
-        t[: hi - lo] = tau[lo:hi]
+        r = _full_chunk(rows[lo:hi], 0, np.int32)  # row 0: harmless
+        t = _full_chunk(tau[lo:hi], 1.0)
         if positions is None:
             pending.append((hi - lo, parts_of(r, t, paths=0)))
         else:
-            kk = np.zeros(_TABLE_CHUNK, np.int32)
-            kk[: hi - lo] = positions[1][lo:hi]
+            kk = _full_chunk(positions[1][lo:hi], 0, np.int32)
             pending.append((hi - lo, parts_of(r, t, xs, kk, paths=0)))
     parts = [[np.asarray(a)[:m] for a in out] for m, out in pending]
     pre, m1, m2, s1, s2, rho = (np.concatenate(a) for a in zip(*parts, strict=True))
@@ -211,13 +216,10 @@ def table_pairs(cr, ms, Ps, table, rows, tau, positions=None):
         (idx,) = np.nonzero((branch == b) & (pre != 0))
         for lo in range(0, idx.size, _TABLE_CHUNK):
             sel = idx[lo : lo + _TABLE_CHUNK]
-            pair = sel // J if J > 1 else sel
-            args = []
-            for a, i, fill in ((m1, sel, 1.0), (m2, sel, 1.0), (s1, pair, 1.0), (s2, pair, 1.0),
-                               (rho, pair, 0.0)):  # fmt: skip
-                padded = np.full(_TABLE_CHUNK, fill)
-                padded[: sel.size] = a[i]
-                args.append(padded)
+            pair = sel // J
+            args = [_full_chunk(m1[sel], 1.0), _full_chunk(m2[sel], 1.0),
+                    _full_chunk(s1[pair], 1.0), _full_chunk(s2[pair], 1.0),
+                    _full_chunk(rho[pair], 0.0)]  # fmt: skip
             pending.append((sel, product(*args, paths=0)))
     for sel, prod in pending:
         value[sel] = pre[sel] * np.asarray(prod)[: sel.size]
