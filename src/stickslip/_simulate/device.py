@@ -141,8 +141,8 @@ def _refine_span(rows_t, depths, tol, key, layout, caps, level, queue, lo, n):
                 rows_t, j, depths, level, tol, key, jnp.int32(shrink), keyed, a, b,
                 jnp.where(valid, local, 0), pos, k0, k1, count, layout,
             )  # fmt: skip
-            j, a, b, owner, pos, k0, k1, _, count = out[:9]
-            found, frac, state, miss, unres, split, status = out[9:]
+            j, a, b, owner, pos, k0, k1, count = out[:8]
+            found, frac, state, miss, unres, split, status = out[8:]
             back = jnp.where(local_slots < n_owners, who, C0)
             f0, fr0, st0, m0, u0 = res
             res = (
