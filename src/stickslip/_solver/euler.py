@@ -20,14 +20,10 @@ class EulerMaruyama(AbstractSlipSolver):
     def noise_dim(self, model):
         return model.noise_dim
 
-    def init(self, terms, t0, t1, y0, args):
-        return terms.contr(t0, t1)
-
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
-        control = solver_state
+        control, carried = self.control(terms, t0, t1, solver_state)
         y1 = (y0[0] + terms.vf_prod(t0, y0, args, control), y0[1])
-        next_control = terms.contr(t1, t1 + (t1 - t0))
-        return y1, None, dict(y0=y0, y1=y1), next_control, diffrax.RESULTS.successful
+        return y1, None, dict(y0=y0, y1=y1), carried, diffrax.RESULTS.successful
 
     def dense_nodes(self, model, y0, y1, h):
         values = jnp.stack([y0, y1])

@@ -132,14 +132,14 @@ class ExactGaussian(AbstractSlipSolver):
     def noise_dim(self, model):
         return self.A.shape[0]
 
-    def init(self, terms, t0, t1, y0, args):
-        return terms.contr(t0, t1)[1]
+    def step_control(self, terms, t0, t1):
+        return terms.contr(t0, t1)[1]  # the Brownian increments alone
 
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
         X, rest = y0
-        y1 = (apply(self.Phi, X) + self.c + apply(self.L, solver_state), rest)
-        _, dw_next = terms.contr(t1, t1 + (t1 - t0))
-        return y1, None, dict(y0=y0, y1=y1), dw_next, diffrax.RESULTS.successful
+        dw, carried = self.control(terms, t0, t1, solver_state)
+        y1 = (apply(self.Phi, X) + self.c + apply(self.L, dw), rest)
+        return y1, None, dict(y0=y0, y1=y1), carried, diffrax.RESULTS.successful
 
     def dense_nodes(self, model, y0, y1, h):
         M = self.nodes
