@@ -362,22 +362,27 @@ def _refine_levels(
     locate, certify = depths[0], depths[1]
     slots = jnp.arange(C, dtype=jnp.int32)
 
+    # The bridge noise of the midpoints must be materialised once: XLA re-derived a draw
+    # (Threefry hashes and the inverse error function) inside each of its consumers. On a
+    # CPU a pass draws it in a branch of its own; elsewhere (a branch in the loop waits for
+    # the host) it is drawn a level ahead and carried, as everywhere before 2026-11-30,
+    # which compiles its code twice, before the loop and inside it (on a CPU: 74 kernels,
+    # 1.12 MB of LLVM IR at capacity 4096, against 71 and 1.01 MB in a branch; compiled
+    # alone in 2.72-2.88 s then, 2.37-2.78 s now). The same draws either way.
+    carried = jax.default_backend() != "cpu"
+
     def draw(j, pos, k0, k1):
-        # The bridge noise of the midpoints of level j, keyed by path, step and tree node. It
-        # is drawn at the start of a pass in a branch of its own, so that it is materialised
-        # once (XLA re-derived a draw, Threefry hashes and the inverse error function, inside
-        # each of its consumers) and its code is compiled once: drawn a level ahead and
-        # carried, it was compiled twice, before the loop and inside it (74 kernels, 1.12 MB
-        # of LLVM IR at capacity 4096, against 71 and 1.01 MB; the compilation 12 % faster).
+        # The noise of the midpoints of level j, keyed by path, step and tree node.
         node = (jnp.left_shift(1, j) + pos).astype(jnp.uint32)
         return _rng.node_normals((k0, k1), node, d)
 
     def one_level(carry):
         j, a, b, owner, pos, k0, k1, count = carry[:8]
-        found, frac, state, miss, unres, splits = carry[8:-1]
+        found, frac, state, miss, unres, splits, z = carry[8:-1]
         Tp, Tc = _unpack(rows, j, layout), _unpack(rows, j + 1, layout)
         valid = slots < count
-        z = jax.lax.cond(count >= 0, lambda: draw(j, pos, k0, k1), lambda: jnp.zeros((d, C)))
+        if not carried:
+            z = jax.lax.cond(count >= 0, lambda: draw(j, pos, k0, k1), lambda: jnp.zeros((d, C)))
         Xm = midpoint(Tp, a, b, z)
         va, vm, vb = crossing_value(Tp, a), crossing_value(Tp, Xm), crossing_value(Tp, b)
         # Each half: ends above the level, bound on an upcrossing inside (l: left, r: right).
@@ -465,6 +470,7 @@ def _refine_levels(
         new = (
             j + 1, a_, b_, owner_, pos_, k0_, k1_, total,
             found, frac, state, miss, unres, splits + count,
+            draw(j + 1, pos_, k0_, k1_) if carried else (),
         )  # fmt: skip
         status = jnp.where(
             (j + 1 >= certify) | (total == 0),
@@ -480,9 +486,10 @@ def _refine_levels(
     init = (
         j0, a, b, owner, pos, k0, k1, count,
         jnp.zeros(C, bool), zeros, jnp.zeros_like(a), zeros, jnp.zeros(C, bool),
-        jnp.zeros((), count.dtype), jnp.asarray(_GO),
+        jnp.zeros((), count.dtype), draw(j0, pos, k0, k1) if carried else (), jnp.asarray(_GO),
     )  # fmt: skip
-    return jax.lax.while_loop(lambda c: c[-1] == _GO, one_level, init)
+    out = jax.lax.while_loop(lambda c: c[-1] == _GO, one_level, init)
+    return out[:-2] + out[-1:]  # (the carried noise, if any, stays inside)
 
 
 _PACKED: collections.OrderedDict = collections.OrderedDict()  # `_packed`, by tables

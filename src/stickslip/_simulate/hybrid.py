@@ -46,7 +46,7 @@ class AbstractCrossingSolver(diffrax.AbstractItoSolver):
     values with the drift as slope (a differentiable crossing variable; not exact in law);
     `"brownian"`, the Brownian-bridge probability
     $\\exp(-2(L - c_k)(L - c_{k+1}) / (\\sigma^2 h))$ against a per-path uniform (noise in
-    the crossing variable; the uniforms are drawn a step ahead, like the noise); `"bridge"`,
+    the crossing variable; the uniforms are drawn a step ahead and carried); `"bridge"`,
     Rice's bound on the Gaussian bridge's upcrossings above a tolerance, which makes the step
     a candidate for exact refinement (`bridge.py`); `"grid"`, the end value only.
     """

@@ -146,7 +146,8 @@ class AbstractSlipSolver(diffrax.AbstractItoSolver):
     def control(self, terms, t0, t1, solver_state):
         """The control of the step from `t0` to `t1` and the solver state to carry: drawn
         here in a branch of its own where the state is `None` (a CPU), else the carried one,
-        with the next step's drawn ahead (`step_control` over a step of the same length)."""
+        with the next step's drawn ahead (`step_control` over a step of the same length).
+        A solver's `step` takes its control from here (the state `init` gives is this)."""
         if solver_state is not None:
             return solver_state, self.step_control(terms, t1, t1 + (t1 - t0))
         draw = lambda: self.step_control(terms, t0, t1)  # noqa: E731
