@@ -1,10 +1,13 @@
 """The slip-phase solvers as diffrax solvers."""
 
+import json
+
 import equinox as eqx
 import numpy as np
 import pytest
 import scipy.integrate
 import scipy.linalg
+from conftest import new_process
 
 from stickslip import EulerMaruyama, ExactGaussian, _rng
 from stickslip._jax import jax, jnp
@@ -190,3 +193,30 @@ def test_results_move_smoothly_with_the_parameters(dt):
     assert np.array_equal(both, np.isfinite(a.slip_time))
     assert np.max(np.abs(a.slip_time[both] - b.slip_time[both])) < 1e-8
     assert np.max(np.abs(a.slip_distance[both] - b.slip_distance[both])) < 1e-8
+
+
+CARRIED = """
+import hashlib, json, sys
+import numpy as np
+import jax
+if sys.argv[1] == "carried":  # the paths other backends take, traced on this CPU
+    jax.default_backend = lambda: "gpu"
+import stickslip as ss
+m = ss.get_model("langevin")(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=0.1)
+runs = [ss.simulate(m, 3000, 1.6, 30.0, seed=3), ss.simulate(m, 3000, 0.1, 30.0, seed=4),
+        ss.simulate(m, 2000, 0.05, 30.0, seed=5, solver="euler")]
+print(json.dumps([hashlib.sha256(np.nan_to_num(np.stack(
+    [e.slip_time, e.stick_time, e.slip_distance])).tobytes()).hexdigest() for e in runs]))
+"""
+
+
+@pytest.mark.slow
+def test_noise_drawn_in_the_step_or_carried_gives_the_same_ensembles(tmp_path):
+    """On a CPU the slip solvers and the refinement draw their noise where it is used, in a
+    branch of their own; on other backends a step (or a level) ahead, carried in the loop
+    (`AbstractSlipSolver.control`, `bridge._refine_levels`). Both are keyed by path, step
+    and tree node, so the ensembles are the same to the last bit: the carried paths are
+    checked here by tracing them on the CPU (a new process each, a cache of its own)."""
+    here = json.loads(new_process(CARRIED, tmp_path / "here", "here", timeout=900))
+    carried = json.loads(new_process(CARRIED, tmp_path / "carried", "carried", timeout=900))
+    assert here == carried
