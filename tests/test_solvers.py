@@ -196,17 +196,19 @@ def test_results_move_smoothly_with_the_parameters(dt):
 
 
 CARRIED = """
-import hashlib, json, sys
+import hashlib, json, pathlib, sys
 import numpy as np
 import jax
 if sys.argv[1] == "carried":  # the paths other backends take, traced on this CPU
     jax.default_backend = lambda: "gpu"
 import stickslip as ss
+from stickslip import _compile
+_compile.SHIPPED = pathlib.Path(sys.argv[2])  # none: the shipped traces are the CPU's paths
 m = ss.get_model("langevin")(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=0.1)
 runs = [ss.simulate(m, 3000, 1.6, 30.0, seed=3), ss.simulate(m, 3000, 0.1, 30.0, seed=4),
         ss.simulate(m, 2000, 0.05, 30.0, seed=5, solver="euler")]
-print(json.dumps([hashlib.sha256(np.nan_to_num(np.stack(
-    [e.slip_time, e.stick_time, e.slip_distance])).tobytes()).hexdigest() for e in runs]))
+print(json.dumps(dict(info=ss.cache_info(), digests=[hashlib.sha256(np.nan_to_num(np.stack(
+    [e.slip_time, e.stick_time, e.slip_distance])).tobytes()).hexdigest() for e in runs])))
 """
 
 
@@ -216,7 +218,15 @@ def test_noise_drawn_in_the_step_or_carried_gives_the_same_ensembles(tmp_path):
     branch of their own; on other backends a step (or a level) ahead, carried in the loop
     (`AbstractSlipSolver.control`, `bridge._refine_levels`). Both are keyed by path, step
     and tree node, so the ensembles are the same to the last bit: the carried paths are
-    checked here by tracing them on the CPU (a new process each, a cache of its own)."""
-    here = json.loads(new_process(CARRIED, tmp_path / "here", "here", timeout=900))
-    carried = json.loads(new_process(CARRIED, tmp_path / "carried", "carried", timeout=900))
-    assert here == carried
+    checked here by tracing them on the CPU (a new process each, a cache of its own, no
+    shipped traces: those hold the CPU's paths)."""
+    (tmp_path / "none").mkdir()
+    got = {
+        mode: json.loads(
+            new_process(CARRIED, tmp_path / mode, mode, tmp_path / "none", timeout=900)
+        )
+        for mode in ("here", "carried")
+    }
+    for run in got.values():
+        assert run["info"]["shipped_loaded"] == 0 and run["info"]["traces"] > 0
+    assert got["here"]["digests"] == got["carried"]["digests"]
