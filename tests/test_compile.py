@@ -287,7 +287,7 @@ def test_the_cpu_description_is_the_first_processors(tmp_path):
     assert description(str(tmp_path / "absent")) == {}
 
 
-def test_compiled_code_on_disk_is_kept_perkind(monkeypatch, tmp_path):
+def test_compiled_code_on_disk_is_kept_per_cpu_kind(monkeypatch, tmp_path):
     """The executables' folder, and the key of JAX's own persistent cache (which holds CPU
     entries under "cpu" alone), name the CPU kind: a node of another kind sharing the cache
     directory finds none of this one's code."""
