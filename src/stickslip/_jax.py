@@ -91,4 +91,17 @@ _enable_compilation_cache()
 
 import jax.numpy as jnp  # noqa: E402
 
-__all__ = ["jax", "jnp"]
+
+def materialised(fn, pred):
+    """`fn()` (arrays) computed in a conditional branch of its own, taken where `pred` holds
+    (a traced value that is true wherever the result matters; the other branch gives zeros).
+    XLA on a CPU re-derives a value inside each fused consumer (an optimization barrier does
+    not stop it): twice the work and twice the code to compile for a value read twice. A
+    branch's result is materialised once. (On an accelerator a branch in a loop waits for
+    the host: the callers use it on a CPU, or outside a loop's every step.)"""
+    shapes = jax.eval_shape(fn)
+    nothing = lambda: jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), shapes)  # noqa: E731
+    return jax.lax.cond(pred, fn, nothing)
+
+
+__all__ = ["jax", "jnp", "materialised"]

@@ -48,7 +48,7 @@ import equinox as eqx
 import numpy as np
 
 from .. import _background, _compile, _rng
-from .._jax import jax, jnp
+from .._jax import jax, jnp, materialised
 from .._linear import propagators, propagators_host
 from .._solver.exact import psd_factor, psd_pinv
 
@@ -382,7 +382,7 @@ def _refine_levels(
         Tp, Tc = _unpack(rows, j, layout), _unpack(rows, j + 1, layout)
         valid = slots < count
         if not carried:
-            z = jax.lax.cond(count >= 0, lambda: draw(j, pos, k0, k1), lambda: jnp.zeros((d, C)))
+            z = materialised(lambda: draw(j, pos, k0, k1), count >= 0)
         Xm = midpoint(Tp, a, b, z)
         va, vm, vb = crossing_value(Tp, a), crossing_value(Tp, Xm), crossing_value(Tp, b)
         # Each half: ends above the level, bound on an upcrossing inside (l: left, r: right).
@@ -393,12 +393,11 @@ def _refine_levels(
         # code to compile instead of two, element for element the same arithmetic. (The
         # stacked array leaves the branch whole: halves sliced inside it were fused again,
         # each with a copy of the quadrature.)
-        p_l, p_r = jax.lax.cond(
-            count >= 0,
+        p_l, p_r = materialised(
             lambda: jax.vmap(lambda u, w: expected_upcrossings(Tc, u, w, level))(
                 jnp.stack([a, Xm]), jnp.stack([Xm, b])
             ),
-            lambda: jnp.zeros((2, C)),
+            count >= 0,
         )
         # Keep each owner's halves up to and including its first one that ends above (halves
         # in time order: 2i + r).

@@ -26,7 +26,7 @@ import diffrax
 import equinox as eqx
 
 from .. import _rng
-from .._jax import jax, jnp
+from .._jax import jax, jnp, materialised
 from .._solver import AbstractSlipSolver
 from .._solver.base import global_step, over_paths, steps
 from . import bridge, localise
@@ -116,7 +116,7 @@ class AbstractCrossingSolver(diffrax.AbstractItoSolver):
             # steps at dt 0.1 13 % faster, the same numbers). On an accelerator a branch in
             # the loop would wait for the host every step.
             if jax.default_backend() == "cpu":
-                bound = jax.lax.cond(jnp.isfinite(t0), bound_of, lambda: jnp.zeros(c0.shape))
+                bound = materialised(bound_of, jnp.isfinite(t0))
             else:
                 bound = bound_of()
             inside = bound > tol

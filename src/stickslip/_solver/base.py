@@ -15,7 +15,7 @@ import diffrax
 import equinox as eqx
 
 from .. import _rng
-from .._jax import jax, jnp
+from .._jax import jax, jnp, materialised
 
 
 def over_paths(fn):
@@ -150,10 +150,7 @@ class AbstractSlipSolver(diffrax.AbstractItoSolver):
         A solver's `step` takes its control from here (the state `init` gives is this)."""
         if solver_state is not None:
             return solver_state, self.step_control(terms, t1, t1 + (t1 - t0))
-        draw = lambda: self.step_control(terms, t0, t1)  # noqa: E731
-        shapes = jax.eval_shape(draw)
-        nothing = lambda: jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), shapes)  # noqa: E731
-        return jax.lax.cond(jnp.isfinite(t0), draw, nothing), None
+        return materialised(lambda: self.step_control(terms, t0, t1), jnp.isfinite(t0)), None
 
     def step_control(self, terms, t0, t1):
         """What `step` takes of the control over one step (by default all of it)."""
