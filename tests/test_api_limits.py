@@ -166,6 +166,53 @@ def test_hopeless_step_refused(D):
     assert f"{0.2 * 1e8 / math.pi:.2g} times" in text and "pi/rho(A) = 3.1e-08" in text
 
 
+@pytest.mark.parametrize(
+    "dt, kwargs, floor",
+    [
+        (5e-324, {}, 1e-6),  # hypothesis's case: a LinAlgError from the bridge tables
+        (1e-7, {}, 1e-6),  # every path stuck in its first step, silently
+        (1e-10, {"monitor": "grid"}, 1.5e-9),
+    ],
+    ids=["subnormal", "bridge", "grid"],
+)
+def test_too_fine_step_refused(dt, kwargs, floor):
+    # The public set's fastest rate is 1/tau = 10 (the oscillator's |eig| is omega0 = 1): the
+    # bridge detector certifies down to 1e-5 / rho = 1e-6, float64 keeps half the digits of
+    # a step's change down to sqrt(eps) / rho = 1.49e-9 (said rounded up, 1.5e-9).
+    m = Langevin(**BASE)
+    with pytest.raises(ParameterError) as info:
+        ss.simulate(m, 4, dt, 10 * dt, **kwargs)
+    text = _one_line(info.value)
+    assert info.value.parameter == "dt" and "too fine" in text
+    assert f"take dt >= {floor:.3g}" in text
+    ens = ss.simulate(m, 4, floor, 10 * floor, **kwargs)  # the step it names is taken
+    assert not ens.stuck.any()  # (the first slip lasts ~3; none ends in ten such steps)
+
+
+def test_model_in_extreme_units_refused():
+    # A noise level D / (omega0^3 x0^2) = 1e-100 is admitted, but with x0 = 1e-100 the
+    # step's position variance falls below float64's normal range: was a LinAlgError.
+    m = Langevin(**dict(BASE, D=1e-300, v_b=1e-100, x0=1e-100))
+    with pytest.raises(ParameterError) as info:
+        ss.simulate(m, 4, 0.1, 1.0)
+    assert info.value.parameter == "model" and "units" in _one_line(info.value)
+
+
+@pytest.mark.slow
+def test_step_at_the_fine_floor_keeps_the_law():
+    """At the finest step the bridge detector is given (dt = 1e-6 on the public set), the
+    slips that end by t = 0.01 are as many as at dt = 1e-3, within 4 standard errors (below
+    the floor, at 1e-7, every path ended in its first step)."""
+    m = Langevin(**BASE)
+    fine = ss.simulate(m, 50_000, 1e-6, 0.01, seed=5, progress=False)
+    coarse = ss.simulate(m, 200_000, 1e-3, 0.01, seed=6, progress=False)
+    p_f, p_c = fine.stuck.mean(), coarse.stuck.mean()
+    se = math.sqrt(p_f * (1 - p_f) / 50_000 + p_c * (1 - p_c) / 200_000)
+    assert p_c > 0.005  # (enough slips end by 0.01 to be counted: ~1.3 %)
+    assert abs(p_f - p_c) < 4 * se, (p_f, p_c, se)
+    assert fine.stats["miss_bound"] < 1e-6
+
+
 def test_coarse_step_warns_for_noisy_model():
     m = Langevin(**dict(BASE, omega0=1e7))
     with pytest.warns(UserWarning, match=r"times the slip's time scale pi/rho\(A\) = 3.1e-07"):

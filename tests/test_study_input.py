@@ -231,6 +231,16 @@ def test_step_count_bound_is_the_simulators():
         load_study(data)
 
 
+def test_step_too_fine_for_float64_is_refused(tmp_path):
+    """Was a LinAlgError (dt = 5e-324) or every path stuck in its first step (dt = 1e-8)."""
+    fine = "dt: 1e-8, t_max: 1e-6, cycles: {t_max: 1e-6}"
+    line = check_refused(
+        tmp_path, STUDY.replace("dt: 0.01, t_max: 30", fine), field="simulation.dt",
+        words=["too fine", "take dt >= 1e-06"],
+    )  # fmt: skip
+    assert "1e-08" in line
+
+
 def test_omega0_that_overflows_is_refused(tmp_path):
     """Was an OverflowError from `validate` (exit 1)."""
     check_refused(

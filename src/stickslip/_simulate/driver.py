@@ -64,6 +64,16 @@ MEMORY_FALLBACK = 8e9  # where the physical memory cannot be read (bytes)
 # 4e-3 at 0.3, -2.7e-2 at 0.6): a warning.
 SCALE_REFUSE = math.pi * 2.0**bridge.MAX_DEPTH
 SCALE_WARN = 0.1 * SCALE_REFUSE
+# At the other end, steps too fine for float64 are refused:
+# - with the bridge detector, a step shorter than bridge.CERTIFY_SCALE / rho, the finest
+#   sub-interval it certifies (the bridge coefficients hold ~8 digits there and lose more
+#   below; measured on the public set, rho = 10: the miss bound 0 down to dt rho = 1e-6,
+#   2e-4 at 5e-7, 2.6e-3 at 2e-7, and at 1e-7 every path stuck in its first step);
+# - with the other detectors, a step shorter than SCALE_FINE / rho, where a step's change of
+#   the state, Phi - I ~ A dt, keeps fewer than half of float64's digits (at dt rho = 1e-16
+#   it is lost in the rounding of v to v_b, and every path sticks in its first step).
+SCALE_FINE = math.sqrt(np.finfo(np.float64).eps)  # 1.5e-8
+VARIANCE_FLOOR = float(np.finfo(np.float64).tiny / np.finfo(np.float64).eps)  # 1.0e-292
 
 
 def memory_limit() -> float:
@@ -102,6 +112,12 @@ def check_memory(owner: str, what: str, nbytes: float, advice: str) -> None:
         )
 
 
+def _round_up(x: float) -> float:
+    """`x > 0` rounded up to three significant digits (a bound a user can type and pass)."""
+    unit = 10.0 ** (math.floor(math.log10(x)) - 2)
+    return math.ceil(x / unit * (1.0 - 1e-12)) * unit
+
+
 def _simulate_bytes(n_paths: int, d: int, upcrossings: int, chunk_size: int) -> float:
     """Peak memory of `simulate` (bytes, an estimate from above): per path the outputs (seven
     per-path arrays, three states, the upcrossing record) held twice (blocks, then the joined
@@ -114,8 +130,9 @@ def _simulate_bytes(n_paths: int, d: int, upcrossings: int, chunk_size: int) -> 
 
 
 def _check_time_scales(owner: str, lg, dt: float, detect: str) -> None:
-    """Refuse a step that the exact solver cannot follow; warn where the bridge detector
-    locates the stick more coarsely than the slip's time scale (see `SCALE_REFUSE`)."""
+    """Refuse a step that the exact solver cannot follow, too coarse or too fine for float64;
+    warn where the bridge detector locates the stick more coarsely than the slip's time scale
+    (see `SCALE_REFUSE` and `SCALE_FINE`)."""
     A = np.asarray(lg.A, dtype=float)
     rho = float(np.max(np.abs(np.linalg.eigvals(A)))) if A.size else 0.0
     if not rho > 0:
@@ -130,6 +147,19 @@ def _check_time_scales(owner: str, lg, dt: float, detect: str) -> None:
             f"is too coarse: {where} (rho(A) its fastest rate); past {SCALE_REFUSE / math.pi:.2g}"
             " times the stick cannot be located within that scale and the exact propagators "
             f"lose their precision; take dt <= {SCALE_WARN / rho:.3g}",
+            dt,
+        )
+    floor = bridge.CERTIFY_SCALE if detect == "bridge" else SCALE_FINE
+    if dt * rho < floor * (1.0 - 1e-9):  # (dt = floor / rho itself is kept)
+        why = (
+            "shorter than the finest interval the stick detector certifies" if detect == "bridge"
+            else "too short for float64 (its change of the state keeps under half the digits)"
+        )  # fmt: skip
+        raise ParameterError(
+            owner,
+            "dt",
+            f"is too fine: {where}; a step below {floor:.2g} / rho(A) is {why}; "
+            f"take dt >= {_round_up(floor / rho):.3g}",
             dt,
         )
     if detect == "bridge" and dt * rho > SCALE_WARN:
@@ -174,23 +204,42 @@ def _traces_nothing(fn) -> bool:
 _LG_FIELDS = tuple(f.name for f in dataclasses.fields(LinearGaussian))
 
 
-def _make_solver(lg, cfg: _Config, dt: float, nodes: int):
+def _make_solver(lg, cfg: _Config, dt: float, nodes: int, owner: str = "simulate"):
     """The run's slip solver, its tables computed in NumPy (nothing to compile). `nodes` are
     the interpolation nodes of the exact solver's dense output."""
-    if cfg.solver == "exact":
-        arrays = tuple(np.asarray(x, dtype=np.float64) for x in (lg.A, lg.b, lg.B, lg.crossing))
-        key = tuple((x.shape, x.tobytes()) for x in arrays)
-        return _exact_solver(key, cfg.detect == "bridge", float(dt), nodes)
-    return EulerMaruyama()
+    if cfg.solver != "exact":
+        return EulerMaruyama()
+    arrays = tuple(np.asarray(x, dtype=np.float64) for x in (lg.A, lg.b, lg.B, lg.crossing))
+    key = tuple((x.shape, x.tobytes()) for x in arrays)
+    solver = _exact_solver(key, cfg.detect == "bridge", float(dt), nodes)
+    if solver is None:
+        raise ParameterError(
+            owner,
+            "model",
+            f"gives covariances of the exact step at dt = {dt:g} that float64 cannot factor "
+            "(a noise variance below its range): state the model in units where its length "
+            "and time scales are near 1 (stickslip.Slider does so for SI units), or take "
+            "solver='euler'",
+        )
+    return solver
 
 
 @functools.lru_cache(maxsize=32)
 def _exact_solver(key, bridged: bool, dt: float, nodes: int):
     """`_make_solver`'s exact solver, kept for the runs that repeat a model and a step (its
-    tables took ~4 ms of a 0.2 s run of 1e5 paths; the solver is immutable)."""
+    tables took ~4 ms of a 0.2 s run of 1e5 paths; the solver is immutable). None where the
+    step's covariances cannot be factored: a model in extreme units, whose noise variance over
+    (part of) a step falls below float64's normal range (D = 1e-300 with x0 = 1e-100: 1e-323,
+    and correlations past 1)."""
     A, b, B, crossing = (np.frombuffer(data).reshape(shape) for shape, data in key)
-    tables = bridge.bridge_tables(A, b, B, crossing, dt, host=True) if bridged else None
-    return ExactGaussian(A, b, B, dt, nodes=nodes, bridge=tables, host=True)
+    with np.errstate(all="ignore"):
+        try:
+            tables = bridge.bridge_tables(A, b, B, crossing, dt, host=True) if bridged else None
+            solver = ExactGaussian(A, b, B, dt, nodes=nodes, bridge=tables, host=True)
+        except np.linalg.LinAlgError:
+            return None
+    leaves = jax.tree_util.tree_leaves(solver)
+    return solver if all(np.all(np.isfinite(x)) for x in leaves if np.ndim(x)) else None
 
 
 def _detector(lg, solver: str, monitor: str, smooth: bool) -> str:
@@ -684,10 +733,10 @@ class _Run:
         self.dt, self.t_max, self.bar = dt, t_max, bar
         self.n_steps = max(1, math.ceil(t_max / dt - 1e-9))
         self.dt_arr = np.asarray(dt, dtype=np.float64)
-        self.solver = _make_solver(lg, self.cfg, dt, _LOOP_NODES)
+        self.solver = _make_solver(lg, self.cfg, dt, _LOOP_NODES, owner)
         self.locator = self.solver
         if solver == "exact" and detect != "bridge":
-            self.locator = _make_solver(lg, self.cfg, dt, self.nodes)
+            self.locator = _make_solver(lg, self.cfg, dt, self.nodes, owner)
         # The stepping loop, its model and solver flattened once for all its calls.
         self.advance = _compile.Fixed(
             _advance, self.slip, self.solver, self.cfg, 0, timer=self.timer

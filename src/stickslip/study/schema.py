@@ -12,6 +12,7 @@ from __future__ import annotations
 import difflib
 import itertools
 import math
+import warnings
 from typing import Annotated, Any, Literal
 
 from pydantic import (
@@ -583,7 +584,7 @@ class Study(Base):
             self._check_fit()
         lg = None if chain else model.linear_gaussian()
         if lg is not None and self.simulation is not None and self.simulation.solver != "euler":
-            self._check_step(lg)
+            self._check_step(lg, bool(model.crossing_is_smooth))
         keys = [a.key for a in self.analytic]
         for i, key in enumerate(keys):
             if key in keys[:i]:
@@ -655,20 +656,28 @@ class Study(Base):
                         f"{', '.join(names)})" + suggest(key, names),
                     )
 
-    def _check_step(self, lg):
+    def _check_step(self, lg, smooth: bool):
         """A step the exact solver cannot follow (dt far past the slip's time scale, e.g.
-        omega0 = 1e8 at dt = 0.2) is refused here, not after the run has started."""
+        omega0 = 1e8 at dt = 0.2, or too fine for float64) is refused here, not after the run
+        has started."""
         from .._errors import ParameterError
-        from .._simulate.driver import _check_time_scales
+        from .._simulate import driver
 
         sim = self.simulation
+        detect = driver._detector(lg, "exact", sim.monitor, smooth)
+        config = driver._Config(solver="exact", monitor=sim.monitor, smooth=smooth, detect=detect)
         for loc, dt in (("simulation.dt", sim.dt), ("simulation.cycles.dt", sim.cycles.dt)):
             if dt is None:
                 continue
             try:
-                _check_time_scales("simulate", lg, dt, detect="none")  # refusal only
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")  # (refusals only: the run warns)
+                    driver._check_time_scales("simulate", lg, dt, detect)
+                    # (the step's tables, kept for the run: ~4 ms)
+                    driver._make_solver(lg, config, dt, driver._LOOP_NODES)
             except ParameterError as err:
-                raise fail(loc, err.reason) from None
+                where = "model.params" if err.parameter == "model" else loc
+                raise fail(where, err.reason) from None
 
     def _check_auto(self, chain: bool):
         if self.method == "compare":
