@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import pathlib
 import subprocess
@@ -69,6 +70,17 @@ def _release_compiled_code():
     if rss > max(RELEASE_RSS, _after_release[0] + RELEASE_RSS / 2):
         sys.modules["stickslip._compile"].clear_caches()
         _after_release[0] = _rss()
+
+
+@pytest.fixture
+def rent_held(monkeypatch):
+    """The rent rule held off (`_compile.rent`: a run on a stand-in buffer compiles the size
+    it wants once the time it wasted, summed over the process's runs, passes a
+    compilation's cost), for a test that counts compilations: what comes due is a matter of
+    timing (it did in one cold tier of five, 2026-12-01)."""
+    from stickslip import _compile
+
+    monkeypatch.setattr(_compile, "compile_estimate", lambda fn=None: math.inf)
 
 
 @pytest.fixture(scope="session")

@@ -60,7 +60,9 @@ def empty_cache(tmp_path):
 @pytest.mark.parametrize(
     "monitor", [pytest.param("continuous", marks=pytest.mark.slow), "grid"], ids=["exact", "grid"]
 )
-def test_stand_in_sizes_give_the_numbers_of_every_size_compiled(empty_cache, monkeypatch, monitor):
+def test_stand_in_sizes_give_the_numbers_of_every_size_compiled(
+    empty_cache, monkeypatch, rent_held, monitor
+):
     """From an empty cache, the `"reuse"` policy runs on the buffers it has and compiles a
     few programs: the survivors of a run on its first buffer (padded), a run of more paths
     in chunks of a compiled buffer (the exact detector's refinement in batches of its

@@ -49,7 +49,7 @@ def test_trajectories(series):
     assert np.max(c["slip_time"]) > 0.005 * _RECORD_STEPS  # (such slips are in the test)
 
 
-def test_a_longer_run_records_on_a_compiled_size(series, Langevin, monkeypatch):
+def test_a_longer_run_records_on_a_compiled_size(series, Langevin, monkeypatch, rent_held):
     """Five times the t_max: about 180 slips to record where the fixture recorded about 36
     (on 128 slots), so the recording solve wants 256 slots. A compiled size stands in
     (`_record_size` searches the powers of two; on the simulator's buffer sizes, steps of

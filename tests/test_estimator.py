@@ -426,7 +426,7 @@ def test_joint_density_integrates_to_n1(exact, Langevin):
     np.testing.assert_allclose(joint.sum(axis=0) * 0.25, emp.n1(cells_t), rtol=1e-9)
 
 
-def test_fewer_upcrossings_per_path_run_the_same_program(Langevin):
+def test_fewer_upcrossings_per_path_run_the_same_program(Langevin, rent_held):
     """K = 12 after K = 16 (each K compiled a program of its own): one program with 16 rows
     serves both, nothing is traced or compiled, and the first 12 upcrossings of every path
     are those of the K = 16 record (the K = 12 run stops once every path has 12, so it
