@@ -73,7 +73,6 @@ SCALE_WARN = 0.1 * SCALE_REFUSE
 #   the state, Phi - I ~ A dt, keeps fewer than half of float64's digits (at dt rho = 1e-16
 #   it is lost in the rounding of v to v_b, and every path sticks in its first step).
 SCALE_FINE = math.sqrt(np.finfo(np.float64).eps)  # 1.5e-8
-VARIANCE_FLOOR = float(np.finfo(np.float64).tiny / np.finfo(np.float64).eps)  # 1.0e-292
 
 
 def memory_limit() -> float:
