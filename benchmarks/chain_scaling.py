@@ -95,8 +95,8 @@ def main(argv=None):
     rows = []
     for n, p in [(16, 1), (64, 1), (256, 1), (1024, 1), (64, 4), (64, 16), (64, 64)]:
         m = model(n)
-        ss.simulate_chain(m, T, dt=dt, n_paths=p, seed=0)  # compile
-        c = timed(lambda m=m, p=p: ss.simulate_chain(m, T, dt=dt, n_paths=p, seed=0)) / (T * p)
+        ss.simulate_chain(m, p, dt, T, seed=0)  # compile
+        c = timed(lambda m=m, p=p: ss.simulate_chain(m, p, dt, T, seed=0)) / (T * p)
         Tn = T / 5
         numpy_chain(m, Tn / 10, dt, p, 1)  # warm-up, as the simulator's compile run
         b = timed(lambda m=m, p=p, Tn=Tn: numpy_chain(m, Tn, dt, p, 0)) / (Tn * p)

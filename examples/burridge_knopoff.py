@@ -38,7 +38,7 @@ def main(argv=None):
 
     model = ss.get_model("burridge-knopoff").example()
     wall = time.perf_counter()
-    run = ss.simulate_chain(model, args.t_max, dt=0.02, seed=args.seed)
+    run = ss.simulate_chain(model, 1, 0.02, args.t_max, seed=args.seed)
     wall = time.perf_counter() - wall
     sizes = run.events("size")
     s, p, counts = size_distribution(sizes, model.n_blocks)

@@ -69,7 +69,7 @@ def main(argv=None):
 
     model = ss.get_model("burridge-knopoff")(args.n_blocks, **PARAMS)
     wall = time.perf_counter()
-    run = ss.simulate_chain(model, args.t_max, dt=args.dt, seed=args.seed)
+    run = ss.simulate_chain(model, 1, args.dt, args.t_max, seed=args.seed)
     wall = time.perf_counter() - wall
     res = analyse(run, args.n_blocks)
     centres, dens, counts = res["moments"]

@@ -130,7 +130,7 @@ def test_simulate_chain_too_many_paths_refused(memory_limit):
     m = BurridgeKnopoff(4, k_c=1.0, k_p=1.0, v_b=0.1, friction="velocity-weakening",
                         friction_params=VW)  # fmt: skip
     with pytest.raises(ResourceError, match=r"needs about [0-9.e+]+ GB, past the limit of 64 GB"):
-        ss.simulate_chain(m, 10.0, n_paths=10**12)
+        ss.simulate_chain(m, 10**12, 0.01, 10.0)
 
 
 def test_simulate_cycles_recording_too_large_refused(memory_limit):
@@ -254,7 +254,7 @@ def _chain():
 )
 def test_simulate_chain_bad_values(kwargs, parameter):
     with pytest.raises(ParameterError) as info:
-        ss.simulate_chain(_chain(), 1.0, **kwargs)
+        ss.simulate_chain(_chain(), 1, 0.01, 1.0, **kwargs)
     assert info.value.parameter == parameter
     _one_line(info.value)
 

@@ -37,7 +37,7 @@ def test_one_block_with_linear_friction_is_langevin(BK):
     Langevin slip does. Chi-square on the slip-time histograms (fixed seeds)."""
     kp, mu, Fs, Fk, vb, D, tau = 1.0, 0.1, 2.2, 1.0, 1.0, 0.4, 0.1
     chain = BK(1, 0.0, kp, vb, LinearViscous(static=Fs, viscosity=mu, kinetic=Fk), D=D, tau=tau)
-    run = ss.simulate_chain(chain, 800.0, dt=0.002, n_paths=50, seed=1)
+    run = ss.simulate_chain(chain, 50, 0.002, 800.0, seed=1)
     dur = run.events("duration")[_gaps(run) > 0.004]
     assert dur.size > 4000 and set(run.events("size")) == {1}
     x0 = (Fs - Fk - mu * vb) / kp
@@ -60,7 +60,7 @@ def test_noise_free_single_block_is_exact_to_second_order(BK):
     errors = []
     for dt in (0.04, 0.02, 0.01):  # none divides the release times
         chain = BK(1, 0.0, kp, vb, LinearViscous(static=Fs, viscosity=mu, kinetic=Fk))
-        run = ss.simulate_chain(chain, 60.0, dt=dt)
+        run = ss.simulate_chain(chain, 1, dt, 60.0)
         errors.append(abs(run.duration[0][0] - exact))
         # every release where the force k_p (v_b t - u) reaches F_s, u the slip so far
         slips = np.concatenate([[0.0], np.cumsum(run.slip[0])[:-1]])
@@ -78,7 +78,7 @@ def test_released_blocks_move_and_thresholds_follow_their_law(BK):
     m = BK(4, k_c=5.0, k_p=1.0, v_b=0.05, friction="velocity-weakening",
            friction_params={"F0": 1.0, "alpha": 2.0}, D=1e-3, tau=0.1, threshold="uniform",
            threshold_params={"low": 0.6, "high": 1.0})  # fmt: skip
-    run = ss.simulate_chain(m, 400.0, 0.01, n_paths=2, seed=0, record_releases=True)
+    run = ss.simulate_chain(m, 2, 0.01, 400.0, seed=0, record_releases=True)
     duration, slip = run.events("duration"), run.events("slip")
     assert duration.size > 100
     assert np.mean((duration <= 0) | (slip <= 0)) <= 0.01
@@ -96,8 +96,8 @@ def test_event_statistics_converge_in_dt(BK):
     m = BK(4, k_c=5.0, k_p=1.0, v_b=0.05, friction="velocity-weakening",
            friction_params={"F0": 1.0, "alpha": 2.0, "sigma": 0.2}, D=1e-3, tau=0.1,
            threshold="uniform", threshold_params={"low": 0.6, "high": 1.0})  # fmt: skip
-    a = ss.simulate_chain(m, 1000.0, 0.01, n_paths=16, seed=1)
-    b = ss.simulate_chain(m, 1000.0, 0.0025, n_paths=16, seed=2)
+    a = ss.simulate_chain(m, 16, 0.01, 1000.0, seed=1)
+    b = ss.simulate_chain(m, 16, 0.0025, 1000.0, seed=2)
     sizes = [np.bincount(r.events("size"), minlength=5)[1:] for r in (a, b)]
     assert chi2_homogeneity(*sizes)[2] > 1e-3
     edges = np.append(np.arange(0.0, 12.0, 0.5), np.inf)
@@ -114,9 +114,9 @@ def test_segments_do_not_change_the_events(BK, monkeypatch):
 
     m = BK(8, 2.0, 1.0, 0.1, "velocity-weakening", {"F0": 1.0, "alpha": 2.0, "sigma": 0.1},
            D=1e-3, tau=0.1)  # fmt: skip
-    a = ss.simulate_chain(m, 300.0, 0.01, n_paths=2, seed=3, record_dt=0.5)
+    a = ss.simulate_chain(m, 2, 0.01, 300.0, seed=3, record_dt=0.5)
     monkeypatch.setattr(chain, "SEGMENT", 256)
-    b = ss.simulate_chain(m, 300.0, 0.01, n_paths=2, seed=3, record_dt=0.5)
+    b = ss.simulate_chain(m, 2, 0.01, 300.0, seed=3, record_dt=0.5)
     assert a.info["segments"] == 8 and b.info["segments"] == 118
     for q in ("start", "duration", "size", "slip"):
         for x, y in zip(getattr(a, q), getattr(b, q), strict=True):
@@ -128,20 +128,20 @@ def test_segments_do_not_change_the_events(BK, monkeypatch):
 def test_white_noise_is_refused(BK):
     m = BK(4, 1.0, 1.0, 0.1, "velocity-weakening", {"F0": 1.0, "alpha": 1.0}, D=1e-3)
     with pytest.raises(ss.ParameterError, match="'tau'") as info:
-        ss.simulate_chain(m, 10.0, 0.01)
+        ss.simulate_chain(m, 1, 0.01, 10.0)
     assert "\n" not in str(info.value)
 
 
 def test_a_coarse_step_warns(BK):
     m = BK(4, 100.0, 1.0, 0.1, "velocity-weakening", {"F0": 1.0, "alpha": 1.0, "sigma": 0.1})
     with pytest.warns(UserWarning, match="fastest time scale"):
-        ss.simulate_chain(m, 1.0, 0.05)
+        ss.simulate_chain(m, 1, 0.05, 1.0)
 
 
 def test_noise_free_single_block_is_periodic(BK):
     """D = 0: every slip after the first stick is the same deterministic cycle."""
     chain = BK(1, 0.0, 1.0, 0.5, LinearViscous(static=2.0, viscosity=0.2, kinetic=1.0))
-    run = ss.simulate_chain(chain, 200.0, dt=0.001, seed=0)
+    run = ss.simulate_chain(chain, 1, 0.001, 200.0, seed=0)
     d, s = run.duration[0][1:], run.slip[0][1:]
     assert d.size > 5 and np.ptp(d) < 2e-3 and np.ptp(s) < 2e-3
 
@@ -153,9 +153,9 @@ def test_a_longer_run_compiles_nothing_and_begins_as_the_shorter(BK):
     the shorter run (the noise-free chain is deterministic; the samples fall on the same
     steps)."""
     chain = BK(1, 0.0, 1.0, 0.5, LinearViscous(static=2.0, viscosity=0.2, kinetic=1.0))
-    short = ss.simulate_chain(chain, 200.0, dt=0.002, seed=0)
+    short = ss.simulate_chain(chain, 1, 0.002, 200.0, seed=0)
     counts = {k: ss.cache_info()[k] for k in ("traces", "compiles", "executables_loaded")}
-    long = ss.simulate_chain(chain, 400.0, dt=0.002, seed=0)
+    long = ss.simulate_chain(chain, 1, 0.002, 400.0, seed=0)
     assert {k: ss.cache_info()[k] for k in counts} == counts
     assert long.t.size == short.t.size == 1001
     np.testing.assert_array_equal(long.t[:501], short.t[::2])
@@ -176,7 +176,7 @@ def test_hundred_blocks_broad_event_sizes(BK):
     spec.loader.exec_module(example)
     size_distribution = example.size_distribution
 
-    run = ss.simulate_chain(BK.example(), 1e4, dt=0.02, seed=1)
+    run = ss.simulate_chain(BK.example(), 1, 0.02, 1e4, seed=1)
     sizes = run.events("size")
     assert sizes.size > 1000 and sizes.min() == 1 and sizes.max() == 100
     s, p, counts = size_distribution(sizes, 100)
@@ -197,10 +197,42 @@ def test_chunking_free_periodic_and_random_thresholds(BK):
     law = {"low": 0.9, "high": 1.1}
     m = BK(16, 5.0, 1.0, 0.05, "velocity-weakening", {"F0": 1.0, "alpha": 2.0}, D=1e-3,
            tau=0.1, boundary="periodic", threshold="uniform", threshold_params=law)  # fmt: skip
-    a = ss.simulate_chain(m, 300.0, dt=0.01, n_paths=3, seed=4)
-    b = ss.simulate_chain(m, 300.0, dt=0.01, n_paths=1, seed=4)
+    a = ss.simulate_chain(m, 3, 0.01, 300.0, seed=4)
+    b = ss.simulate_chain(m, 1, 0.01, 300.0, seed=4)
     np.testing.assert_array_equal(a.size[0], b.size[0])
     assert a.n_events.min() > 5
+
+
+def test_simulate_chain_takes_simulates_order_and_still_reads_the_old_one(BK):
+    """`simulate_chain(model, n_paths, dt, t_max)` as `simulate`; the order before (t_max
+    first, or t_max alone with n_paths by name) gives the same run with a DeprecationWarning
+    that says how it was read; the new order warns nothing."""
+    m = BK(4, 5.0, 1.0, 0.05, "velocity-weakening", {"F0": 1.0, "alpha": 2.0}, D=1e-3,
+           tau=0.1)  # fmt: skip
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        new = ss.simulate_chain(m, 2, 0.01, 40.0, seed=4)
+        named = ss.simulate_chain(m, t_max=40.0, dt=0.01, n_paths=2, seed=4)
+    assert new.t_max == pytest.approx(40.0)
+    assert new.n_events.shape == (2,)
+    old_calls = (
+        lambda: ss.simulate_chain(m, 40.0, 0.01, 2, 4),
+        lambda: ss.simulate_chain(m, 40.0, dt=0.01, n_paths=2, seed=4),
+        lambda: ss.simulate_chain(m, 40, 0.01, n_paths=2, seed=4),
+    )
+    for call in old_calls:
+        with pytest.warns(DeprecationWarning, match=r"read as n_paths=2, dt=0.01, t_max=40"):
+            old = call()
+        for run in (old, named):
+            np.testing.assert_array_equal(run.n_events, new.n_events)
+            np.testing.assert_array_equal(run.events("size"), new.events("size"))
+    with pytest.warns(DeprecationWarning, match="n_paths=1"):
+        one = ss.simulate_chain(m, 40.0, dt=0.01, seed=4)
+    assert one.n_events.shape == (1,)
+    with pytest.raises(TypeError, match="multiple values for 'dt'"):
+        ss.simulate_chain(m, 40.0, 0.01, dt=0.02)
 
 
 def test_empirical_estimator_on_the_chain(BK):
@@ -209,7 +241,7 @@ def test_empirical_estimator_on_the_chain(BK):
     the first quiet time."""
     chain = BK(8, 2.0, 1.0, 0.1, "viscous", {"static": 1.0, "viscosity": 0.5, "kinetic": 0.6},
                D=0.05, tau=0.2)  # fmt: skip
-    run = ss.simulate_chain(chain, 2000.0, dt=0.01, n_paths=2, seed=3)
+    run = ss.simulate_chain(chain, 2, 0.01, 2000.0, seed=3)
     up = run.upcrossings(window=20.0)
     est = ss.CrossingEstimator(chain, ensemble=up, dt=0.1)
     t = np.arange(0, 20.0, 0.1)
@@ -259,7 +291,7 @@ import numpy as np
 import stickslip as ss
 m = ss.get_model("burridge-knopoff")(2, 5.0, 1.0, 0.05, "velocity-weakening",
                                      {"F0": 1.0, "alpha": 2.0}, D=1e-3, tau=0.1)
-run = ss.simulate_chain(m, 5.0, dt=0.01, seed=1)
+run = ss.simulate_chain(m, 1, 0.01, 5.0, seed=1)
 print(json.dumps([np.asarray(run.mean_velocity).sum().hex(), ss.cache_info()]))
 """
 

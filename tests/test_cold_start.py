@@ -312,7 +312,7 @@ ss.simulate(ss.get_model("langevin")(**base), 300, 0.02, 20.0, solver="euler")
 ss.simulate(ss.get_model("langevin")(**base | {"D": 0.0}, tau=0.1), 8, 0.05, 30.0)
 ss.simulate(ss.get_model("langevin")(**base, tau=0.1), 300, 0.005, 20.0, monitor="grid")
 ss.simulate(ss.get_model("langevin")(**base, tau=0.1), 300, 0.005, 10.0, record_upcrossings=12)
-ss.simulate_chain(ss.get_model("burridge-knopoff").example(), 20.0, dt=0.02, record_dt=0.2)
+ss.simulate_chain(ss.get_model("burridge-knopoff").example(), 1, 0.02, 20.0, record_dt=0.2)
 ss.simulate(ss.get_model("langevin")(**base), 300, 0.2, 20.0, monitor="grid")
 ss.simulate(ss.get_model("friction-block").example(), 300, 0.02, 20.0)
 law = {"threshold": "weibull", "threshold_params": {"shape": 3.0, "scale": 1.1}}

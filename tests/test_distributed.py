@@ -100,9 +100,9 @@ def test_upcrossings_cycles_and_chains_on_the_cluster(client, model):
         friction_params={"F0": 1.0, "alpha": 2.0}, D=1e-3, tau=0.1, threshold="uniform",
         threshold_params={"low": 0.6, "high": 1.0},
     )  # fmt: skip
-    local = ss.simulate_chain(chain, 60.0, dt=0.01, n_paths=3, seed=5, record_releases=True)
+    local = ss.simulate_chain(chain, 3, 0.01, 60.0, seed=5, record_releases=True)
     remote = ss.simulate_chain(
-        chain, 60.0, dt=0.01, n_paths=3, seed=5, record_releases=True, client=client
+        chain, 3, 0.01, 60.0, seed=5, record_releases=True, client=client
     )
     assert remote.info["tasks"] > 1
     assert local.events("size").size > 10

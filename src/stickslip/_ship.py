@@ -85,7 +85,7 @@ for K in (16, 40):
 # series every 10 and every 500 steps: the docs' 200 time units, the study's 10^4).
 for record_dt in (None, 10.0):
     chain = ss.get_model("burridge-knopoff").example()
-    ss.simulate_chain(chain, 200.0, dt=0.02, seed=1, record_dt=record_dt)
+    ss.simulate_chain(chain, 1, 0.02, 200.0, seed=1, record_dt=record_dt)
 if pathlib.Path(sys.argv[1]).exists():
     ss.run_study(sys.argv[1], progress=False, figures=False)
 """

@@ -37,6 +37,7 @@ time-series buffer holds its samples rounded up to a few sizes (`_series_slots`)
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import sys
 import warnings
@@ -287,12 +288,67 @@ def _series(model, t, u, V, stuck, record_blocks):
     return out
 
 
+# The order of the arguments before `simulate` set it for every simulation (model, n_paths,
+# dt, t_max): read for one release, with a DeprecationWarning.
+_OLD_ORDER = ("t_max", "dt", "n_paths", "seed", "record_dt", "record_blocks", "max_events",
+              "record_releases", "progress", "client")  # fmt: skip
+_OLD_DEFAULTS = {"dt": 0.01, "n_paths": 1}
+
+
+def _is_count(value) -> bool:
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+
+
+def _accepts_old_order(fn):
+    """`simulate_chain` as it was called before it took `simulate`'s order: the call is read
+    in the old order `(model, t_max, dt=0.01, n_paths=1, seed=0, ...)`, with a
+    DeprecationWarning, when its first argument after the model cannot be a number of paths
+    (not an integer), when `n_paths` is also given by name, or when `t_max` is given neither
+    by position nor by name; or when, all by name, `n_paths` or `dt` is left out (they had
+    defaults), or when the run's options come by position. A call whose first three
+    arguments are integers is read in the new order."""
+
+    @functools.wraps(fn)
+    def simulate_chain(model, *args, **kwargs):
+        old = bool(args) and (
+            not _is_count(args[0])
+            or "n_paths" in kwargs
+            or (len(args) < 3 and "t_max" not in kwargs)
+        )
+        if not args and "t_max" in kwargs and not {"n_paths", "dt"} <= set(kwargs):
+            old = True
+        if len(args) > 4:  # the run's options were positional only in the old order
+            old = True
+        if old:
+            if len(args) > len(_OLD_ORDER):
+                raise TypeError(f"simulate_chain takes at most {len(_OLD_ORDER) + 1} arguments")
+            named = dict(zip(_OLD_ORDER, args, strict=False))
+            twice = sorted(set(named) & set(kwargs))
+            if twice:
+                raise TypeError(f"simulate_chain got multiple values for {twice[0]!r}")
+            kwargs = {**_OLD_DEFAULTS, **named, **kwargs}
+            warnings.warn(
+                "simulate_chain(model, t_max, dt, n_paths) is deprecated: pass the arguments "
+                "in simulate's order, simulate_chain(model, n_paths, dt, t_max), or by name "
+                f"(read as n_paths={kwargs['n_paths']!r}, dt={kwargs['dt']!r}, "
+                f"t_max={kwargs.get('t_max')!r})",
+                DeprecationWarning,
+                stacklevel=2,
+            )
+            args = ()
+        return fn(model, *args, **kwargs)
+
+    return simulate_chain
+
+
+@_accepts_old_order
 def simulate_chain(
     model: ChainModel,
+    n_paths: int,
+    dt: float,
     t_max: float,
-    dt: float = 0.01,
-    n_paths: int = 1,
     seed: int = 0,
+    *,
     record_dt: float | None = None,
     record_blocks: bool = False,
     max_events: int | None = None,
@@ -300,7 +356,10 @@ def simulate_chain(
     progress: bool | None = None,
     client=None,
 ) -> ChainRun:
-    """Simulate `n_paths` independent chains for `t_max` time units.
+    """Simulate `n_paths` independent chains for `t_max` time units, in steps of `dt`: the
+    arguments in `simulate`'s order. (The order before, `simulate_chain(model, t_max, dt,
+    n_paths)`, is still read, with a DeprecationWarning, for one release; a call whose
+    first three arguments are integers is read in this order.)
 
     - `dt`: the time step; releases and sticks are located inside it (see the module
       docs); results converge as dt shrinks (tested);

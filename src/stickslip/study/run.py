@@ -337,9 +337,9 @@ def _compute_chain(point: Point, say, client=None):
     t0 = time.perf_counter()
     point.chain = ss.simulate_chain(
         point.study.model.instance,
-        t_max=sim.t_max,
-        dt=sim.dt,
-        n_paths=sim.n_paths,
+        sim.n_paths,
+        sim.dt,
+        sim.t_max,
         seed=sim.seed,
         client=client,
     )
