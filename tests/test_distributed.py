@@ -101,9 +101,7 @@ def test_upcrossings_cycles_and_chains_on_the_cluster(client, model):
         threshold_params={"low": 0.6, "high": 1.0},
     )  # fmt: skip
     local = ss.simulate_chain(chain, 3, 0.01, 60.0, seed=5, record_releases=True)
-    remote = ss.simulate_chain(
-        chain, 3, 0.01, 60.0, seed=5, record_releases=True, client=client
-    )
+    remote = ss.simulate_chain(chain, 3, 0.01, 60.0, seed=5, record_releases=True, client=client)
     assert remote.info["tasks"] > 1
     assert local.events("size").size > 10
     for k in ("size", "slip", "duration", "start"):
