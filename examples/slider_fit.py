@@ -97,7 +97,7 @@ def candidates(slider):
         "random threshold": (
             "random-threshold",
             {**shared, **law},
-            {**known, "threshold": "normal", "threshold_params": {}},
+            {**known, "threshold": "normal"},
         ),
     }
 

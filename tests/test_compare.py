@@ -41,7 +41,7 @@ def _fit_pair(data, free_fixed, free_random, fixed, n_sim, seed=11):
                          check=False)  # fmt: skip
         r_random = ss.fit(
             "random-threshold", data, free_random,
-            BASE | fixed | {"threshold": "normal", "threshold_params": {}},
+            BASE | fixed | {"threshold": "normal"},
             seed=seed, n_sim=n_sim, check=False,
         )  # fmt: skip
     return r_fixed, r_random

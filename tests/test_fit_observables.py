@@ -160,7 +160,6 @@ def test_the_sd_of_a_random_threshold_is_recovered():
 @pytest.mark.parametrize(
     "free, fixed, says",
     [
-        ({"threshold_params.sd": (0.1, 1.0)}, RT_FIXED, "fixed must give as a dict"),
         ({"threshold.sd": (0.1, 1.0)}, RT_FIXED, "fixed must give as a dict"),
         ({"law.sd": (0.1, 1.0)}, RT_FIXED, "is not a parameter"),
         (
@@ -181,6 +180,30 @@ def test_a_bad_nested_name_is_refused_up_front(monkeypatch, free, fixed, says):
     with pytest.raises(ss.ParameterError, match=says) as err:
         ss.fit("random-threshold", {"slip_time": x}, free, fixed)
     assert err.value.parameter.startswith("free['"), str(err.value)
+
+
+def test_every_entry_of_a_law_free_needs_no_empty_dict(monkeypatch):
+    """Both entries of the normal law free: `fixed` need not hold `threshold_params: {}`;
+    the fit builds its model and goes on to simulate (stopped there), `fixed` left as
+    given. One entry free and the other nowhere: one line naming the missing entry."""
+    built = []
+
+    def stop(model, *args, **kwargs):
+        built.append(model)
+        raise AssertionError("fit simulated")
+
+    monkeypatch.setattr(likelihood, "_simulate", stop)
+    x = np.random.default_rng(3).exponential(1.0, 60)
+    free = {"threshold_params.mean": (0.5, 2.0), "threshold_params.sd": (0.1, 1.0)}
+    fixed = dict(RT_FIXED)
+    with pytest.raises(AssertionError, match="fit simulated"):
+        ss.fit("random-threshold", {"slip_time": x}, free, fixed)
+    assert fixed == RT_FIXED
+    law = built[0].threshold  # a point of the design, inside the boxes
+    assert 0.5 <= law.mean <= 2.0 and 0.1 <= law.sd <= 1.0
+    with pytest.raises(ss.ParameterError, match="threshold_params.mean is required") as err:
+        ss.fit("random-threshold", {"slip_time": x}, {"threshold_params.sd": (0.1, 1.0)}, RT_FIXED)
+    assert err.value.parameter == "fixed" and "\n" not in str(err.value)
 
 
 def _no_simulation(*args, **kwargs):

@@ -57,7 +57,8 @@ def _check_fixed(fixed, Model) -> dict[str, Any]:
 def _check_free(free, fixed, Model) -> dict[str, tuple[float, float]]:
     """The boxes, checked; a dotted name (`"threshold_params.sd"`) is an entry of a dict
     parameter, whose other entries `fixed` holds (a value `fixed` gives it too is replaced:
-    a study's `model.params` names a complete model)."""
+    a study's `model.params` names a complete model). With every entry free, `fixed` may
+    leave the dict parameter out: it is added to `fixed` (the caller's copy) as `{}`."""
     if not hasattr(free, "items") or not free:
         raise ParameterError("fit", "free", "must be a non-empty dict {name: (low, high)}", free)
     known = Model.parameters()
@@ -70,11 +71,14 @@ def _check_free(free, fixed, Model) -> dict[str, tuple[float, float]]:
                 f"free['{k}']",
                 f"is not a parameter of {Model.__name__} (parameters: {', '.join(known)})",
             )
+        if entry and head not in fixed:  # every entry free: the dict starts empty
+            fixed[head] = {}
         if entry and not hasattr(fixed.get(head), "items"):
             raise ParameterError(
                 "fit",
                 f"free['{k}']",
-                f"names an entry of {head}, which fixed must give as a dict of its other entries",
+                f"names an entry of {head}, which fixed must give as a dict of its other "
+                f"entries (or leave out), not {fixed.get(head)!r}",
             )
         try:
             low, high = (float(b) for b in box)
