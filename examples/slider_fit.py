@@ -72,19 +72,13 @@ UNUSABLE = ("the polynomial fitted to the surface has no maximum",
 
 
 def reference_slider(cycles):
-    """The rig in SI (`Slider`), which sets the model's units: mass, stiffness and the
-    sticks' measured loading speed, and, for the units only, F_s = the median peak force
-    and F_k = F_s - (median drop) / 2 (a drop is 2 (F_s - F_k) without damping)."""
+    """The rig in SI (`Slider.from_cycles`), which sets the model's units: mass, the
+    extraction's stiffness and the sticks' measured loading speed, and, for the units only,
+    F_s = the median peak force and F_k = F_s - (median drop) / 2 (a drop is 2 (F_s - F_k)
+    without damping)."""
     import stickslip as ss
 
-    peak = float(np.median(cycles["peak_force"]))
-    drop = float(np.median(cycles["force_drop"]))
-    omega = math.sqrt(STIFFNESS / MASS)
-    return ss.Slider(
-        mass=MASS, stiffness=STIFFNESS, v_b=float(cycles.info["v_b_estimated"]),
-        static_friction=peak, kinetic_friction=peak - 0.5 * drop,
-        damping=ZETA * MASS * omega,
-    )  # fmt: skip
+    return ss.Slider.from_cycles(cycles, MASS, stiffness=STIFFNESS, zeta=ZETA)
 
 
 def candidates(slider):
@@ -123,37 +117,14 @@ def _ours(caught) -> list[str]:
 
 
 def si_parameters(r, slider):
-    """[(quantity, unit, estimate, low, high)] of a fit, in SI: each a monotone map of one
-    free parameter, so that its interval maps end to end."""
-    s = slider.scales
-    rows = []
-
+    """[(quantity, unit, estimate, low, high)] of a fit, in SI (`Slider.si_table`)."""
     # where the fit's surface had no usable curvature its intervals are not intervals (the
-    # fit says so in its warnings): reported as nan, not as [0, inf] mapped through
+    # fit says so in its warnings): reported as nan
     said = getattr(r, "diagnostics", {}).get("warnings", [])
     usable = not any(w.startswith(UNUSABLE) for w in said)
-
-    def add(label, unit, name, fn):
-        if name in r.estimate:
-            lo, hi = (math.nan, math.nan)
-            if usable and all(math.isfinite(x) and x > 0 for x in r.ci[name]):
-                lo, hi = sorted((fn(r.ci[name][0]), fn(r.ci[name][1])))
-            elif usable and np.all(np.isfinite(r.ci[name])) and name.endswith(".sd"):
-                lo, hi = sorted((fn(max(r.ci[name][0], 0.0)), fn(r.ci[name][1])))
-            rows.append((label, unit, fn(r.estimate[name]), lo, hi))
-
-    add("natural frequency omega_eff", "rad/s", "omega0", lambda w: w * s.omega0)
-    add("effective mass k / omega_eff^2", "kg", "omega0",
-        lambda w: slider.si_parameters({"omega0": w})["mass"])  # fmt: skip
-    add("half period pi / omega_eff", "s", "omega0", lambda w: math.pi / (w * s.omega0))
-    add("static - kinetic friction F_s - F_k", "N", "x0", lambda x: x * s.force)
-    add("mean of F_s - F_k", "N", "threshold_params.mean", lambda x: x * s.force)
-    add("sd of the static friction F_s", "N", "threshold_params.sd", lambda x: x * s.force)
-    # the noise of the acceleration dv/dt (the friction force over the effective mass):
-    # its intensity D omega^3 x0^2 depends on D alone (S = m_eff^2 times it, in N^2 s)
-    add("noise intensity S / m_eff^2", "m^2/s^3", "D",
-        lambda d: d * s.omega0**3 * s.length**2)  # fmt: skip
-    return rows
+    return [(row["quantity"], row["unit"], row["estimate"],
+             row["low"] if usable else math.nan, row["high"] if usable else math.nan)
+            for row in slider.si_table(r)]  # fmt: skip
 
 
 def to_si(columns, slider):

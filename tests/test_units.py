@@ -346,3 +346,93 @@ def test_a_fitted_natural_frequency_in_si():
     assert slider.si_parameters({"omega0": 1.0})["mass"] == pytest.approx(M, rel=1e-12)
     with pytest.raises(ss.ParameterError, match="omega0"):
         slider.si_parameters({"omega0": -1.0})
+
+
+def _trace_cycles():
+    """The Cycles of a force trace, with the settings extract_cycles records."""
+    from stickslip.extract import Cycles
+
+    table = {
+        "slip_time": np.array([0.030, 0.032, 0.034]),
+        "stick_time": np.array([1.2, 1.5, 1.4]),
+        "peak_force": np.array([0.097, 0.099, 0.098]),
+        "force_drop": np.array([0.010, 0.012, 0.014]),
+    }
+    return Cycles(table, {"stiffness": K, "v_b": 42e-6, "v_b_estimated": 45e-6})
+
+
+def test_the_reference_slider_of_a_trace():
+    """From a trace's cycles: the stiffness and the measured loading speed of its settings,
+    F_s the median peak force, F_k = F_s - (median drop) / 2, damping zeta m omega0; then
+    the force unit k x0 is half the median drop less c V."""
+    slider = Slider.from_cycles(_trace_cycles(), M, zeta=2e-3)
+    assert (slider.stiffness, slider.v_b) == (K, 45e-6)
+    assert slider.static_friction == pytest.approx(0.098, rel=1e-12)
+    assert slider.kinetic_friction == pytest.approx(0.098 - 0.006, rel=1e-12)
+    assert slider.damping == pytest.approx(2e-3 * math.sqrt(K * M), rel=1e-12)
+    assert slider.scales.force == pytest.approx(0.006 - slider.damping * 45e-6, rel=1e-12)
+    given = Slider.from_cycles(_trace_cycles(), M, stiffness=100.0, v_b=40e-6)
+    assert (given.stiffness, given.v_b) == (100.0, 40e-6)
+
+
+@pytest.mark.parametrize(
+    "cycles, kwargs, field",
+    [
+        ({"peak_force": [1.0]}, {}, "cycles"),
+        ("no force", {}, "cycles"),
+        ("no stiffness", {}, "stiffness"),
+        ("ok", {"zeta": 0.0}, "zeta"),
+        ("ok", {"v_b": -1.0}, "v_b"),
+    ],
+)
+def test_the_reference_slider_refuses_in_one_line(cycles, kwargs, field):
+    from stickslip.extract import Cycles
+
+    good = _trace_cycles()
+    if cycles == "ok":
+        cycles = good
+    elif cycles == "no force":
+        cycles = Cycles({"slip_time": good["slip_time"]}, dict(good.info))
+    elif cycles == "no stiffness":
+        cycles = Cycles(dict(good.table), {"v_b": 42e-6})
+    with pytest.raises(ss.ParameterError) as err:
+        Slider.from_cycles(cycles, M, **kwargs)
+    assert err.value.parameter.split(".")[0] == field and "\n" not in str(err.value)
+
+
+def test_a_fits_parameters_in_si():
+    """Each row maps its fitted parameter, estimate and both interval ends, through the
+    slider's scales (decreasing maps swap the ends); no interval gives nan; a spread's
+    interval stops at 0; D is S itself where omega0 is not fitted."""
+    slider = Slider.from_cycles(_trace_cycles(), M)
+    s = slider.scales
+    fit = type("FitResult", (), {})()
+    fit.estimate = {"omega0": 1.4, "D": 0.2, "threshold_params.mean": 1.1,
+                    "threshold_params.sd": 0.3, "tau": 0.1}  # fmt: skip
+    fit.ci = {"omega0": (1.3, 1.5), "D": (0.1, 0.4), "threshold_params.mean": (1.0, 1.2),
+              "threshold_params.sd": (-0.1, 0.5), "tau": (math.nan, math.nan)}  # fmt: skip
+    rows = {r["quantity"]: r for r in slider.si_table(fit)}
+    mass = rows["effective mass k / omega_eff^2"]
+    assert (mass["unit"], mass["parameter"]) == ("kg", "omega0")
+    assert (mass["estimate"], mass["low"], mass["high"]) == pytest.approx(
+        (M / 1.4**2, M / 1.5**2, M / 1.3**2), rel=1e-12
+    )
+    w = rows["natural frequency omega_eff"]
+    assert (w["estimate"], w["low"], w["high"]) == pytest.approx(
+        (1.4 * s.omega0, 1.3 * s.omega0, 1.5 * s.omega0), rel=1e-12
+    )
+    noise = rows["noise intensity S / m_eff^2"]
+    assert noise["estimate"] == pytest.approx(0.2 * s.omega0**3 * s.length**2, rel=1e-12)
+    sd = rows["sd of the static friction F_s"]
+    assert (sd["estimate"], sd["low"], sd["high"]) == pytest.approx(
+        (0.3 * s.force, 0.0, 0.5 * s.force), rel=1e-12
+    )
+    assert rows["mean of F_s - F_k - c V"]["high"] == pytest.approx(1.2 * s.force, rel=1e-12)
+    tau = rows["noise correlation time tau_c"]
+    assert tau["estimate"] == pytest.approx(0.1 * s.time) and math.isnan(tau["low"])
+    fit.estimate, fit.ci = {"D": 0.2}, {"D": (0.1, 0.4)}
+    (row,) = slider.si_table(fit)
+    assert row["quantity"] == "noise intensity S" and row["unit"] == "N^2 s"
+    assert row["estimate"] == pytest.approx(slider.si_parameters({"D": 0.2})["noise"])
+    with pytest.raises(ss.ParameterError, match="must be a FitResult"):
+        slider.si_table({"D": 0.2})

@@ -470,6 +470,133 @@ class Slider:
                 )
         return out
 
+    # -- a measured trace and a fit -------------------------------------------------------
+    @classmethod
+    def from_cycles(
+        cls,
+        cycles,
+        mass: float,
+        *,
+        stiffness: float | None = None,
+        v_b: float | None = None,
+        zeta: float = 1e-3,
+    ) -> Slider:
+        r"""The reference slider of a measured force trace: the units in which a model of
+        its cycles is fitted (`fit(..., cycles, scales=slider)`) and in which the fit's
+        parameters are read back (`si_table`).
+
+        **Arguments:**
+
+        - `cycles`: the `Cycles` of `extract_cycles` on a force trace (or `read_cycles` of
+          the table `stickslip cycles` wrote): its `peak_force` and `force_drop` columns,
+          and the stiffness and driving speed recorded in its `info`;
+        - `mass`: the slider's mass $m$ (kg);
+        - `stiffness`: the spring's $k$ (N/m; default: the one the extraction used);
+        - `v_b`: the driving speed $V$ (m/s; default: the sticks' measured loading slope,
+          `info["v_b_estimated"]`, else the given `info["v_b"]`);
+        - `zeta`: the viscous damping $c/(m\omega_0)$ assumed (default $10^{-3}$: negligible;
+          the models need it above 0).
+
+        The static friction is the median peak force and the kinetic friction $F_s$ less
+        half the median force drop (a noise-free undamped slip drops the force by
+        $2(F_s - F_k)$): they set the length unit $x_0$, so that a fitted threshold
+        `x0` near 1 is the median cycle. The slider has no noise: its noise and the
+        model's natural frequency are what a fit estimates.
+
+        **Returns:** a `Slider`. A missing column or setting raises a `ParameterError`.
+        """
+        owner = "Slider.from_cycles"
+        table = getattr(cycles, "table", None)
+        info = getattr(cycles, "info", None)
+        if not isinstance(table, dict) or not isinstance(info, dict):
+            raise ParameterError(owner, "cycles", "must be the Cycles of extract_cycles")
+        for name in ("peak_force", "force_drop"):
+            if name not in table:
+                raise ParameterError(
+                    owner, f"cycles.{name}", "is missing: extract the cycles from a force trace "
+                    "(extract_cycles(t, force=F, stiffness=k) or stickslip cycles --force-column)",
+                )  # fmt: skip
+        if stiffness is None:
+            stiffness = info.get("stiffness")
+            if stiffness is None:
+                raise ParameterError(owner, "stiffness", "is required: cycles.info has none")
+        if v_b is None:
+            v_b = info.get("v_b_estimated") or info.get("v_b")
+            if v_b is None:
+                raise ParameterError(owner, "v_b", "is required: cycles.info has none")
+        mass = check_positive(owner, "mass", mass)
+        stiffness = check_positive(owner, "stiffness", stiffness)
+        zeta = check_positive(owner, "zeta", zeta)
+        peak = np.asarray(table["peak_force"], float)
+        drop = np.asarray(table["force_drop"], float)
+        ok = np.isfinite(peak) & np.isfinite(drop)
+        if not ok.any():
+            raise ParameterError(owner, "cycles", "has no cycle with a finite peak force and drop")
+        static = float(np.median(peak[ok]))
+        omega0 = math.sqrt(stiffness / mass)
+        return cls(
+            mass=mass, stiffness=stiffness, v_b=float(v_b), static_friction=static,
+            kinetic_friction=static - 0.5 * float(np.median(drop[ok])),
+            damping=zeta * mass * omega0,
+        )  # fmt: skip
+
+    def si_table(self, result) -> list[dict[str, Any]]:
+        r"""A fit's free parameters in SI, with their 95 % intervals: one row per quantity,
+        each a monotone function of one fitted parameter in this slider's units (so its
+        interval's ends map to the quantity's).
+
+        **Arguments:**
+
+        - `result`: a `FitResult` of a model fitted in this slider's units (`fit(...,
+          scales=slider)`, or data from `to_model`).
+
+        **Returns:** a list of dicts with `quantity`, `unit`, `parameter` (the fitted one),
+        `estimate`, `low` and `high` (nan where the fit gave no interval). The rows:
+        `omega0` as the natural frequency $\omega_0\sqrt{k/m}$ (rad/s), the effective
+        mass $m/\omega_0^2$ (kg) and the half period (s); `D` as the acceleration noise's intensity
+        $S/m_{eff}^2 = \hat D\,\omega_0^3 x_0^2$ (m²/s³, the friction noise over the
+        effective mass), and as $S$ (N² s) when `omega0` is not fitted; `x0` and a
+        threshold law's entries as forces above the sliding friction $F_k + cV$ (N, a
+        spread as a force); `zeta` as $c/m_{eff}$ (1/s), `tau` in s, `v_b` in m/s.
+        """
+        s = self.scales
+        estimate = getattr(result, "estimate", None)
+        ci = getattr(result, "ci", None)
+        if not isinstance(estimate, dict) or not isinstance(ci, dict):
+            raise ParameterError("Slider.si_table", "result", "must be a FitResult (from fit)")
+        rows: list[dict[str, Any]] = []
+
+        def add(quantity, unit, name, fn, spread=False):
+            if name not in estimate:
+                return
+            lo, hi = (float(x) for x in ci.get(name, (math.nan, math.nan)))
+            if spread and math.isfinite(lo):
+                lo = max(lo, 0.0)  # a spread's interval stops at 0
+            low = high = math.nan
+            if math.isfinite(lo) and math.isfinite(hi) and (spread or name == "x0" or lo > 0):
+                low, high = sorted((fn(lo), fn(hi)))
+            rows.append(dict(quantity=quantity, unit=unit, parameter=name,
+                             estimate=fn(float(estimate[name])), low=low, high=high))  # fmt: skip
+
+        add("natural frequency omega_eff", "rad/s", "omega0", lambda w: w * s.omega0)
+        add("effective mass k / omega_eff^2", "kg", "omega0", lambda w: self.mass / w**2)
+        add("half period pi / omega_eff", "s", "omega0", lambda w: math.pi / (w * s.omega0))
+        if "omega0" in estimate:
+            add("noise intensity S / m_eff^2", "m^2/s^3", "D",
+                lambda d: d * s.omega0**3 * s.length**2)  # fmt: skip
+        else:
+            add("noise intensity S", "N^2 s", "D", lambda d: d * s.noise)
+        add("static - sliding friction F_s - F_k - c V", "N", "x0", lambda x: x * s.force)
+        for entry, what in (("mean", "mean of"), ("low", "lowest"), ("high", "highest")):
+            add(f"{what} F_s - F_k - c V", "N", f"threshold_params.{entry}",
+                lambda x: x * s.force)  # fmt: skip
+        add("sd of the static friction F_s", "N", "threshold_params.sd",
+            lambda x: x * s.force, spread=True)  # fmt: skip
+        add("damping rate c / m_eff", "1/s", "zeta", lambda z: z * s.omega0)
+        add("noise correlation time tau_c", "s", "tau", lambda t: t * s.time)
+        add("driving speed V", "m/s", "v_b", lambda v: v * s.velocity)
+        return rows
+
     # -- conversions -----------------------------------------------------------------------
     def seconds(self, t):
         """Model times (units of $1/\\omega_0$) in seconds."""
