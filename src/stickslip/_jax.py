@@ -11,9 +11,8 @@ disable it. A cache directory the user configured for JAX is left alone.
 """
 
 import os
-import pathlib
 
-from . import _cpu
+from . import _cache, _cpu
 
 # XLA's CPU runtime can deadlock on these workloads (seen here on 2 cores; a known issue,
 # e.g. PyAutoFit #1528): a call waits forever with every worker idle.
@@ -45,17 +44,14 @@ jax.config.update("jax_enable_x64", True)
 def _enable_compilation_cache() -> None:
     if jax.config.jax_compilation_cache_dir:
         return
-    where = os.environ.get("STICKSLIP_CACHE_DIR")
-    if where is not None and where.strip().lower() in ("", "off", "0", "none", "false"):
-        return
+    where = _cache.own_directory()
     if where is None:
-        base = os.environ.get("XDG_CACHE_HOME") or pathlib.Path.home() / ".cache"
-        where = str(pathlib.Path(base) / "stickslip" / "jax")
+        return
     try:
-        pathlib.Path(where).mkdir(parents=True, exist_ok=True)
+        where.mkdir(parents=True, exist_ok=True)
     except OSError:  # read-only home: run without the cache
         return
-    jax.config.update("jax_compilation_cache_dir", where)
+    jax.config.update("jax_compilation_cache_dir", str(where))
     # Only the costly compilations (the simulator's loops) are worth a disk entry.
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
     _key_by_cpu()

@@ -13,6 +13,7 @@ import threading
 
 import click
 
+from .cache import cache
 from .cycles import cycles
 from .fit import fit
 from .models import models
@@ -49,7 +50,7 @@ def main():
     """Statistics of frictional stick-slip motion."""
 
 
-for _command in (run, validate, sweep, models, schema, cycles, fit):
+for _command in (run, validate, sweep, models, schema, cycles, fit, cache):
     main.add_command(_command)
 
 
