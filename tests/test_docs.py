@@ -8,7 +8,9 @@ import warnings
 import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
+# docs/tutorial.md runs in tests/test_tutorial.py, with its command lines between its blocks.
 FILES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+FILES = [p for p in FILES if p.name != "tutorial.md"]
 BLOCK = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
 
 
@@ -35,8 +37,32 @@ def test_code_blocks_run(path, tmp_path, monkeypatch):
         (tmp_path / name).symlink_to(ROOT / name, target_is_directory=True)
     monkeypatch.chdir(tmp_path)
     blocks = BLOCK.findall(path.read_text())
+    if path.name == "README.md":
+        blocks = [b for b in blocks if not _from_the_tutorial(b)]
     namespace: dict = {}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # approximation warnings are documented in the text
         for block in blocks:
             exec(compile(block, f"{path.name}", "exec"), namespace)
+
+
+# The README's trace-to-model block reads the cycles that its `stickslip cycles` line writes
+# and fits through the measurement (minutes): it is made of docs/tutorial.md's lines, which
+# tests/test_tutorial.py runs (the fit in the slow tier), and is checked to stay so.
+def _from_the_tutorial(block: str) -> bool:
+    return 'ss.read_cycles("cycles.csv")' in block
+
+
+def _statements(code: str) -> list[str]:
+    """The code's lines, comments and surrounding blanks dropped."""
+    lines = (line.split("  #")[0].rstrip() for line in code.splitlines())
+    return [line for line in lines if line.strip() and not line.lstrip().startswith("#")]
+
+
+def test_the_readmes_trace_block_is_the_tutorials():
+    readme = [b for b in BLOCK.findall((ROOT / "README.md").read_text()) if _from_the_tutorial(b)]
+    assert len(readme) == 1
+    tutorial = "\n".join(BLOCK.findall((ROOT / "docs" / "tutorial.md").read_text()))
+    ours = set(_statements(tutorial))
+    missing = [line for line in _statements(readme[0]) if line not in ours]
+    assert not missing, f"README lines that docs/tutorial.md does not run: {missing}"
