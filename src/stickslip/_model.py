@@ -5,7 +5,7 @@ chain of blocks that stick and slip one by one)."""
 from __future__ import annotations
 
 import abc
-from typing import Any
+from typing import Any, ClassVar
 
 import equinox as eqx
 import numpy as np
@@ -56,6 +56,10 @@ class FrictionModel(eqx.Module):
       the stick and the state the next slip starts from;
     - the **release rule**: `onset_state(key)`, the state at slip onset (it may be random,
       e.g. a random threshold or a random initial noise);
+    - optionally **memory across cycles**: a model with `carries_state = True` says in
+      `release(key, X_stick)` what the stick does to the state and which state the next slip
+      starts from, so that successive cycles of `simulate_cycles` depend on each other
+      (the default, `onset_state` and `stick_duration`, restarts every cycle afresh);
     - optionally `linear_gaussian()`, when the slip SDE is linear with additive noise: the
       simulator then steps exactly and the estimator is exact.
     - optionally `slip_phase()`, a plainer model with the same slip-phase methods, when the
@@ -130,6 +134,35 @@ class FrictionModel(eqx.Module):
         A stick that ends beyond the next threshold releases at once (zero stick time)."""
         gap = self.position(y_next) - self.position(y_stick)
         return jnp.maximum(gap, 0.0) / self.stick_level
+
+    # Memory across cycles. False (the default): every slip starts from `onset_state`, whatever
+    # the cycle before it did (the paper's sharp reset), and `release` is never called on the
+    # simulator's hot path. A class attribute, so that the simulator decides it statically.
+    carries_state: ClassVar[bool] = False
+
+    def release(self, key, y_stick):
+        r"""The stick phase of a model with memory: from the state `y_stick` at the stick to
+        the onset of the next slip.
+
+        **Arguments:**
+
+        - `key`: the JAX PRNG key of the next cycle's release (the key `onset_state` would
+          get for it), for what the stick draws afresh (a random threshold);
+        - `y_stick`: the state at the stick, shape `(d,)`.
+
+        **Returns:** `(stick_time, y_next)`: the stick's duration $T_{st} \ge 0$ and the state
+        the next slip starts from, shape `(d,)`. Both must be traceable by JAX (closed form,
+        a fixed number of iterations, or a `jax.lax` loop), as `drift` is.
+
+        The default is memoryless: `y_next = onset_state(key)` and
+        `stick_time = stick_duration(y_stick, y_next)`. The simulator calls it only for a
+        model whose class sets `carries_state = True`; such a model states here how the
+        stick evolves what it carries (a contact that ages, a threshold that grows with the
+        time stuck) and may carry any state component into the next slip. `simulate`'s
+        first-passage ensembles are unchanged in meaning: every path's first slip starts
+        from `onset_state`; `Ensemble.stick_time` and `next_onset_state` come from here."""
+        y_next = self.onset_state(key)
+        return self.stick_duration(y_stick, y_next), y_next
 
     def linear_gaussian(self) -> LinearGaussian | None:
         """The linear-Gaussian description of the slip phase, or None (the default)."""

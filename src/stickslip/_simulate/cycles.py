@@ -42,7 +42,9 @@ class CycleSeries:
     - `periods(path)`: successive periods, e.g. for return maps $T_{n+1}$ against $T_n$.
 
     Every cycle starts from the model's onset state (the sharp reset of the paper), so the
-    cycles of a path are independent given their keys.
+    cycles of a path are independent given their keys; a model with memory
+    (`FrictionModel.carries_state`) starts each slip where the last stick led
+    (`FrictionModel.release`), so that successive cycles depend on each other.
     """
 
     cycles: dict[str, np.ndarray]
@@ -119,6 +121,14 @@ def simulate_cycles(
 
     **Returns:** a `CycleSeries`.
     """
+    from .._creep import CreepingSlider
+
+    if isinstance(model, CreepingSlider):  # one motion through stick and slip: integrated
+        from .. import _creep
+
+        args = _creep.check_args("simulate_cycles", n_paths, dt, t_max, seed, solver, monitor)
+        max_cycles = check_int("simulate_cycles", "max_cycles", max_cycles, minimum=1)
+        return _creep.simulate_cycles(model, *args, record=bool(record), max_cycles=max_cycles)
     n_paths, dt, t_max, seed, _ = _validate(
         "simulate_cycles", model, n_paths, dt, t_max, seed, solver, monitor, 1
     )
@@ -230,7 +240,12 @@ def _cycles_block(model, dt, t_max, seed, opts, start, stop) -> dict:
     rows: list[dict[str, np.ndarray]] = []
     elapsed = np.zeros(n_paths)
     active = np.ones(n_paths, dtype=bool)
-    first, batch = 0, _FIRST_BATCH
+    # A model with memory runs its cycles one after the other, each slip from where the last
+    # stick led (`FrictionModel.release`); without, a round runs many cycles of every path
+    # at once (they are independent given their keys).
+    memory = bool(model.carries_state)
+    first, batch = 0, (1 if memory else _FIRST_BATCH)
+    onsets = None  # (d, paths): where the next slips start (a model with memory)
     while active.any() and first < max_cycles:
         count = min(batch, max_cycles - first)
         ids = np.nonzero(active)[0]
@@ -239,8 +254,12 @@ def _cycles_block(model, dt, t_max, seed, opts, start, stop) -> dict:
             .ravel()
             .astype(np.uint32)
         )
-        X0, stick_state, t_stick, _ = run.first_passages(slots, 2**16)
-        _, out = run.cycle_outputs(slots + np.uint32(1), 0, stick_state, t_stick)
+        given = None if onsets is None else onsets[:, ids]
+        X0, stick_state, t_stick, _ = run.first_passages(slots, 2**16, onsets=given)
+        X1, out = run.cycle_outputs(slots + np.uint32(1), 0, stick_state, t_stick)
+        if memory:
+            onsets = np.zeros((X1.shape[0], n_paths)) if onsets is None else onsets
+            onsets[:, ids] = X1
         out.update(
             path=np.repeat(path_ids[ids], count),
             cycle=np.tile(np.arange(first, first + count), ids.size),
@@ -257,7 +276,7 @@ def _cycles_block(model, dt, t_max, seed, opts, start, stop) -> dict:
         elapsed[ids] = begin[:, -1] + period[:, -1]
         active[ids] = elapsed[ids] < t_max
         first += count
-        batch *= 2
+        batch *= 1 if memory else 2
     late = None
     if active.any():
         late = (int(active.sum()), float(np.mean(elapsed[active]) / max_cycles))

@@ -274,6 +274,26 @@ def _onset(model, smooth: bool, key, path, counter, stick_state):
 
 
 @eqx.filter_jit
+def _release(model, key, path, counter, stick_state):
+    """A model with memory (`FrictionModel.carries_state`): the stick times from
+    `stick_state` and the onset states of the paths' cycle `counter` that the stick leads
+    to (`FrictionModel.release`, keyed as `onset_state` would be), with the positions of
+    `stick_state`."""
+    keys = _rng.path_keys(key, path, counter)
+    T_st, X = jax.vmap(model.release, in_axes=(0, -1), out_axes=(0, -1))(keys, stick_state)
+    return X, T_st, over_paths(model.position)(stick_state)
+
+
+@eqx.filter_jit
+def _at_onset(model, smooth: bool, X):
+    """Positions and, for a smooth crossing variable, its rate at given onset states `X`
+    (the slips of a model with memory start where the last stick led)."""
+    position = over_paths(model.position)(X)
+    rate = over_paths(model.crossing_rate)(X) if smooth else jnp.zeros_like(position)
+    return position, rate
+
+
+@eqx.filter_jit
 def _advance(
     model, solver, cfg, slots, X, X_prev, k_stick, miss, path, offset, horizon, dt, step_key,
     bridge_key, stop_at, tol,
@@ -537,6 +557,13 @@ def simulate(
 
     **Returns:** an `Ensemble`.
     """
+    from .._creep import CreepingSlider
+
+    if isinstance(model, CreepingSlider):  # one motion through stick and slip: integrated
+        from .. import _creep
+
+        args = _creep.check_args("simulate", n_paths, dt, t_max, seed, solver, monitor)
+        return _creep.simulate(model, *args)
     n_paths, dt, t_max, seed, chunk_size = _validate(
         "simulate", model, n_paths, dt, t_max, seed, solver, monitor, chunk_size
     )
@@ -810,11 +837,18 @@ class _Run:
             program = self._programs[size] = device.program_for(self, size)
         return program
 
-    def first_passages(self, paths, chunk_size):
+    def first_passages(self, paths, chunk_size, onsets=None):
         """Onset state, stick state, stick time (`nan` if none by the last step) and whether
-        the stick was located, for the paths with counters `paths`, chunk by chunk."""
+        the stick was located, for the paths with counters `paths`, chunk by chunk. The
+        slips start from `onsets` `(d, n)` where given (a model with memory: where the last
+        stick led), else from the model's onset states."""
         self.refined_miss = 0.0
         chunk = self._chunk
+        if onsets is not None:
+            if self.scheduler == "device":  # (`simulate_cycles` runs the host scheduler)
+                raise NotImplementedError("given onsets need the host scheduler")
+            given = np.asarray(onsets, dtype=np.float64)
+            chunk = lambda p, i: self._chunk(p, given[:, i : i + p.size])  # noqa: E731
         if self.scheduler == "device":
             from . import device
 
@@ -825,7 +859,10 @@ class _Run:
             n = min(paths.size, chunk_size)
             want, chunk_size = _buffer_size(n), self._chunk_length(n)
         start = time.perf_counter()
-        parts = [chunk(paths[i : i + chunk_size]) for i in range(0, paths.size, chunk_size)]
+        if onsets is None:
+            parts = [chunk(paths[i : i + chunk_size]) for i in range(0, paths.size, chunk_size)]
+        else:
+            parts = [chunk(paths[i : i + chunk_size], i) for i in range(0, paths.size, chunk_size)]
         if self.scheduler != "device" and chunk_size < n:
             # Chunks of a smaller buffer: the fraction of the time a buffer of the size
             # wanted would have saved, about, is rent for it (`_compile.rent`).
@@ -849,7 +886,10 @@ class _Run:
         the per-path outputs of an `Ensemble`, from the raw first-passage results of the
         last `first_passages`."""
         n = paths.size
-        X1, _, _, T_st, x_sl = self._onset_states(paths, counter, stick_state)
+        if self.model.carries_state:
+            X1, T_st, x_sl = self._released(paths, counter, stick_state)
+        else:
+            X1, _, _, T_st, x_sl = self._onset_states(paths, counter, stick_state)
         X1, T_st, x_sl = (np.asarray(a)[..., :n] for a in (X1, T_st, x_sl))
         x_start = self.onset_positions
         stuck = np.isfinite(t_stick) & (t_stick <= self.t_max)
@@ -914,6 +954,20 @@ class _Run:
             )
         )
 
+    def _released(self, paths, counter, stick_state):
+        """`_release` for the paths `paths` from their stick states (a model with memory);
+        the paths that never stuck (`nan` states) give `nan`."""
+        size = self._onset_size(paths.size)
+        stick = _pad_paths(np.nan_to_num(np.asarray(stick_state, dtype=np.float64)), size)
+        X1, T_st, x_sl = self.call(
+            _release, self.model, self.keys["onset"], _pad_paths(paths, size),
+            np.asarray(counter, dtype=np.uint32), stick, paths=size,
+        )  # fmt: skip
+        lost = ~np.all(np.isfinite(np.asarray(stick_state)), axis=0)
+        X1, T_st, x_sl = (np.array(a)[..., : paths.size] for a in (X1, T_st, x_sl))
+        X1[:, lost], T_st[lost], x_sl[lost] = np.nan, np.nan, np.nan
+        return X1, T_st, x_sl
+
     def _onset_size(self, n: int) -> int:
         """The size an onset call of `n` paths runs on (`_padded_size`, or a larger compiled
         one, `_size_at_hand`): the draws are keyed by path, the padding is discarded."""
@@ -941,9 +995,10 @@ class _Run:
             return want
         return _stand_in_size(ready, want, most, smaller, ladder) or want
 
-    def _chunk(self, paths):
-        """First passages of one chunk of paths; see `simulate`. Also returns each path's
-        miss bound (bridge detector; zeros otherwise)."""
+    def _chunk(self, paths, onsets=None):
+        """First passages of one chunk of paths (from `onsets` `(d, count)` where given);
+        see `simulate`. Also returns each path's miss bound (bridge detector; zeros
+        otherwise)."""
         cfg = self.cfg
         refine = cfg.detect == "bridge"
         count = paths.size
@@ -953,7 +1008,11 @@ class _Run:
         path[:count] = paths
         # On the device for the calls below (a NumPy argument is copied at every call: the
         # states twice, ~2.5 ms at 131072 paths); read here through a zero-copy view.
-        X0_dev, x_start, rate = self._onset_states(path, exact=True)[:3]
+        if onsets is None:
+            X0_dev, x_start, rate = self._onset_states(path, exact=True)[:3]
+        else:
+            X0_dev = _pad_paths(onsets, size)
+            x_start, rate = self.call(_at_onset, self.model, cfg.smooth, X0_dev, paths=size)
         X0, x_start, rate = np.asarray(X0_dev), np.asarray(x_start), np.asarray(rate)
         k_stick = np.full(size, INACTIVE)
         k_stick[:count] = SLIPPING
