@@ -19,6 +19,11 @@ def test_model_contract(name, cls):
     assert y0.shape == (d,) and y0.dtype == jnp.float64
     assert m.drift(y0).shape == (d,)
     assert m.diffusion(y0).shape == (d, m.noise_dim)
+    if isinstance(m, ss.CreepingSlider):  # one motion through stick and slip, integrated
+        e = ss.simulate(m, 2, 1e-3, 20.0, seed=0)
+        assert e.n_paths == 2 and e.fraction_stuck == 1.0
+        assert np.all(e.stick_time > 0) and np.all(e.slip_time > 0)
+        return
     if isinstance(m, ss.ChainModel):  # per-block events: its own simulator
         run = ss.simulate_chain(m, 50.0, dt=0.02, n_paths=2, seed=0)
         assert run.mean_velocity.shape == (2, run.t.size) and run.n_events.shape == (2,)

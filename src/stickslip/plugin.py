@@ -19,6 +19,9 @@ class MyBlock(FrictionModel):
   estimator is exact).
 - `ChainModel`: a chain of blocks that stick and slip one by one, simulated by
   `stickslip.simulate_chain`.
+- `CreepingSlider`: a spring-driven slider whose friction has memory and whose velocity
+  never reaches zero (rate-and-state): one motion through stick and slip, integrated
+  implicitly with events at the force's peaks and troughs.
 
 **Parameter checks.** Each returns the value as a float (or int, or the chosen string) or
 raises a one-line `ParameterError` that names the owner and the parameter:
@@ -34,6 +37,7 @@ raises a one-line `ParameterError` that names the owner and the parameter:
 
 from __future__ import annotations
 
+from ._creep import CreepingSlider as CreepingSlider
 from ._errors import ParameterError as ParameterError
 from ._errors import PluginError as PluginError
 from ._errors import check_choice as check_choice
@@ -57,6 +61,7 @@ from .friction import get_friction_law as get_friction_law
 __all__ = [
     "ChainModel",
     "Coulomb",
+    "CreepingSlider",
     "FRICTION_LAWS",
     "FrictionLaw",
     "FrictionModel",

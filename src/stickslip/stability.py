@@ -441,6 +441,11 @@ def stability_report(
 
     **Returns:** a `StabilityReport`.
     """
+    from ._creep import CreepingSlider, regime
+
+    if isinstance(model, CreepingSlider):
+        # Friction with memory: linear stability of steady sliding, then its limit cycle.
+        return regime(model)
     owner = "stability_report"
     path = _MeanPath(owner, model)
     n_paths = check_int(owner, "n_paths", n_paths, minimum=2)

@@ -1,0 +1,174 @@
+"""The `rate-and-state` plugin against what it did not produce: closed forms of steady
+sliding, an independent SciPy Radau integration of the same equations written in SI
+variables, the linear stability derived by hand, and an independent Euler-Maruyama run."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+import stickslip as ss
+
+RS = ss.get_model("rate-and-state")
+PAPER = dict(mass=0.0307, normal_force=0.301, mu0=0.3, a=0.01, b=0.015, d_c=1e-6, v_ref=1e-6)
+
+
+def _mu(p, v, theta):
+    """The regularised law, written here from its definition."""
+    psi = p["mu0"] + p["b"] * math.log(p["v_ref"] * theta / p["d_c"])
+    z = v / (2 * p["v_ref"]) * math.exp(psi / p["a"])
+    return p["a"] * math.asinh(z)
+
+
+def _rhs(p, k, V, law="aging"):
+    def f(t, y):
+        e, v, theta = y
+        dv = (k * e - p["normal_force"] * _mu(p, v, theta)) / p["mass"]
+        if law == "aging":
+            dth = 1.0 - v * theta / p["d_c"]
+        else:
+            r = abs(v) * theta / p["d_c"]
+            dth = -r * math.log(r) if r > 0 else 0.0
+        return [V - v, dv, dth]
+
+    return f
+
+
+def _steady(p, k, V):
+    return [p["normal_force"] * _mu(p, V, p["d_c"] / V) / k, V, p["d_c"] / V]
+
+
+def _radau(p, k, V, y0, t_end, law="aging", **kw):
+    return solve_ivp(_rhs(p, k, V, law), (0.0, t_end), y0, method="Radau", rtol=1e-11,
+                     atol=[1e-16, 1e-15, 1e-14], **kw)  # fmt: skip
+
+
+def _states_si(m, ys):
+    """The plugin's state (x = k e / (N a), s = v / v_b, w) in SI: (e, v, theta)."""
+    e = m.normal_force * m.a * ys[:, 0] / m.stiffness
+    return e, m.v_b * ys[:, 1], m.d_c * np.exp(ys[:, 2]) / m.v_ref
+
+
+def test_registered_and_validated():
+    assert "rate-and-state" in ss.list_models()
+    with pytest.raises(ss.ParameterError, match="d_c"):
+        RS(stiffness=168.0, v_b=42e-6, **dict(PAPER, d_c=-1.0))
+    with pytest.raises(ss.ParameterError, match="tau"):
+        RS(stiffness=168.0, v_b=42e-6, D=1e-6, **PAPER)
+    with pytest.raises(ss.ParameterError, match="law"):
+        RS(stiffness=168.0, v_b=42e-6, law="ageing", **PAPER)
+
+
+@pytest.mark.parametrize("law", ["aging", pytest.param("slip", marks=pytest.mark.slow)])
+def test_steady_sliding_is_reached_from_a_perturbation(law):
+    """Above k_c a velocity step decays to steady sliding at mu_ss = mu0 + (a - b) ln(V/v_ref)."""
+    V = 42e-6
+    m0 = RS(stiffness=1.0, v_b=V, **PAPER)
+    m = RS(stiffness=2.0 * m0.critical_stiffness(), v_b=V, law=law, v_init=1.3 * V, **PAPER)
+    c = ss.simulate_cycles(m, 1, 1e-3, 3.0, seed=0, record=True)
+    t, ys, _ = c.trajectory(0)
+    e, v, theta = _states_si(m, ys[-1:])
+    mu_ss = PAPER["mu0"] + (PAPER["a"] - PAPER["b"]) * math.log(V / PAPER["v_ref"])
+    assert m.stiffness * e[0] / m.normal_force == pytest.approx(mu_ss, abs=1e-9)
+    assert v[0] == pytest.approx(V, rel=1e-6)
+    assert theta[0] == pytest.approx(PAPER["d_c"] / V, rel=1e-6)
+
+
+@pytest.mark.parametrize("law", ["aging", pytest.param("slip", marks=pytest.mark.slow)])
+def test_velocity_step_matches_radau(law):
+    """A tenfold velocity step on a stiff machine: the friction's response (the direct
+    effect a ln 10, then the evolution to the new steady state over d_c) against Radau."""
+    V1, V2, k = 1e-6, 1e-5, 1e5
+    m = RS(stiffness=k, v_b=V2, law=law, v_init=V1, **PAPER)
+    c = ss.simulate_cycles(m, 1, 1e-3, 0.5, seed=0, record=True)
+    t, ys, _ = c.trajectory(0)
+    e, v, theta = _states_si(m, ys)
+    ref = _radau(PAPER, k, V2, _steady(PAPER, k, V1), 0.5, law=law, t_eval=t)
+    np.testing.assert_allclose(e, ref.y[0], rtol=1e-6)
+    np.testing.assert_allclose(v, ref.y[1], rtol=1e-6, atol=1e-6 * V2)
+    np.testing.assert_allclose(theta, ref.y[2], rtol=1e-6)
+    # The direct effect shows: friction rises by about a ln(V2/V1) before it weakens.
+    mu = k * e / m.normal_force
+    assert mu.max() - mu[0] > 0.5 * PAPER["a"] * math.log(10)
+
+
+def _cubic_roots(p, k, V):
+    """Roots of the characteristic cubic derived in docs/rate_and_state.md."""
+    M, N, a, b, d_c = p["mass"], p["normal_force"], p["a"], p["b"], p["d_c"]
+    lam = V / d_c
+    return np.roots([M * V, M * V * lam + N * a, k * V + N * (a - b) * lam, k * V * lam])
+
+
+@pytest.mark.parametrize("V", [42e-6, 1100e-6])
+@pytest.mark.parametrize("law", ["aging", "slip"])
+def test_linear_stability_matches_the_cubic(V, law):
+    from stickslip._creep import linear_rates
+
+    for factor in (0.5, 0.95, 1.05, 2.0):
+        kc = RS(stiffness=1.0, v_b=V, **PAPER).critical_stiffness()
+        k = factor * kc
+        rates = np.sort_complex(linear_rates(RS(stiffness=k, v_b=V, law=law, **PAPER)))
+        roots = np.sort_complex(_cubic_roots(PAPER, k, V))
+        np.testing.assert_allclose(rates, roots, rtol=1e-7)
+        assert (np.max(rates.real) > 0) == (factor < 1)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("V", [42e-6, 1100e-6])
+def test_perturbations_grow_below_kc_and_decay_above(V):
+    kc = RS(stiffness=1.0, v_b=V, **PAPER).critical_stiffness()
+    omega = None
+    for factor, grows in ((0.8, True), (1.25, False)):
+        m = RS(stiffness=factor * kc, v_b=V, v_init=1.001 * V, **PAPER)
+        roots = _cubic_roots(PAPER, m.stiffness, V)
+        omega = np.max(np.abs(roots.imag))
+        period = 2 * math.pi / omega
+        # Long enough for the linear rate to change the amplitude e^3-fold.
+        t_end = 4 * period + 3.0 / np.max(np.abs(roots.real[np.abs(roots.imag) > 0]))
+        c = ss.simulate_cycles(m, 1, period / 50, t_end, seed=0, record=True)
+        t, ys, _ = c.trajectory(0)
+        dev = np.abs(ys[:, 1] - 1.0)
+        early, late = dev[t < 2 * period].max(), dev[t > t_end - 2 * period].max()
+        assert (late > 2 * early) if grows else (late < 0.5 * early), (factor, early, late)
+
+
+@pytest.mark.slow
+def test_regime_of_the_plugin():
+    V = 42e-6
+    kc = RS(stiffness=1.0, v_b=V, **PAPER).critical_stiffness()
+    assert ss.stability_report(RS(stiffness=1.5 * kc, v_b=V, **PAPER)).regime == "steady sliding"
+    r = ss.stability_report(RS(stiffness=168.0, v_b=V, **PAPER))
+    assert r.regime == "stick-slip" and r.min_velocity_ratio < 0.1
+
+
+def _radau_cycles(p, k, V, y0, t_end):
+    """Peaks and troughs of the force (v = V going down, then up) by Radau with events."""
+    up = lambda t, y: y[1] - V  # noqa: E731
+    up.direction = 1.0
+    down = lambda t, y: y[1] - V  # noqa: E731
+    down.direction = -1.0
+    sol = _radau(p, k, V, y0, t_end, events=[up, down])
+    peaks = sol.t_events[0]  # the slider outruns the drive: the force's peak
+    troughs = sol.t_events[1]
+    return peaks, troughs, sol
+
+
+def test_noise_free_cycles_match_radau_with_events():
+    V, k = 42e-6, 168.0
+    m = RS(stiffness=k, v_b=V, **PAPER)
+    c = ss.simulate_cycles(m, 1, 1e-3, 16.0, seed=0, record=False).cycles
+    peaks, troughs, sol = _radau_cycles(PAPER, k, V, _steady(PAPER, k, 1.5 * V), 16.0)
+    # The run starts inside a slip (v = 1.5 V): its first trough ends cycle 0.
+    starts = np.r_[0.0, peaks]
+    n = min(c["slip_time"].size, troughs.size) - 1
+    assert n >= 2
+    for i in range(n):
+        assert c["release_time"][i] == pytest.approx(starts[i], rel=1e-5, abs=1e-7)
+        assert c["slip_time"][i] == pytest.approx(troughs[i] - starts[i], rel=1e-5)
+        if np.isfinite(c["stick_time"][i]):
+            assert c["stick_time"][i] == pytest.approx(peaks[i] - troughs[i], rel=1e-5)
+    ref = _radau(PAPER, k, V, _steady(PAPER, k, 1.5 * V), 16.0, dense_output=True)
+    for i in range(1, n):
+        drop = k * (ref.sol(starts[i])[0] - ref.sol(troughs[i])[0])
+        assert c["force_drop"][i] == pytest.approx(drop, rel=1e-5)
