@@ -12,6 +12,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 FILES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 FILES = [p for p in FILES if p.name != "tutorial.md"]
 BLOCK = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
+BLOCK_BASH = re.compile(r"^```bash\n(.*?)^```", re.S | re.M)
 
 
 # Pages whose blocks start a Dask cluster (worker processes that each compile the simulator
@@ -66,3 +67,20 @@ def test_the_readmes_trace_block_is_the_tutorials():
     ours = set(_statements(tutorial))
     missing = [line for line in _statements(readme[0]) if line not in ours]
     assert not missing, f"README lines that docs/tutorial.md does not run: {missing}"
+
+
+def test_the_readme_is_a_users_manual():
+    """At most 160 lines, no dated measurements or machine names (they live in
+    docs/performance.md and the lab notebook), and the install and test commands that
+    .ci/run runs."""
+    text = (ROOT / "README.md").read_text()
+    assert len(text.splitlines()) <= 160
+    assert not re.search(r"\b20\d\d-\d\d-\d\d\b", text)
+    for machine in ("Zen", "EPYC", "Xeon", "H200"):
+        assert machine not in text, machine
+    commands = BLOCK_BASH.findall(text)[0].splitlines()
+    ci = (ROOT / ".ci" / "run").read_text().splitlines()
+    for readme_line, ci_line in (('pip install -e ".[test]"', 'pip install -e ".[test]"'),
+                                 ("pytest", "pytest")):  # fmt: skip
+        assert any(line.startswith(readme_line) for line in commands), readme_line
+        assert ci_line in ci, ci_line
