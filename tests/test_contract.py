@@ -25,7 +25,7 @@ def test_model_contract(name, cls):
         assert np.all(e.stick_time > 0) and np.all(e.slip_time > 0)
         return
     if isinstance(m, ss.ChainModel):  # per-block events: its own simulator
-        run = ss.simulate_chain(m, 50.0, dt=0.02, n_paths=2, seed=0)
+        run = ss.simulate_chain(m, 2, 0.02, 50.0, seed=0)
         assert run.mean_velocity.shape == (2, run.t.size) and run.n_events.shape == (2,)
         return
     assert float(m.crossing(y0)) == pytest.approx(float(m.stick_level))

@@ -103,12 +103,10 @@ def _cubic_roots(p, k, V):
 @pytest.mark.parametrize("V", [42e-6, 1100e-6])
 @pytest.mark.parametrize("law", ["aging", "slip"])
 def test_linear_stability_matches_the_cubic(V, law):
-    from stickslip._creep import linear_rates
-
     for factor in (0.5, 0.95, 1.05, 2.0):
         kc = RS(stiffness=1.0, v_b=V, **PAPER).critical_stiffness()
         k = factor * kc
-        rates = np.sort_complex(linear_rates(RS(stiffness=k, v_b=V, law=law, **PAPER)))
+        rates = np.sort_complex(RS(stiffness=k, v_b=V, law=law, **PAPER).linear_rates())
         roots = np.sort_complex(_cubic_roots(PAPER, k, V))
         np.testing.assert_allclose(rates, roots, rtol=1e-7)
         assert (np.max(rates.real) > 0) == (factor < 1)
@@ -172,3 +170,53 @@ def test_noise_free_cycles_match_radau_with_events():
     for i in range(1, n):
         drop = k * (ref.sol(starts[i])[0] - ref.sol(troughs[i])[0])
         assert c["force_drop"][i] == pytest.approx(drop, rel=1e-5)
+
+
+def _em_first_slips(p, k, V, D, tau, n, h, t_end, seed):
+    """Independent fine-step Euler-Maruyama in SI variables (e, v, theta, eta) from steady
+    sliding at 1.5 V: each path's first slip (until v falls back to V), its time by linear
+    interpolation and its force drop."""
+    rng = np.random.default_rng(seed)
+    e0, v0, th0 = _steady(p, k, 1.5 * V)
+    e, v, th, eta = (np.full(n, x) for x in (e0, v0, th0, 0.0))
+    t_end_slip = np.full(n, np.nan)
+    drop = np.full(n, np.nan)
+    alive = np.ones(n, dtype=bool)
+    M, N, a, b, d_c, v_ref = (p[x] for x in ("mass", "normal_force", "a", "b", "d_c", "v_ref"))
+    for i in range(int(t_end / h)):
+        psi = (p["mu0"] + b * np.log(v_ref * th / d_c)) / a
+        friction = a * np.arcsinh(v / (2 * v_ref) * np.exp(psi))
+        dv = (k * e - N * friction) / M + eta
+        v_new = v + h * dv
+        e += h * (V - v)
+        th += h * (1.0 - v * th / d_c)
+        eta += -h * eta / tau + math.sqrt(2 * D * h) / tau * rng.standard_normal(n)
+        ends = alive & (v_new <= V)
+        frac = (v[ends] - V) / (v[ends] - v_new[ends])
+        t_end_slip[ends] = (i + frac) * h
+        drop[ends] = k * (e0 - e[ends])
+        alive &= ~ends
+        v = v_new
+        if not alive.any():
+            break
+    return t_end_slip, drop
+
+
+@pytest.mark.slow
+def test_noisy_slips_match_an_independent_euler_maruyama():
+    """The first slip after a velocity step, with OU friction noise: slip times and force
+    drops of the plugin (implicit adaptive steps, noise on a grid of tau/10) against a
+    fine-step Euler-Maruyama written here (h = 2e-6 s), two-sample KS, seeds fixed."""
+    from scipy.stats import ks_2samp
+
+    V, k, tau = 42e-6, 168.0, 2e-3
+    D = (0.3 * PAPER["normal_force"] * PAPER["a"] / PAPER["mass"]) ** 2 * tau
+    m = RS(stiffness=k, v_b=V, D=D, tau=tau, **PAPER)
+    e = ss.simulate(m, 1000, tau / 10, 1.0, seed=11)
+    assert e.fraction_stuck == 1.0
+    t_em, drop_em = _em_first_slips(PAPER, k, V, D, tau, 1000, 2e-6, 1.0, seed=12)
+    assert np.all(np.isfinite(t_em))
+    assert ks_2samp(e.slip_time, t_em).pvalue > 1e-3
+    assert ks_2samp(k * e.slip_distance, drop_em).pvalue > 1e-3
+    # The noise matters: the slips' spread is many times the integrators' own error.
+    assert np.std(t_em) > 20 * 1e-4 * np.mean(t_em)

@@ -32,7 +32,7 @@ _LAZY = {
     "simulate_cycles": "._simulate",
     "simulate_chain": "._simulate",
     "ChainModel": "._model",
-    "CreepingSlider": "._creep",
+    "CreepingSlider": "._model",
     "ChainRun": "._simulate",
     "Ensemble": "._simulate",
     "CycleSeries": "._simulate",

@@ -314,6 +314,76 @@ class ChainModel(FrictionModel):
         return jnp.zeros(len(self.state_names))
 
 
+class CreepingSlider(FrictionModel):
+    r"""A spring-driven slider whose friction has memory and whose velocity never reaches
+    zero (rate-and-state friction): one motion through stick and slip.
+
+    Its "stick" is a creep, many decades of velocity below the drive, with no closed form:
+    `simulate` and `simulate_cycles` integrate the whole motion with an implicit adaptive
+    solver (diffrax's `Kvaerno5`), so that the state runs on from one cycle into the next.
+    Sticks and slips are read from the force, as `extract_cycles` reads a measured trace:
+    **a slip is where the force falls** (the slider outruns the drive, $v > v_b$), from a
+    force peak to the next trough, and **a stick is where it rises**, from that trough to
+    the next peak. The cycles carry `peak_force` and `force_drop`, and `slip_distance` is
+    the drop over the stiffness (the paper's $d$, as for force traces).
+
+    A concrete model is a final class whose fields are its parameters (validated in
+    `__check_init__`), among them `v_b` (the driving speed) and `stiffness`. It states, as
+    any `FrictionModel`, `state_names`, `noise_dim`, and `drift` and `diffusion` of the
+    whole motion (not of the slip alone), `onset_state(key)` (where a run starts), and
+    besides:
+
+    - `slider_velocity(y)` and `spring_force(y)` of one state;
+    - `steady_state()`: the state of steady sliding at `v_b`, about which
+      `linear_rates()` and `stability_report` linearise the motion.
+
+    The integrator's tolerances apply to the state in the model's own variables: scale
+    them to O(1) (the `rate-and-state` plugin holds the force in units of $N a$ and the
+    velocity over $v_b$). Friction noise is the `diffusion` driven by white noise held
+    constant over each interval of a grid of step `dt` (Wong-Zakai: the Stratonovich SDE as
+    `dt` falls, the same as Ito's for additive noise)."""
+
+    carries_state = True
+    v_b: eqx.AbstractVar[float]
+    stiffness: eqx.AbstractVar[float]
+
+    @abc.abstractmethod
+    def slider_velocity(self, y):
+        """The slider's velocity in one state."""
+
+    @abc.abstractmethod
+    def spring_force(self, y):
+        """The spring's force on the slider in one state."""
+
+    @abc.abstractmethod
+    def steady_state(self):
+        """The state of steady sliding at the driving speed, shape `(d,)`."""
+
+    # What the events watch: the force falls (a slip) where the slider outruns the drive.
+    def crossing(self, y):
+        return self.slider_velocity(y) / self.v_b - 1.0
+
+    @property
+    def stick_level(self):
+        return 0.0
+
+    @property
+    def crossing_is_smooth(self) -> bool:
+        return True
+
+    def release(self, key, y_stick):
+        raise NotImplementedError("a creeping slider is integrated through its sticks")
+
+    def linear_rates(self) -> np.ndarray:
+        """Eigenvalues (per unit time) of the noise-free motion linearised about
+        `steady_state()`. A state component that no other drives and that does not grow
+        (the friction noise, relaxing or held at zero) is an input, not a mode, and is left
+        out. Steady sliding is linearly stable where every real part is negative."""
+        J = np.asarray(jax.jacfwd(self.drift)(jnp.asarray(self.steady_state())))
+        keep = [i for i in range(J.shape[0]) if np.any(np.delete(J[i], i) != 0.0) or J[i, i] > 0]
+        return np.linalg.eigvals(J[np.ix_(keep, keep)])
+
+
 def _to_arrays(model: FrictionModel) -> FrictionModel:
     """Turn float parameters into float64 0-d arrays, so that jitted code takes them as
     inputs: a new parameter value then reuses the compiled code instead of recompiling.

@@ -37,7 +37,6 @@ raises a one-line `ParameterError` that names the owner and the parameter:
 
 from __future__ import annotations
 
-from ._creep import CreepingSlider as CreepingSlider
 from ._errors import ParameterError as ParameterError
 from ._errors import PluginError as PluginError
 from ._errors import check_choice as check_choice
@@ -48,6 +47,7 @@ from ._errors import check_real as check_real
 from ._jax import jax as jax
 from ._jax import jnp as jnp
 from ._model import ChainModel as ChainModel
+from ._model import CreepingSlider as CreepingSlider
 from ._model import FrictionModel as FrictionModel
 from ._model import LinearGaussian as LinearGaussian
 from .friction import FRICTION_LAWS as FRICTION_LAWS

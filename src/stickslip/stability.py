@@ -26,7 +26,7 @@ import numpy as np
 from scipy import linalg, optimize
 
 from ._errors import ParameterError, check_int, check_positive
-from ._model import FrictionModel, time_scales
+from ._model import CreepingSlider, FrictionModel, time_scales
 
 # -- thresholds ------------------------------------------------------------------------------
 # A density below -NEGATIVE_TOL x its peak is a sign change of the approximation: rounding
@@ -441,11 +441,11 @@ def stability_report(
 
     **Returns:** a `StabilityReport`.
     """
-    from ._creep import CreepingSlider, regime
-
     if isinstance(model, CreepingSlider):
-        # Friction with memory: linear stability of steady sliding, then its limit cycle.
-        return regime(model)
+        # Friction with memory: the linear stability of steady sliding, its limit cycle.
+        from ._sliding import sliding_regime
+
+        return sliding_regime(model)
     owner = "stability_report"
     path = _MeanPath(owner, model)
     n_paths = check_int(owner, "n_paths", n_paths, minimum=2)

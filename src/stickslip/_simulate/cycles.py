@@ -16,7 +16,7 @@ import numpy as np
 from .. import _background, _compile, _rng
 from .._errors import ParameterError, check_int
 from .._jax import jnp
-from .._model import FrictionModel
+from .._model import CreepingSlider, FrictionModel
 from .driver import _next_pow2, _Run, _validate, _zeros, check_memory
 from .hybrid import INACTIVE, SLIPPING
 from .loop import solve
@@ -121,14 +121,16 @@ def simulate_cycles(
 
     **Returns:** a `CycleSeries`.
     """
-    from .._creep import CreepingSlider
+    if isinstance(model, CreepingSlider):  # one motion through stick and slip, integrated
+        from . import creep
 
-    if isinstance(model, CreepingSlider):  # one motion through stick and slip: integrated
-        from .. import _creep
-
-        args = _creep.check_args("simulate_cycles", n_paths, dt, t_max, seed, solver, monitor)
-        max_cycles = check_int("simulate_cycles", "max_cycles", max_cycles, minimum=1)
-        return _creep.simulate_cycles(model, *args, record=bool(record), max_cycles=max_cycles)
+        owner = "simulate_cycles"
+        args = creep.check_args(owner, model, n_paths, dt, t_max, seed, solver, monitor)
+        max_cycles = check_int(owner, "max_cycles", max_cycles, minimum=1)
+        out = creep.cycle_series(model, *args, record=bool(record), max_cycles=max_cycles)
+        return CycleSeries(
+            out["cycles"], out["traces"], tuple(model.state_names), out["info"], out["stats"]
+        )
     n_paths, dt, t_max, seed, _ = _validate(
         "simulate_cycles", model, n_paths, dt, t_max, seed, solver, monitor, 1
     )

@@ -18,7 +18,7 @@ import numpy as np
 from .. import _background, _compile, _rng
 from .._errors import ParameterError, ResourceError, check_choice, check_int, check_positive
 from .._jax import jax, jnp
-from .._model import FrictionModel, LinearGaussian, _to_arrays
+from .._model import CreepingSlider, FrictionModel, LinearGaussian, _to_arrays
 from .._solver import EulerMaruyama, ExactGaussian
 from .._solver.base import over_paths
 from . import bridge, localise
@@ -557,13 +557,18 @@ def simulate(
 
     **Returns:** an `Ensemble`.
     """
-    from .._creep import CreepingSlider
+    if isinstance(model, CreepingSlider):  # one motion through stick and slip, integrated
+        from . import creep
 
-    if isinstance(model, CreepingSlider):  # one motion through stick and slip: integrated
-        from .. import _creep
-
-        args = _creep.check_args("simulate", n_paths, dt, t_max, seed, solver, monitor)
-        return _creep.simulate(model, *args)
+        args = creep.check_args("simulate", model, n_paths, dt, t_max, seed, solver, monitor)
+        out = creep.first_cycles(model, *args)
+        return Ensemble(
+            **{k: out[k] for k in ("slip_time", "stick_position", "slip_distance")},
+            stick_time=out["stick_time"], period=out["period"], stuck=out["stuck"],
+            immediate=np.zeros(args[0], dtype=bool), onset_state=out["onset"],
+            stick_state=out["stick"], next_onset_state=out["next"],
+            state_names=tuple(model.state_names), info=out["info"], stats=out["stats"],
+        )  # fmt: skip
     n_paths, dt, t_max, seed, chunk_size = _validate(
         "simulate", model, n_paths, dt, t_max, seed, solver, monitor, chunk_size
     )

@@ -1,0 +1,360 @@
+r"""The motion of a `CreepingSlider` (friction with memory, e.g. rate-and-state): one
+implicit adaptive integration through stick and slip, with the force's peaks and troughs as
+events.
+
+Each solve runs every path of a batch (vmapped) from where it is to the end of its slip or
+of its stick: the first time `sign * crossing` rises through zero, with `crossing` the
+slider's velocity over the drive's less one (sign -1: the slider falls back to the drive's
+speed, the force's trough; sign +1: it outruns the drive again, the next peak). The solves
+alternate on the host, so a path's state runs on from one cycle into the next.
+
+The creep is stiff: the velocity relaxes in $M v / (N a)$, 1e-8 s at 1 nm/s for a 30 g
+slider, against a stick of seconds. Hence diffrax's `Kvaerno5` (ESDIRK, L-stable) with
+a PID controller. Friction noise is white noise held constant over each interval of the
+grid `dt` (Wong-Zakai), keyed by `(seed, path, interval)`: a path's noise does not depend on
+how its solves are cut, and the controller steps exactly to the grid's jumps (without, an
+adaptive solver shrinks its steps to find each jump: 12 minutes for 1000 noisy slips).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+
+import diffrax
+import equinox as eqx
+import numpy as np
+import optimistix as optx
+
+from .. import _rng
+from .._errors import ParameterError, check_choice, check_int, check_positive
+from .._jax import jax, jnp
+from .._model import CreepingSlider, _to_arrays
+
+_NOISE_STREAM = 8  # the noise grid's stream (beside the hybrid simulator's, `_rng`)
+# Relative and absolute tolerances of the integration, of the state in the model's own
+# (O(1)) variables. With them the cycles of the paper-like slider agree with an independent
+# Radau integration at 1e-11 to 1e-7 (slip and stick times, force drops).
+RTOL, ATOL = 1e-8, 1e-8
+# The PID coefficients suggested for stiff problems (Hairer and Wanner): on 15 s of the
+# paper-like slider at 1e-9, 63 k steps with 23 k rejected against 68 k with 37 k for the
+# integral controller.
+_PID = dict(pcoeff=0.3, icoeff=0.4)
+_MAX_STEPS = 200_000  # steps of one solve (a stick or a slip)
+# An event's time by bisection on the solver's dense output, to 1e-10 relative (1e-12 s
+# absolute): far below the time scales of a slip (ms) and the tests' 1e-5.
+_EVENT_RTOL, _EVENT_ATOL = 1e-10, 1e-12
+_RECORD_SAMPLES = 20_000  # samples of a recorded trajectory at most (evenly spaced)
+COLUMNS = (
+    "release_time", "slip_time", "stick_position", "slip_distance", "stick_time", "period",
+    "peak_force", "force_drop",
+)  # fmt: skip
+
+
+def check_args(owner, model, n_paths, dt, t_max, seed, solver, monitor) -> tuple:
+    """The arguments of `simulate` or `simulate_cycles` that a creeping slider uses: `dt` is
+    the noise's grid (at most half the noise's correlation time `tau`, where it has one)."""
+    n_paths = check_int(owner, "n_paths", n_paths, minimum=1)
+    dt = check_positive(owner, "dt", dt)
+    t_max = check_positive(owner, "t_max", t_max)
+    seed = check_int(owner, "seed", seed, minimum=0)
+    check_choice(owner, "solver", solver, ("auto",))
+    check_choice(owner, "monitor", monitor, ("continuous",))
+    tau = getattr(model, "tau", None)
+    if _noisy(model) and tau is not None and dt > 0.5 * float(tau):
+        raise ParameterError(
+            owner, "dt",
+            f"is the friction noise's grid: at most tau / 2 = {0.5 * float(tau):.3g} "
+            "so that the noise's correlation is resolved",
+            dt,
+        )  # fmt: skip
+    if _noisy(model) and t_max / dt > 2**24:
+        raise ParameterError(owner, "t_max", "/ dt must be below 2**24 noise steps", t_max)
+    return n_paths, dt, t_max, seed
+
+
+def _noisy(model) -> bool:
+    y = np.asarray(model.steady_state())
+    return bool(np.any(np.asarray(model.diffusion(jnp.asarray(y))) != 0.0))
+
+
+def _noise(key, t, h, m):
+    """The white noise held over the grid interval of `t` (step `h`): `m` normals / sqrt(h)."""
+    j = jnp.floor(t / h).astype(jnp.int64)
+    high, low = (j >> 31).astype(jnp.uint32), j.astype(jnp.uint32)
+    k = jax.random.fold_in(jax.random.fold_in(key, high), low)
+    return jax.random.normal(k, (m,), dtype=jnp.float64) / jnp.sqrt(h)
+
+
+def _term(model, noisy: bool):
+    def vf(t, y, args):
+        key, h = args
+        f = model.drift(y)
+        if noisy:
+            f = f + model.diffusion(y) @ _noise(key, t, h, model.noise_dim)
+        return f
+
+    return diffrax.ODETerm(vf)
+
+
+def _controller(noisy: bool, h, grid: int, rtol, atol):
+    pid = diffrax.PIDController(rtol=rtol, atol=atol, **_PID)
+    if not noisy:
+        return pid
+    # (the grid's jumps as one array: `grid` static, the number of noise steps to t_max)
+    return diffrax.ClipStepSizeController(pid, jump_ts=h * jnp.arange(grid, dtype=jnp.float64))
+
+
+@eqx.filter_jit
+def _segment(model, noisy: bool, grid: int, y0, t0, sign, key, h, t_end, rtol, atol):
+    """Integrate each path from `t0` until `sign * crossing` rises through zero, or to
+    `t_end`. Returns the end time and state, whether the event ended it, whether the solve
+    succeeded, and its steps."""
+
+    def one(y0, t0, sign, key):
+        def cond(t, y, args, **kwargs):
+            return sign * model.crossing(y)
+
+        finder = optx.Bisection(rtol=_EVENT_RTOL, atol=_EVENT_ATOL, expand_if_necessary=True)
+        sol = diffrax.diffeqsolve(
+            _term(model, noisy), diffrax.Kvaerno5(), t0, t_end, None, y0, args=(key, h),
+            stepsize_controller=_controller(noisy, h, grid, rtol, atol),
+            event=diffrax.Event(cond, root_finder=finder, direction=True),
+            saveat=diffrax.SaveAt(t1=True), max_steps=_MAX_STEPS, throw=False,
+        )  # fmt: skip
+        # An event whose root the bisection placed within its tolerance but reported as
+        # unconverged (a trough is steep: the slider stops in M v / (N a)) still ends the
+        # segment where the crossing vanishes.
+        y1 = sol.ys[-1]
+        hit = jnp.asarray(sol.event_mask) & (jnp.abs(model.crossing(y1)) < 1e-6)
+        ok = hit | (sol.result == diffrax.RESULTS.successful)
+        ok = ok | (sol.result == diffrax.RESULTS.event_occurred)
+        return sol.ts[-1], y1, hit, ok, sol.stats["num_steps"]
+
+    return jax.vmap(one)(y0, t0, sign, key)
+
+
+@eqx.filter_jit
+def _dense(model, noisy: bool, grid: int, y0, key, h, ts, rtol, atol):
+    """Each path's states at the times `ts` (one solve through)."""
+
+    def one(y0, key):
+        sol = diffrax.diffeqsolve(
+            _term(model, noisy), diffrax.Kvaerno5(), ts[0], ts[-1], None, y0, args=(key, h),
+            saveat=diffrax.SaveAt(ts=ts), max_steps=16 * _MAX_STEPS, throw=False,
+            stepsize_controller=_controller(noisy, h, grid, rtol, atol),
+        )  # fmt: skip
+        return sol.ys
+
+    return jax.vmap(one)(y0, key)
+
+
+class Motion:
+    """One configured run of a creeping slider: `(model, dt, t_max, seed)`, its paths' noise
+    keys, and the solves that advance them (with what they cost, `stats`)."""
+
+    def __init__(self, model: CreepingSlider, dt: float, t_max: float, seed: int):
+        self.model = _to_arrays(model)
+        self.noisy = _noisy(model)
+        self.dt, self.t_max, self.seed = dt, t_max, seed
+        # noise steps to t_max (and one past it), on a ladder of powers of two: one compiled
+        # solve for nearby horizons
+        self.grid = 1 << max(4, math.ceil(math.log2(t_max / dt + 2))) if self.noisy else 1
+        self.stats = {"segments": 0, "steps": 0, "failed": 0}
+
+    def keys(self, paths):
+        root = _rng.stream_key(_rng.seed_key(self.seed), _NOISE_STREAM)
+        return jax.vmap(lambda p: jax.random.fold_in(jnp.asarray(root), p))(jnp.asarray(paths))
+
+    def onsets(self, n: int) -> np.ndarray:
+        keys = jax.random.split(jax.random.key(self.seed), n)
+        return np.array(jax.vmap(self.model.onset_state)(keys))  # (a copy: written to)
+
+    def segment(self, y, t, slipping, keys):
+        """One solve for these paths: each ends its slip (where `slipping`) or its stick."""
+        t1, y1, hit, ok, steps = _segment(
+            self.model, self.noisy, self.grid, jnp.asarray(y), jnp.asarray(t),
+            jnp.asarray(np.where(slipping, -1.0, 1.0)), keys, jnp.asarray(self.dt),
+            jnp.asarray(self.t_max), RTOL, ATOL,
+        )  # fmt: skip
+        self.stats["segments"] += 1
+        self.stats["steps"] += int(np.sum(np.asarray(steps)))
+        self.stats["failed"] += int(np.sum(~np.asarray(ok)))
+        return np.array(t1), np.array(y1), np.asarray(hit)
+
+    def dense(self, y0, keys, ts) -> np.ndarray:
+        return np.asarray(
+            _dense(
+                self.model,
+                self.noisy,
+                self.grid,
+                jnp.asarray(y0),
+                keys,
+                jnp.asarray(self.dt),
+                jnp.asarray(ts),
+                RTOL,
+                ATOL,
+            )  # fmt: skip
+        )
+
+    def crossing(self, ys) -> np.ndarray:
+        return np.asarray(jax.vmap(self.model.crossing)(jnp.asarray(ys)))
+
+
+def run_cycles(owner, model, n_paths, dt, t_max, seed, max_cycles, first_only=False):
+    """Successive cycles of `n_paths` paths to `t_max` (with `first_only`, each path's first
+    slip and the stick after it). A cycle is a slip and the stick that follows; a run that
+    starts inside a slip (the slider faster than the drive) starts its first cycle there,
+    one that starts in a stick starts it at the first peak.
+
+    **Returns:** `(table, onsets, stats)`: the cycles (dict of arrays, a row per cycle,
+    ordered by path and cycle; `onset`, `stick`, `next`: the states at its peak, its trough
+    and the next peak), the paths' starting states and what the run cost."""
+    motion = Motion(model, dt, t_max, seed)
+    keys = motion.keys(np.arange(n_paths, dtype=np.uint32))
+    y = motion.onsets(n_paths)
+    y_start = y.copy()
+    t = np.zeros(n_paths)
+    slipping = motion.crossing(y) > 0.0
+    alive = np.ones(n_paths, dtype=bool)
+    count = np.zeros(n_paths, dtype=np.int64)
+    # The cycle in the making: where its slip started (time, state) and ended.
+    peak_t = np.where(slipping, 0.0, np.nan)
+    peak_y = np.where(slipping[:, None], y, np.nan)
+    trough_t, trough_y = np.full(n_paths, np.nan), np.full_like(y, np.nan)
+    rows: list[dict[str, np.ndarray]] = []
+    while alive.any():
+        idx = np.nonzero(alive)[0]
+        t1, y1, hit = motion.segment(y[idx], t[idx], slipping[idx], keys[idx])
+        slip_end = slipping[idx] & hit
+        stick_end = ~slipping[idx] & hit
+        trough_t[idx[slip_end]], trough_y[idx[slip_end]] = t1[slip_end], y1[slip_end]
+        done = idx[stick_end & np.isfinite(peak_t[idx])]
+        if done.size:
+            sel = np.isin(idx, done)
+            peak, trough = (peak_t[done], peak_y[done]), (trough_t[done], trough_y[done])
+            rows.append(_rows(motion.model, done, peak, trough, (t1[sel], y1[sel]), count[done]))
+            count[done] += 1
+        peak_t[idx[stick_end]], peak_y[idx[stick_end]] = t1[stick_end], y1[stick_end]
+        t[idx], y[idx] = t1, y1
+        slipping[idx] = np.where(hit, ~slipping[idx], slipping[idx])
+        alive[idx] = hit & (t1 < t_max) & (count[idx] < max_cycles)
+        if first_only:
+            alive[idx] &= count[idx] == 0
+    # A slip that ended before t_max but whose stick outlasted it: a row without a stick.
+    open_ = np.isfinite(peak_t) & np.isfinite(trough_t) & (trough_t > peak_t)
+    open_ &= (count < max_cycles) & ~(first_only & (count > 0))
+    if np.any(open_):
+        o = np.nonzero(open_)[0]
+        nowhere = (np.full(o.size, np.nan), np.full_like(y[o], np.nan))
+        rows.append(
+            _rows(
+                motion.model,
+                o,
+                (peak_t[o], peak_y[o]),
+                (trough_t[o], trough_y[o]),
+                nowhere,
+                count[o],
+            )  # fmt: skip
+        )
+    table = _join(rows, y.shape[1])
+    if motion.stats["failed"]:
+        warnings.warn(
+            f"{owner}: {motion.stats['failed']} solve(s) of the creeping slider stopped "
+            f"short (more than {_MAX_STEPS} steps, or a failed implicit step); their paths "
+            "end there",
+            stacklevel=3,
+        )
+    return table, y_start, dict(motion.stats)
+
+
+def _join(rows, d: int) -> dict[str, np.ndarray]:
+    if not rows:
+        table = {k: np.zeros(0) for k in COLUMNS}
+        table.update(path=np.zeros(0, np.int64), cycle=np.zeros(0, np.int64))
+        table.update({k: np.zeros((0, d)) for k in ("onset", "stick", "next")})
+        return table
+    table = {k: np.concatenate([r[k] for r in rows]) for k in rows[0]}
+    order = np.lexsort((table["cycle"], table["path"]))
+    return {k: v[order] for k, v in table.items()}
+
+
+def _rows(model, paths, peak, trough, next_peak, cycle):
+    """Cycle rows of `paths`: each a slip from `peak` to `trough` and the stick to
+    `next_peak`, as `(times, states)`."""
+    force = jax.vmap(model.spring_force)
+    F0 = np.asarray(force(jnp.asarray(peak[1])))
+    F1 = np.asarray(force(jnp.asarray(trough[1])))
+    slip_time = trough[0] - peak[0]
+    stick_time = next_peak[0] - trough[0]
+    return dict(
+        path=paths.astype(np.int64), cycle=cycle.copy(), release_time=peak[0],
+        slip_time=slip_time,
+        stick_position=np.asarray(jax.vmap(model.position)(jnp.asarray(trough[1]))),
+        slip_distance=(F0 - F1) / float(np.asarray(model.stiffness)), stick_time=stick_time,
+        period=slip_time + stick_time, peak_force=F0, force_drop=F0 - F1,
+        onset=peak[1], stick=trough[1], next=next_peak[1],
+    )  # fmt: skip
+
+
+def first_cycles(model, n_paths, dt, t_max, seed) -> dict:
+    """`simulate` of a creeping slider: each path's first slip and the stick after it, as
+    the arrays of an `Ensemble` (`nan` where the path has not completed its slip by
+    `t_max`), with the run's `info` and `stats`."""
+    wall0 = time.perf_counter()
+    table, y0, stats = run_cycles("simulate", model, n_paths, dt, t_max, seed, 1, True)
+    d = y0.shape[1]
+    first = table["cycle"] == 0
+    rows = table["path"][first]
+    out = {k: np.full(n_paths, np.nan) for k in COLUMNS}
+    for k in COLUMNS:
+        out[k][rows] = table[k][first]
+    for k in ("onset", "stick", "next"):
+        out[k] = np.full((n_paths, d), np.nan)
+        out[k][rows] = table[k][first]
+    out["stuck"] = np.isfinite(out["slip_time"])
+    out["stuck"] &= out["release_time"] + np.nan_to_num(out["slip_time"]) <= t_max
+    out["info"] = info(model, dt, t_max, seed)
+    out["stats"] = dict(stats, wall_seconds=time.perf_counter() - wall0)
+    return out
+
+
+def cycle_series(model, n_paths, dt, t_max, seed, record: bool, max_cycles: int) -> dict:
+    """`simulate_cycles` of a creeping slider: the cycle table, the recorded time series
+    (with `record`), `info` and `stats`."""
+    wall0 = time.perf_counter()
+    table, y0, stats = run_cycles("simulate_cycles", model, n_paths, dt, t_max, seed, max_cycles)
+    cycles = {k: table[k] for k in ("path", "cycle", *COLUMNS)}
+    cycles["immediate"] = np.zeros(cycles["path"].size, dtype=bool)
+    traces = _traces(model, n_paths, dt, t_max, seed, y0) if record else None
+    return dict(
+        cycles=cycles, traces=traces, info=info(model, dt, t_max, seed, n_paths=n_paths),
+        stats=dict(stats, wall_seconds=time.perf_counter() - wall0),
+    )  # fmt: skip
+
+
+def info(model, dt, t_max, seed, **extra) -> dict:
+    return dict(
+        model=type(model).__name__, params=model.params(), solver="kvaerno5",
+        monitor="events", dt=dt, t_max=t_max, seed=seed, rtol=RTOL, atol=ATOL, **extra,
+    )  # fmt: skip
+
+
+def _traces(model, n_paths, dt, t_max, seed, y0):
+    """Each path's time series on an even grid of at most `_RECORD_SAMPLES` samples (step
+    `dt` where that fits), with the cycles' noise: one solve through, so the events and
+    the samples agree within the integration's tolerances."""
+    motion = Motion(model, dt, t_max, seed)
+    ts = np.linspace(0.0, t_max, int(min(_RECORD_SAMPLES, max(2, math.ceil(t_max / dt) + 1))))
+    ys = motion.dense(y0, motion.keys(np.arange(n_paths, dtype=np.uint32)), ts)
+    return tuple((ts.copy(), ys[p], motion.crossing(ys[p]) > 0.0) for p in range(n_paths))
+
+
+def least_velocity(model, y0, duration: float, samples: int = 2001) -> float:
+    """The least slider velocity of the noise-free motion over `duration` from `y0` (at
+    `samples` even times)."""
+    motion = Motion(model, duration / (samples - 1), duration, 0)
+    ts = np.linspace(0.0, float(duration), samples)
+    ys = motion.dense(np.asarray(y0)[None], motion.keys(np.zeros(1, np.uint32)), ts)[0]
+    return float(np.min(np.asarray(jax.vmap(motion.model.slider_velocity)(jnp.asarray(ys)))))
