@@ -45,9 +45,9 @@ def _radau(p, k, V, y0, t_end, law="aging", **kw):
 
 
 def _states_si(m, ys):
-    """The plugin's state (x = k e / (N a), s = v / v_b, w) in SI: (e, v, theta)."""
+    """The plugin's state (x = k e / (N a), u = ln(v / v_b), w) in SI: (e, v, theta)."""
     e = m.normal_force * m.a * ys[:, 0] / m.stiffness
-    return e, m.v_b * ys[:, 1], m.d_c * np.exp(ys[:, 2]) / m.v_ref
+    return e, m.v_b * np.exp(ys[:, 1]), m.d_c * np.exp(ys[:, 2]) / m.v_ref
 
 
 def test_registered_and_validated():
@@ -126,7 +126,7 @@ def test_perturbations_grow_below_kc_and_decay_above(V):
         t_end = 4 * period + 3.0 / np.max(np.abs(roots.real[np.abs(roots.imag) > 0]))
         c = ss.simulate_cycles(m, 1, period / 50, t_end, seed=0, record=True)
         t, ys, _ = c.trajectory(0)
-        dev = np.abs(ys[:, 1] - 1.0)
+        dev = np.abs(np.expm1(ys[:, 1]))
         early, late = dev[t < 2 * period].max(), dev[t > t_end - 2 * period].max()
         assert (late > 2 * early) if grows else (late < 0.5 * early), (factor, early, late)
 

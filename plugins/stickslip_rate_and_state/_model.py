@@ -38,11 +38,9 @@ class RateAndState(CreepingSlider):
     **As $v \to 0$.** $\mu$ is the regularised form of earthquake-cycle codes,
     $\mu = a\,\mathrm{asinh}\!\left(\frac{v}{2 v_{ref}} e^{(\mu_0 + b \ln(v_{ref}\theta/d_c))/a}
     \right)$: equal to the logarithmic law to $O(e^{-2\mu/a})$ (1e-26 for paper-like
-    $\mu/a = 30$), finite as $v \to 0$ and odd in $v$, so that the velocity needs no
-    floor and the implicit integrator's Newton steps stay well posed. The slider creeps
-    rather than stops: a stick is the creep where the force rises (see
-    `stickslip.plugin.CreepingSlider`); the slip law's $\dot\theta$ is taken as 0 at
-    $v = 0$ (its limit).
+    $\mu/a = 30$) and finite as $v \to 0$. The state holds $\ln(v / v_b)$, so the
+    velocity stays positive: the slider creeps rather than stops, and a stick is the creep
+    where the force rises (see `stickslip.plugin.CreepingSlider`).
 
     **Arguments** (SI): `mass` (kg), `stiffness` (N/m), `v_b` (m/s), `normal_force` (N),
     `mu0`, `a`, `b` (> 0), `d_c` (m), `v_ref` (m/s), `law` (`"aging"` or `"slip"`), `D`
@@ -81,11 +79,14 @@ class RateAndState(CreepingSlider):
 
     # -- the motion ------------------------------------------------------------------------
     # The state in units that make every component O(1) for the integrator's tolerances:
-    # x = k e / (N a) (the spring's force in units of N a), s = v / v_b (the slider's
-    # velocity over the drive's), w = ln(v_ref theta / d_c), q = M eta / (N a).
+    # x = k e / (N a) (the spring's force in units of N a), u = ln(v / v_b) (the slider's
+    # log velocity, 0 at the drive's: the creep is a few units below), w = ln(v_ref theta /
+    # d_c), q = M eta / (N a). In u the creep's velocity follows the force linearly, where
+    # v itself follows it exponentially: 10.6 k implicit steps for 15 s of the paper-like
+    # slider at 1e-8, against 63 k in v / v_b (at 1e-9: 68 k).
     @property
     def state_names(self):
-        return ("x", "s", "w", "q")
+        return ("x", "u", "w", "q")
 
     @property
     def noise_dim(self):
@@ -106,20 +107,18 @@ class RateAndState(CreepingSlider):
         return self.a * jnp.sign(v) * mag
 
     def drift(self, y):
-        x, s, w, q = y[0], y[1], y[2], y[3]
+        x, u, w, q = y[0], y[1], y[2], y[3]
         Na = self.normal_force * self.a
-        v = self.v_b * s
+        v = self.v_b * jnp.exp(u)
         net = Na * x - self.normal_force * self.friction(v, w) + Na * q  # M dv/dt
-        ds = net / (self.mass * self.v_b)
+        du = net / (self.mass * v)
         dx = self.stiffness * (self.v_b - v) / Na
-        av = jnp.abs(v)
         if self.law == "aging":
-            dw = (self.v_ref * jnp.exp(-w) - av) / self.d_c
-        else:  # (v ln v -> 0 as v -> 0: no healing at rest under the slip law)
-            safe = jnp.maximum(av, 1e-300)
-            dw = jnp.where(av > 0.0, -(av / self.d_c) * (jnp.log(safe / self.v_ref) + w), 0.0)
+            dw = (self.v_ref * jnp.exp(-w) - v) / self.d_c
+        else:
+            dw = -(v / self.d_c) * (u + jnp.log(self.v_b / self.v_ref) + w)
         dq = -q / self.tau if self.tau is not None else 0.0 * q
-        return jnp.stack([dx, ds, dw, dq])
+        return jnp.stack([dx, du, dw, dq])
 
     def diffusion(self, y):
         # q = M eta / (N a): d q = -q / tau dt + (M / (N a)) sqrt(2 D) / tau dW
@@ -130,7 +129,11 @@ class RateAndState(CreepingSlider):
         return jnp.stack([z, z, z, z + g]).reshape(4, 1)
 
     def slider_velocity(self, y):
-        return self.v_b * y[1]
+        return self.v_b * jnp.exp(y[1])
+
+    def crossing(self, y):
+        """$v/v_b - 1$, from the log velocity."""
+        return jnp.expm1(y[1])
 
     def spring_force(self, y):
         return self.normal_force * self.a * y[0]
@@ -145,7 +148,7 @@ class RateAndState(CreepingSlider):
         v = float(self.v_b if v is None else v)
         w = math.log(self.v_ref / v)
         mu = float(self.friction(jnp.asarray(v), jnp.asarray(w)))
-        return jnp.array([mu / self.a, v / float(self.v_b), w, 0.0])
+        return jnp.array([mu / self.a, math.log(v / float(self.v_b)), w, 0.0])
 
     def onset_state(self, key):
         """Steady sliding at `v_init` (default 1.5 `v_b`), the drive stepping to `v_b` at
