@@ -45,7 +45,7 @@ NOISY_RTOL = NOISY_ATOL = 1e-6
 # paper-like slider at 1e-9, 63 k steps with 23 k rejected against 68 k with 37 k for the
 # integral controller.
 _PID = dict(pcoeff=0.3, icoeff=0.4)
-_MAX_STEPS = 200_000  # steps of one solve (a stick or a slip)
+_MAX_STEPS = 200_000  # steps of one solve (a longer stick or slip takes several)
 # An event's time by bisection on the solver's dense output, to 1e-10 relative (1e-12 s
 # absolute): far below the time scales of a slip (ms) and the tests' 1e-5.
 _EVENT_RTOL, _EVENT_ATOL = 1e-10, 1e-12
@@ -143,9 +143,11 @@ def _segment(model, noisy: bool, y0, t0, sign, key, h, t_end, rtol, atol):
         # segment where the crossing vanishes.
         y1 = sol.ys[-1]
         hit = jnp.asarray(sol.event_mask) & (jnp.abs(model.crossing(y1)) < 1e-6)
-        ok = hit | (sol.result == diffrax.RESULTS.successful)
+        # Out of steps (a long noisy stick): no failure, the next solve goes on from here.
+        more = ~hit & (sol.result == diffrax.RESULTS.max_steps_reached)
+        ok = hit | more | (sol.result == diffrax.RESULTS.successful)
         ok = ok | (sol.result == diffrax.RESULTS.event_occurred)
-        return sol.ts[-1], y1, hit, ok, sol.stats["num_steps"]
+        return sol.ts[-1], y1, hit, ok, more, sol.stats["num_steps"]
 
     return jax.vmap(one)(y0, t0, sign, key)
 
@@ -185,7 +187,7 @@ class Motion:
 
     def segment(self, y, t, slipping, keys):
         """One solve for these paths: each ends its slip (where `slipping`) or its stick."""
-        t1, y1, hit, ok, steps = _segment(
+        t1, y1, hit, ok, more, steps = _segment(
             self.model, self.noisy, jnp.asarray(y), jnp.asarray(t),
             jnp.asarray(np.where(slipping, -1.0, 1.0)), keys, jnp.asarray(self.dt),
             jnp.asarray(self.t_max), RTOL, ATOL,
@@ -193,7 +195,7 @@ class Motion:
         self.stats["segments"] += 1
         self.stats["steps"] += int(np.sum(np.asarray(steps)))
         self.stats["failed"] += int(np.sum(~np.asarray(ok)))
-        return np.array(t1), np.array(y1), np.asarray(hit)
+        return np.array(t1), np.array(y1), np.asarray(hit), np.asarray(more)
 
     def dense(self, y0, keys, ts) -> np.ndarray:
         return np.asarray(
@@ -237,7 +239,7 @@ def run_cycles(owner, model, n_paths, dt, t_max, seed, max_cycles, first_only=Fa
     rows: list[dict[str, np.ndarray]] = []
     while alive.any():
         idx = np.nonzero(alive)[0]
-        t1, y1, hit = motion.segment(y[idx], t[idx], slipping[idx], keys[idx])
+        t1, y1, hit, more = motion.segment(y[idx], t[idx], slipping[idx], keys[idx])
         slip_end = slipping[idx] & hit
         stick_end = ~slipping[idx] & hit
         trough_t[idx[slip_end]], trough_y[idx[slip_end]] = t1[slip_end], y1[slip_end]
@@ -250,7 +252,7 @@ def run_cycles(owner, model, n_paths, dt, t_max, seed, max_cycles, first_only=Fa
         peak_t[idx[stick_end]], peak_y[idx[stick_end]] = t1[stick_end], y1[stick_end]
         t[idx], y[idx] = t1, y1
         slipping[idx] = np.where(hit, ~slipping[idx], slipping[idx])
-        alive[idx] = hit & (t1 < t_max) & (count[idx] < max_cycles)
+        alive[idx] = (hit | more) & (t1 < t_max) & (count[idx] < max_cycles)
         if first_only:
             alive[idx] &= count[idx] == 0
     # A slip that ended before t_max but whose stick outlasted it: a row without a stick.
@@ -272,9 +274,8 @@ def run_cycles(owner, model, n_paths, dt, t_max, seed, max_cycles, first_only=Fa
     table = _join(rows, y.shape[1])
     if motion.stats["failed"]:
         warnings.warn(
-            f"{owner}: {motion.stats['failed']} solve(s) of the creeping slider stopped "
-            f"short (more than {_MAX_STEPS} steps, or a failed implicit step); their paths "
-            "end there",
+            f"{owner}: {motion.stats['failed']} solve(s) of the creeping slider failed (an "
+            "implicit step that did not converge at the smallest step); their paths end there",
             stacklevel=3,
         )
     return table, y_start, dict(motion.stats)
@@ -359,6 +360,14 @@ def _traces(model, n_paths, dt, t_max, seed, y0):
     motion = Motion(model, dt, t_max, seed)
     ts = np.linspace(0.0, t_max, int(min(_RECORD_SAMPLES, max(2, math.ceil(t_max / dt) + 1))))
     ys = motion.dense(y0, motion.keys(np.arange(n_paths, dtype=np.uint32)), ts)
+    short = ~np.all(np.isfinite(ys), axis=(1, 2))
+    if short.any():
+        warnings.warn(
+            f"simulate_cycles: the recorded time series of {int(short.sum())} path(s) stopped "
+            f"short (more than {16 * _MAX_STEPS} steps); the samples after are nan",
+            stacklevel=4,
+        )
+        ys = np.where(np.isfinite(ys), ys, np.nan)
     return tuple((ts.copy(), ys[p], motion.crossing(ys[p]) > 0.0) for p in range(n_paths))
 
 
