@@ -21,9 +21,10 @@ BLOCK_BASH = re.compile(r"^```bash\n(.*?)^```", re.S | re.M)
 # empty cache (the estimator, the models, fitting and model choice: what they call is tested
 # in the default tier by their own test files); the README's run in the default tier. And
 # (5-7 s each cold) extending.md and goodness.md: tests/test_plugin_package.py and
-# tests/test_goodness.py run what they show in the default tier.
+# tests/test_goodness.py run what they show in the default tier; rate_and_state.md (its
+# compiled solve, 8 s cold): tests/test_rate_and_state.py runs it.
 SLOW = {"distributed.md", "estimator.md", "models.md", "compare.md", "fit.md", "extending.md",
-        "goodness.md"}  # fmt: skip
+        "goodness.md", "rate_and_state.md"}  # fmt: skip
 
 
 @pytest.mark.parametrize(
