@@ -50,6 +50,19 @@ def _states_si(m, ys):
     return e, m.v_b * np.exp(ys[:, 1]), m.d_c * np.exp(ys[:, 2]) / m.v_ref
 
 
+def test_options_it_does_not_take_are_refused():
+    m = RS(stiffness=168.0, v_b=42e-6, **PAPER)
+    with pytest.raises(ss.ParameterError, match="record_upcrossings"):
+        ss.simulate(m, 2, 1e-3, 1.0, record_upcrossings=4)
+    with pytest.raises(ss.ParameterError, match="client"):
+        ss.simulate_cycles(m, 1, 1e-3, 1.0, client="local")
+    with pytest.raises(ss.ParameterError, match="solver"):
+        ss.simulate(m, 2, 1e-3, 1.0, solver="euler")
+    noisy = RS(stiffness=168.0, v_b=42e-6, D=1e-6, tau=2e-3, **PAPER)
+    with pytest.raises(ss.ParameterError, match="dt"):
+        ss.simulate(noisy, 2, 5e-3, 1.0)  # the noise's grid must resolve tau
+
+
 def test_registered_and_validated():
     assert "rate-and-state" in ss.list_models()
     with pytest.raises(ss.ParameterError, match="d_c"):

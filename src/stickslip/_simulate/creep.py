@@ -76,6 +76,16 @@ def check_args(owner, model, n_paths, dt, t_max, seed, solver, monitor) -> tuple
     return n_paths, dt, t_max, seed
 
 
+def refuse_options(owner: str, **given) -> None:
+    """Refuse, in one line naming it, an option of the hybrid simulator that a creeping
+    slider does not take: `given` maps its name to `(value, default)`."""
+    for name, (value, default) in given.items():
+        if value is not default and value != default:
+            raise ParameterError(
+                owner, name, "is not available for a creeping slider (rate-and-state)", value
+            )
+
+
 def _noisy(model) -> bool:
     y = np.asarray(model.steady_state())
     return bool(np.any(np.asarray(model.diffusion(jnp.asarray(y))) != 0.0))

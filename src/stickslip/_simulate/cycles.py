@@ -126,6 +126,7 @@ def simulate_cycles(
 
         owner = "simulate_cycles"
         args = creep.check_args(owner, model, n_paths, dt, t_max, seed, solver, monitor)
+        creep.refuse_options(owner, client=(client, None))
         max_cycles = check_int(owner, "max_cycles", max_cycles, minimum=1)
         out = creep.cycle_series(model, *args, record=bool(record), max_cycles=max_cycles)
         return CycleSeries(

@@ -561,6 +561,10 @@ def simulate(
         from . import creep
 
         args = creep.check_args("simulate", model, n_paths, dt, t_max, seed, solver, monitor)
+        creep.refuse_options(
+            "simulate", record_upcrossings=(record_upcrossings, 0), client=(client, None),
+            scheduler=(scheduler, "auto"),
+        )  # fmt: skip
         out = creep.first_cycles(model, *args)
         return Ensemble(
             **{k: out[k] for k in ("slip_time", "stick_position", "slip_distance")},
