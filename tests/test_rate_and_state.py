@@ -58,6 +58,8 @@ def test_options_it_does_not_take_are_refused():
         ss.simulate_cycles(m, 1, 1e-3, 1.0, client="local")
     with pytest.raises(ss.ParameterError, match="solver"):
         ss.simulate(m, 2, 1e-3, 1.0, solver="euler")
+    with pytest.raises(ss.ParameterError, match="creeps instead of sticking"):
+        ss.CrossingEstimator(m)
     noisy = RS(stiffness=168.0, v_b=42e-6, D=1e-6, tau=2e-3, **PAPER)
     with pytest.raises(ss.ParameterError, match="dt"):
         ss.simulate(noisy, 2, 5e-3, 1.0)  # the noise's grid must resolve tau

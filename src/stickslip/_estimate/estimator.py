@@ -10,7 +10,7 @@ import numpy as np
 
 from .._errors import ParameterError, check_choice, check_int, check_positive
 from .._jax import jax
-from .._model import FrictionModel, _to_arrays, time_scales
+from .._model import CreepingSlider, FrictionModel, _to_arrays, time_scales
 from . import gaussian as G
 from . import series
 from .sources import EmpiricalSource, GaussianSource
@@ -122,6 +122,12 @@ class CrossingEstimator:
         owner = "CrossingEstimator"
         if not isinstance(model, FrictionModel):
             raise TypeError(f"{owner}: model must be a FrictionModel instance, got {model!r}")
+        if isinstance(model, CreepingSlider):
+            raise ParameterError(
+                owner, "model",
+                f"{type(model).__name__} creeps instead of sticking: it has no first-passage "
+                "level for crossing statistics (simulate_cycles gives its cycles)",
+            )  # fmt: skip
         self.model = model
         self.horizon = check_positive(owner, "horizon", horizon, allow_none=True)
         self.joint_dt = check_positive(owner, "joint_dt", joint_dt, allow_none=True)
