@@ -20,7 +20,7 @@ def test_model_contract(name, cls):
     assert m.drift(y0).shape == (d,)
     assert m.diffusion(y0).shape == (d, m.noise_dim)
     if isinstance(m, ss.CreepingSlider):  # one motion through stick and slip, integrated
-        e = ss.simulate(m, 2, 1e-3, 20.0, seed=0)
+        e = ss.simulate(m, 2, 1e-3, 8.0, seed=0)
         assert e.n_paths == 2 and e.fraction_stuck == 1.0
         assert np.all(e.stick_time > 0) and np.all(e.slip_time > 0)
         return

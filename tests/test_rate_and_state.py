@@ -75,7 +75,8 @@ def test_registered_and_validated():
         RS(stiffness=168.0, v_b=42e-6, law="ageing", **PAPER)
 
 
-@pytest.mark.parametrize("law", ["aging", pytest.param("slip", marks=pytest.mark.slow)])
+@pytest.mark.slow  # (12 s; the default tier checks the motion against Radau)
+@pytest.mark.parametrize("law", ["aging", "slip"])
 def test_steady_sliding_is_reached_from_a_perturbation(law):
     """Above k_c a velocity step decays to steady sliding at mu_ss = mu0 + (a - b) ln(V/v_ref)."""
     V = 42e-6
