@@ -196,30 +196,26 @@ class Motion:
         return np.array(jax.vmap(self.model.onset_state)(keys))  # (a copy: written to)
 
     def segment(self, y, t, slipping, keys):
-        """One solve for these paths: each ends its slip (where `slipping`) or its stick."""
+        """One solve for these paths: each ends its slip (where `slipping`) or its stick.
+        The batch is padded to a power of two with copies of its first path (each path's
+        solve is its own under `vmap`): as paths finish, the solve compiles for a few
+        sizes, not for every count of paths still running (~3 s each)."""
+        n = t.size
+        pad = np.r_[np.arange(n), np.zeros((1 << (n - 1).bit_length()) - n, dtype=int)]
         t1, y1, hit, ok, more, steps = _segment(
-            self.model, self.noisy, jnp.asarray(y), jnp.asarray(t),
-            jnp.asarray(np.where(slipping, -1.0, 1.0)), keys, jnp.asarray(self.dt),
+            self.model, self.noisy, jnp.asarray(y[pad]), jnp.asarray(t[pad]),
+            jnp.asarray(np.where(slipping[pad], -1.0, 1.0)), keys[pad], jnp.asarray(self.dt),
             jnp.asarray(self.t_max), RTOL, ATOL,
         )  # fmt: skip
         self.stats["segments"] += 1
-        self.stats["steps"] += int(np.sum(np.asarray(steps)))
-        self.stats["failed"] += int(np.sum(~np.asarray(ok)))
-        return np.array(t1), np.array(y1), np.asarray(hit), np.asarray(more)
+        self.stats["steps"] += int(np.sum(np.asarray(steps)[:n]))
+        self.stats["failed"] += int(np.sum(~np.asarray(ok)[:n]))
+        return (np.array(t1[:n]), np.array(y1[:n]), np.asarray(hit[:n]), np.asarray(more[:n]))
 
     def dense(self, y0, keys, ts) -> np.ndarray:
-        return np.asarray(
-            _dense(
-                self.model,
-                self.noisy,
-                jnp.asarray(y0),
-                keys,
-                jnp.asarray(self.dt),
-                jnp.asarray(ts),
-                RTOL,
-                ATOL,
-            )  # fmt: skip
-        )
+        ys = _dense(self.model, self.noisy, jnp.asarray(y0), keys, jnp.asarray(self.dt),
+                    jnp.asarray(ts), RTOL, ATOL)  # fmt: skip
+        return np.asarray(ys)
 
     def crossing(self, ys) -> np.ndarray:
         return np.asarray(jax.vmap(self.model.crossing)(jnp.asarray(ys)))
