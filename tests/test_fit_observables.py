@@ -408,8 +408,8 @@ def test_two_seeds_take_the_simulation_noise_out_of_the_sandwich():
         values=[0.0] * 5, scores=scores(), shift=np.zeros(1), hessian=-np.eye(1) * n,
         clipped=[],
     )  # fmt: skip
-    one, _ = intervals._sandwich(surf, ["D"])
-    two, _ = intervals._sandwich(surf, ["D"], scores())
+    one, _, _ = intervals._sandwich(surf, ["D"])
+    two, _, _ = intervals._sandwich(surf, ["D"], scores())
     # cov = H^-1 J H^-1 with H = -n: J / n = cov * n
     assert abs(one[0, 0] * n - 5.0) < 5 * math.sqrt(2 * 25 / n), one
     assert abs(two[0, 0] * n - 1.0) < 5 * math.sqrt(26 / n), two

@@ -23,7 +23,7 @@ import numpy as np
 from .._errors import DataError, ParameterError, check_int, check_positive
 from .data import LOG_KINDS, _check_data, _looks_sampled, _measurement, _transform
 from .forward import _simulate, _simulation_settings
-from .intervals import _combine_seeds, _mc_noise, _sandwich, _wald, concave
+from .intervals import _combine_seeds, _mc_noise, _sandwich, _wald, concave, structural_lag
 from .likelihood import _bandwidth, _sample, _scored
 from .params import (
     ToFit,
@@ -190,7 +190,8 @@ def _estimate(
             for at in (seed, seed2)
         )  # fmt: skip
         recording = None
-    cov, said = _sandwich(surface, names, scores2)
+    # successive rows share a draw where the onset is random (`intervals.structural_lag`)
+    cov, said, dependence = _sandwich(surface, names, scores2, structural_lag(centre))
     caught += said
     shift2, _ = _polynomial_vertex(surface.design - surface.centre, np.array(values2),
                                    surface.steps)  # fmt: skip
@@ -220,7 +221,9 @@ def _estimate(
         "numbers, "
         f"smoothed kernel likelihood of {', '.join(data)}, zero durations as a point mass); "
         "95 % Wald intervals from the sandwich covariance of per-cycle scores"
-    )
+        + (f" (rows dependent: their scores' cross products up to lag {dependence['lag']})"
+           if dependence["lag"] else "")
+    )  # fmt: skip
     diagnostics = dict(
         n_sim=n_sim, dt=dt, t_max=t_max, seed=seed, measurement=measured,
         # `trace`, `sampling`, `observe`: the measurement as the model comparison reads it
@@ -244,6 +247,7 @@ def _estimate(
             seeds=[seed, seed2], samples=samples,
         ),
         mc_noise=mc_noise,
+        dependence=dependence,
     )  # fmt: skip
     return FitResult(
         estimate=estimate, ci=ci, log_likelihood=ll_hat, method=method,
