@@ -87,6 +87,17 @@ class RandomThreshold(LangevinSlip):
         }  # fmt: skip
 
     @classmethod
+    def embed(cls, model):
+        """The arguments that make this class reproduce `model`, a special case of it, or
+        None: a `langevin` model is a normal threshold of mean `x0` and sd 0 (the same
+        slip, the same sticks). `compare_fits` reads it to know which candidates nest."""
+        if not isinstance(model, Langevin):
+            return None
+        p = model.params()
+        out = {k: p[k] for k in ("omega0", "zeta", "D", "v_b", "tau", "eta0")}
+        return {**out, "threshold": "normal", "threshold_params": {"mean": p["x0"], "sd": 0.0}}
+
+    @classmethod
     def example(cls):
         return cls(1.0, 0.1, 0.4, 1.0, "lognormal", {"median": 1.0, "sigma": 0.25}, tau=0.1)
 

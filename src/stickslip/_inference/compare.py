@@ -23,6 +23,12 @@ it. So the null distribution is not taken from asymptotics but simulated:
   the *same* $T$: the same design points and the same simulated samples;
   $p = (1 + \#\{T^* \ge T\}) / (1 + n_{boot})$. With several richer candidates, the
   smallest $p$ times their number (Bonferroni).
+- **Nesting**: where $B$'s family holds $A$'s fitted model (the same class with $A$'s
+  values inside $B$'s box, or a class that says how it reproduces $A$'s, `embed`: a
+  normal threshold of sd 0 is the fixed threshold), $\tilde\ell_B \ge \tilde\ell_A$ in
+  truth; a simulated $T < 0$ is the fits' or the simulations' error, and $T$ is taken as
+  $\max(T, 0)$, for the data and every replicate alike (the test stays calibrated: the
+  same statistic on both); a data $T$ below `-NESTED_SLACK` is said in a warning.
 - **Choice**: the first candidate, in that order, that no test rejects at `alpha`.
 
 Why this is valid. A parametric bootstrap calibrates *any* statistic computed the same way
@@ -53,9 +59,12 @@ falls by at most `surface.MAX_STEP_DROP`): the replicates' maxima, within a few 
 errors of the estimate, lie inside its $\pm 2$ steps. A refit of every replicate would
 cost `2 n_boot` fits.
 
-What it assumes: the cycles are independent (the fit's own assumption: a replicate is a
-set of independent cycles); the candidates are fitted to the same data with the same
-measurement (refused otherwise); each fit's estimate and standard errors are sound (the fit
+What it assumes: the replicates' cycles are dependent as the data's are (through a
+measurement a replicate is a stretch of the model's own successive cycles: a random
+threshold couples neighbouring rows in both; per-cycle values given as a dict are
+simulated as independent cycles, so rows of a dict should be independent too); the
+candidates are fitted to the same data with the same measurement (refused otherwise); each
+fit's estimate and standard errors are sound (the fit
 warns when not). A test against a non-nested richer candidate is valid the same way (the
 bootstrap draws from the simpler one), so white against Ornstein-Uhlenbeck noise, or with
 against without a velocity-dependent friction, need no nesting. The chosen model can still
@@ -75,6 +84,7 @@ from .._errors import DataError, ParameterError, check_int
 from .goodness import ALPHA as GOODNESS_ALPHA
 from .goodness import _replicates, _Setting
 from .likelihood import _sample, _scored
+from .params import model_kwargs
 from .surface import _polynomial_terms
 
 # The level of each choice: a simpler model is kept unless p < ALPHA. The issue asks that a
@@ -84,6 +94,10 @@ from .surface import _polynomial_terms
 # spread of 0.2 of its mean the likelihood ratio is ~80 (150 cycles): no power is lost.
 ALPHA = 0.01
 GRID_BUDGET = 4096  # points of the grid a fitted polynomial is maximised over
+# A nested pair's 2 dlogL below -NESTED_SLACK is worth a warning (a richer model holds the
+# nested one's fit: its own maximum cannot lie lower but for its fit's or its simulation's
+# error); the statistic is taken as at least 0 whatever it is.
+NESTED_SLACK = 2.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -208,6 +222,15 @@ def compare_fits(
             break
         rejected[a] = (rivals[int(np.argmin(p))], p_adj)
     for t in tests.values():
+        below = min(t["raw_statistic"])
+        if t["nested"] and below < -NESTED_SLACK:
+            said.append(
+                f"{t['alternative']} holds {t['null']}'s fitted model, yet its simulated "
+                f"log-likelihood came out below it (2 dlogL = {below:.3g}): its fit did not "
+                "reach the maximum its family holds, or the simulations' noise is that large "
+                "(refit it with a larger n_sim, or a box that reaches the nested model); the "
+                "statistic is taken as at least 0, for the data and every replicate"
+            )
         decisions = {p < alpha for p in t["p_values"]}
         if len(decisions) > 1:
             said.append(
@@ -387,17 +410,72 @@ def _test(a: _Candidate, b: _Candidate, data: dict, n_boot: int, seed: int, desi
         if c.name not in designs:
             designs[c.name] = c.design()
     designs = (designs[a.name], designs[b.name])
-    stats, p_values = [], []
+    nested = _nested(a, b)
+    stats, raw, p_values = [], [], []
     for s in range(2):
         t = 2.0 * (
             b.best(designs[1], pooled, n_boot + 1, s) - a.best(designs[0], pooled, n_boot + 1, s)
         )
+        raw.append(float(t[0]))
+        if nested:  # b holds a's fitted model: its maximum is at least a's (data and replicates)
+            t = np.maximum(t, 0.0)
         stats.append(float(t[0]))
         p_values.append(float((1 + np.sum(t[1:] >= t[0])) / (1 + n_boot)))
     return dict(
         null=a.name, alternative=b.name, statistic=stats, p_values=p_values,
         p_value=max(p_values), n_design=(len(designs[0][0]), len(designs[1][0])),
+        nested=nested, raw_statistic=raw,
     )  # fmt: skip
+
+
+def _nested(a: _Candidate, b: _Candidate) -> bool:
+    """Whether `b`'s fitted family holds `a`'s fitted model: the same model class whose
+    parameters fixed in `b` equal `a`'s and whose free ones hold `a`'s values inside `b`'s
+    box, or another class that says how it reproduces `a`'s model (a classmethod
+    `embed(model)`, such as `random-threshold` for `langevin`: a normal threshold of sd 0)
+    with those arguments inside `b`'s box alike."""
+    box = b.result.diagnostics.get("box")
+    if box is None:  # a fit from an earlier version: its box is not known
+        return False
+    Mb = type(b.result.model)
+    if isinstance(a.result.model, Mb):
+        target = model_kwargs(a.result.model)
+    else:
+        embed = getattr(Mb, "embed", None)
+        try:
+            target = embed(a.result.model) if callable(embed) else None
+        except (TypeError, ValueError, AttributeError, KeyError):
+            target = None
+        if target is None:
+            return False
+    mine, theirs = _flat(model_kwargs(b.result.model)), _flat(target)
+    if set(mine) != set(theirs):
+        return False
+    for k, value in theirs.items():
+        if k in box:
+            lo, hi = box[k]
+            if not (isinstance(value, (int, float)) and lo <= value <= hi):
+                return False
+        elif not _same(mine[k], value):
+            return False
+    return True
+
+
+def _flat(kwargs: dict) -> dict:
+    """A model's arguments with dict entries as dotted names (`threshold_params.sd`)."""
+    out = {}
+    for k, v in kwargs.items():
+        if isinstance(v, dict):
+            out.update({f"{k}.{e}": x for e, x in v.items()})
+        else:
+            out[k] = v
+    return out
+
+
+def _same(x, y) -> bool:
+    if isinstance(x, (int, float)) and isinstance(y, (int, float)):
+        return math.isclose(float(x), float(y), rel_tol=1e-9, abs_tol=1e-300)
+    return x == y
 
 
 def _table(order, cands, chosen, rejected, tests, alpha) -> list[dict]:
