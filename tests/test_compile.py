@@ -194,7 +194,7 @@ with _compile._exclusive(file):
     print("locked", flush=True)
     sys.stdin.readline()  # the waiter is now at the lock
     compiled = _compile._fresh(_compile.jax.jit(exported.call).lower(*leaves))
-    _compile._save_executable(file, compiled)
+    _compile._save_executable(file, compiled, exported, leaves)
 """
 
 WAITER = """
@@ -401,3 +401,94 @@ def test_quick_programs_give_the_numbers_of_optimised_ones(monkeypatch):
     _compile.clear_caches()  # (none of the optimised ones stays in memory for later tests)
     for a, b in zip(quick, optimised, strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+def _run_logged(cache_dir, dt):
+    """`SCRIPT` in a new process: (its output, its stderr)."""
+    env = dict(os.environ, STICKSLIP_CACHE_DIR=str(cache_dir))
+    done = subprocess.run([sys.executable, "-c", SCRIPT, str(dt)], env=env, capture_output=True,
+                          text=True, timeout=600)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    return json.loads(done.stdout.strip().splitlines()[-1]), done.stderr
+
+
+def _damage(cache_dir) -> int:
+    """Change bytes inside every entry of the cache (sizes kept), and swap two entries'
+    contents; returns how many entries there were."""
+    entries = sorted(cache_dir.glob("stickslip-exported/*.bin"))
+    entries += sorted(_compile.executable_dir(cache_dir).glob("*.bin"))
+    for k, file in enumerate(entries[2:]):
+        data = bytearray(file.read_bytes())
+        for at in (len(data) // 3, len(data) // 2 + k, len(data) - 1):
+            data[at] ^= 0x5A
+        file.write_bytes(bytes(data))
+    a, b = entries[0].read_bytes(), entries[1].read_bytes()
+    entries[0].write_bytes(b)
+    entries[1].write_bytes(a)
+    return len(entries)
+
+
+def test_a_damaged_cache_is_rebuilt_with_the_same_numbers(tmp_path):
+    """Bytes changed in every trace and executable on disk, and two entries swapped: the
+    next process neither crashes nor uses them. It says so once, makes them again, and
+    gets the clean cache's numbers to the bit; the process after it loads everything."""
+    clean, _ = _run_logged(tmp_path, 0.1)
+    n = _damage(tmp_path)
+    assert n >= 3
+    damaged, stderr = _run_logged(tmp_path, 0.1)
+    assert damaged["slip_time"] == clean["slip_time"]
+    assert stderr.count("damaged entries of the compiled-code cache") == 1, stderr
+    assert damaged["info"]["compiles"] >= clean["info"]["compiles"] - 1
+    again, stderr = _run_logged(tmp_path, 0.1)
+    assert again["info"]["compiles"] == 0 and "damaged" not in stderr
+    assert again["slip_time"] == clean["slip_time"]
+
+
+TINY = """
+import json
+import jax.numpy as jnp
+from stickslip import _compile
+y = _compile.call(_compile.eqx.filter_jit(lambda x: jnp.sin(x) * 1.25), jnp.ones(64), paths=64)
+print(json.dumps({"info": dict(_compile.stats), "slip_time": float(y.sum())}))
+"""
+
+
+def test_entries_others_may_write_are_not_loaded(tmp_path):
+    """An executable is code: an entry that belongs to another user, or that others may
+    write, is not loaded (the run compiles and says so once); a cache folder of another
+    user's is not used at all."""
+    env = dict(os.environ, STICKSLIP_CACHE_DIR=str(tmp_path))
+    run = lambda: subprocess.run([sys.executable, "-c", TINY], env=env, capture_output=True,
+                                 text=True, check=True)  # fmt: skip  # noqa: E731
+    first = json.loads(run().stdout)
+    (entry,) = _compile.executable_dir(tmp_path).glob("*.bin")
+    entry.chmod(0o666)
+    done = run()
+    second = json.loads(done.stdout)
+    assert second["info"]["executables_loaded"] == 0 and second["info"]["compiles"] == 1
+    assert second["slip_time"] == first["slip_time"]
+    assert done.stderr.count("belong to another user or others may write them") == 1
+    assert entry.stat().st_mode & 0o777 == 0o600  # made again, this user's only
+    assert json.loads(run().stdout)["info"]["executables_loaded"] == 1
+    if os.getuid() == 0:  # (only root can give a folder away)
+        other = tmp_path / "other"
+        other.mkdir(mode=0o755)
+        os.chown(other, 12345, 12345)
+        code = "import stickslip._jax as j; print(j.CACHE_SET_HERE)"
+        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                              env=dict(env, STICKSLIP_CACHE_DIR=str(other)))  # fmt: skip
+        assert done.stdout.strip() == "False"
+        assert "belongs to another user" in done.stderr
+
+
+def test_a_new_cache_folder_is_this_users_only(tmp_path, monkeypatch):
+    """The cache folder is made readable and writable by its user only; one of this user's
+    that others may write is closed to them."""
+    from stickslip import _cache
+
+    made = tmp_path / "a" / "jax"
+    assert _cache.prepare(made) is None and made.stat().st_mode & 0o777 == 0o700
+    open_one = tmp_path / "open"
+    open_one.mkdir()
+    open_one.chmod(0o777)
+    assert _cache.prepare(open_one) is None and open_one.stat().st_mode & 0o022 == 0

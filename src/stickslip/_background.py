@@ -32,6 +32,8 @@ import pathlib
 import subprocess
 import sys
 
+from . import _cache
+
 NICE = 10  # the worker's niceness: a run in the foreground keeps the cores it needs
 # (its session's as well where Linux groups the CPU by session: `_lower_priority`)
 # The worker starts compiling once the process that started it has exited, or after this
@@ -197,7 +199,13 @@ def _work(queue: pathlib.Path) -> None:
             return
         job = jobs[0]
         try:
-            (module, name), shaped, paths = pickle.loads(job.read_bytes())
+            with open(job, "rb") as f:
+                # A job is a pickle (it names a function and its arguments): only this
+                # user's own are read.
+                if not _cache.trusted(os.fstat(f.fileno())):
+                    continue
+                data = f.read()
+            (module, name), shaped, paths = pickle.loads(data)
             fn = getattr(importlib.import_module(module), name)
             args = jax.tree_util.tree_map(
                 lambda x: x.array() if isinstance(x, _Shape) else x,

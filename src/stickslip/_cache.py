@@ -16,6 +16,7 @@ import json
 import os
 import pathlib
 import shutil
+import stat
 
 OFF = ("", "off", "0", "none", "false")
 OURS = ("stickslip-exported", "stickslip-executable", "stickslip-queue")
@@ -31,6 +32,38 @@ def own_directory() -> pathlib.Path | None:
         return None if where.strip().lower() in OFF else pathlib.Path(where).expanduser()
     base = os.environ.get("XDG_CACHE_HOME") or pathlib.Path.home() / ".cache"
     return pathlib.Path(base) / "stickslip" / "jax"
+
+
+def trusted(st: os.stat_result) -> bool:
+    """Whether a file or folder with this status may hold compiled code this process loads
+    (an executable is code: loading one runs it): it belongs to this user, or to root, and
+    neither its group nor others may write it."""
+    if not hasattr(os, "getuid"):  # (no owners to check: Windows)
+        return True
+    return st.st_uid in (os.getuid(), 0) and not st.st_mode & 0o022
+
+
+def prepare(where: pathlib.Path) -> str | None:
+    """Make the cache directory `where` (readable and writable by this user only) or check
+    the one there; `None` if it may be used, else why not. A folder of this user's that its
+    group or others may write is closed to them (only this user's processes write a cache:
+    a folder shared by several users would run one user's code in another's process)."""
+    try:
+        where.mkdir(mode=0o700, parents=True, exist_ok=True)
+        st = where.stat()
+    except OSError as err:  # a read-only home: run without the cache
+        return f"it cannot be made ({err.strerror})"
+    if not where.is_dir():
+        return "it is not a folder"
+    if trusted(st):
+        return None
+    if hasattr(os, "getuid") and st.st_uid == os.getuid():
+        try:
+            where.chmod(stat.S_IMODE(st.st_mode) & ~0o022)
+            return None
+        except OSError as err:
+            return f"others may write it and it cannot be closed to them ({err.strerror})"
+    return "it belongs to another user or others may write it"
 
 
 def directory() -> tuple[pathlib.Path | None, str]:

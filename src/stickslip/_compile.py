@@ -13,7 +13,13 @@ Traces are keyed by the sources of stickslip and of the packages of every class 
 static arguments, the versions of jax, jaxlib, diffrax and equinox, the device, the function
 and the static arguments (arguments whose text form is not reproducible, objects printed by
 address, keep theirs in memory only). Executables are keyed by the traced module itself, the
-shapes, the versions and the device. A damaged entry is traced or compiled again.
+shapes, the versions and the device.
+
+Every entry on disk starts with a line holding a digest of its name and its contents
+(`_pack`), checked before the entry is used: a damaged entry (bytes changed, cut short, or
+moved under another key) is removed, reported once per process and made again, with the
+numbers of a clean cache. Entries are read only from files of this user that no one else
+can write (`_cache.trusted`): an executable is code, and loading one runs it.
 """
 
 from __future__ import annotations
@@ -27,7 +33,6 @@ import importlib.metadata
 import inspect
 import os
 import pathlib
-import pickle
 import re
 import sys
 import threading
@@ -38,6 +43,7 @@ import equinox as eqx
 import numpy as np
 
 from . import _cpu
+from ._cache import trusted as _trusted
 from ._jax import jax
 
 MAX_ENTRIES = 64  # compiled executables kept in memory (least recently used dropped)
@@ -408,14 +414,14 @@ def _compile(fn, args, leaves, treedef, static, paths, build=True):
             return None
         if exported is not None:
             file = _executable_file(exported, leaves, _options(fn))
-            compiled = _load_executable(file)
+            compiled = _load_executable(file, exported, leaves)
             if compiled is None and not build:
                 return None
             if compiled is None:
                 # Another process may be compiling the same executable (test workers, a
                 # sweep's processes, all starting cold): wait for it and load its copy.
                 with _exclusive(file):
-                    compiled = _load_executable(file)
+                    compiled = _load_executable(file, exported, leaves)
                     if compiled is None:
                         stats["compiles"] += 1
                         hits = _cache_hits[0]
@@ -427,7 +433,7 @@ def _compile(fn, args, leaves, treedef, static, paths, build=True):
                         # functions: "Function ... not found" when the copy runs); only
                         # freshly compiled ones are written.
                         if _cache_hits[0] == hits:
-                            _save_executable(file, compiled)
+                            _save_executable(file, compiled, exported, leaves)
                         return compiled, True
             stats["executables_loaded"] += 1
             return compiled, True
@@ -531,7 +537,7 @@ def _export(fn, leaves, treedef, static, paths, build=True):
         exported = _load_exported(SHIPPED / file.name)
         if exported is not None:
             stats["shipped_loaded"] += 1
-            _save(file, lambda: (SHIPPED / file.name).read_bytes())
+            _save(file, lambda: (SHIPPED / file.name).read_bytes(), packed=True)
     if exported is None:
         if not build:
             return None
@@ -732,7 +738,7 @@ def _executable_file(exported, leaves, options=_OWN_KEY) -> pathlib.Path | None:
     where = jax.config.jax_compilation_cache_dir
     if not where:
         return None
-    digest = hashlib.sha256(_environment(sources=False).encode())
+    digest = hashlib.sha256(ENTRY_FORMAT + b"\n" + _environment(sources=False).encode())
     # XLA's options change the code it emits (`_jax`'s vector width, or the user's own).
     digest.update(os.environ.get("XLA_FLAGS", "").encode())
     if options != _OWN_KEY:
@@ -750,54 +756,140 @@ def executable_dir(where) -> pathlib.Path:
     return pathlib.Path(where) / "stickslip-executable" / _cpu.KIND
 
 
+ENTRY_FORMAT = b"stickslip-entry-2"  # the first line's tag (`_pack`); in the executables' key too
+
+
+def _pack(file: pathlib.Path, payload: bytes) -> bytes:
+    """An entry's bytes on disk: one line `ENTRY_FORMAT digest`, then `payload`. The digest
+    (SHA-256) covers the entry's name as well as its contents, so an entry copied or moved
+    under another key fails the check like a damaged one."""
+    digest = hashlib.sha256(file.stem.encode() + b"\n" + payload).hexdigest().encode()
+    return ENTRY_FORMAT + b" " + digest + b"\n" + payload
+
+
+def _unpack(file: pathlib.Path, data: bytes) -> bytes | None:
+    """The payload of the entry `data` read from `file`, or `None` if it fails the check."""
+    head, sep, payload = data.partition(b"\n")
+    tag, _, digest = head.partition(b" ")
+    if not sep or tag != ENTRY_FORMAT:
+        return None
+    expected = hashlib.sha256(file.stem.encode() + b"\n" + payload).hexdigest().encode()
+    return payload if digest == expected else None
+
+
+_reported: set = set()  # the cache directories whose damaged entries were reported
+
+
+def _report(file: pathlib.Path, what: str) -> None:
+    """One warning per process and cache directory for entries that were not used."""
+    ours = ("stickslip-exported", "stickslip-executable")
+    where = next((p.parent for p in file.parents if p.name in ours), file.parent)
+    key = (str(where), what)
+    if key in _reported:
+        return
+    _reported.add(key)
+    if what == "damaged":
+        text = (f"stickslip: damaged entries of the compiled-code cache in {where} were "
+                "removed and are made again (this run compiles them)")  # fmt: skip
+    else:
+        text = (f"stickslip: entries of the compiled-code cache in {where} belong to another "
+                "user or others may write them: not loaded (this run compiles them; set "
+                "STICKSLIP_CACHE_DIR to a folder of your own)")  # fmt: skip
+    warnings.warn(text, RuntimeWarning, stacklevel=2)
+
+
+def _read_entry(file) -> bytes | None:
+    """The checked payload of the entry `file`, or `None` (absent, not trusted, or damaged:
+    a damaged one is removed and reported)."""
+    if file is None:
+        return None
+    try:
+        with open(file, "rb") as f:
+            # (the shipped traces are part of the installed package, as its code is)
+            if file.parent != SHIPPED and not _trusted(os.fstat(f.fileno())):
+                _report(file, "untrusted")
+                return None
+            data = f.read()
+    except OSError:  # absent (the usual case), or unreadable
+        return None
+    payload = _unpack(file, data)
+    if payload is None:
+        _discard(file)
+    return payload
+
+
+def _discard(file: pathlib.Path) -> None:
+    """Remove the damaged entry `file` (it is made again) and report it; a shipped trace
+    (`SHIPPED`, part of the package) is left: the trace is made in the cache instead."""
+    _report(file, "damaged")
+    if file.parent != SHIPPED:
+        with contextlib.suppress(OSError):
+            file.unlink()
+
+
 def _load_exported(file):
-    if file is None or not file.exists():
-        return None
-    from jax import export
-
     start = time.perf_counter()
     try:
-        return export.deserialize(bytearray(file.read_bytes()))
-    except Exception:  # a damaged or foreign entry: trace again (and overwrite it)
-        return None
+        payload = _read_entry(file)
+        if payload is None:
+            return None
+        from jax import export
+
+        try:
+            return export.deserialize(bytearray(payload))
+        except Exception:  # checked, yet not a trace this JAX reads: make it again
+            _discard(file)
+            return None
     finally:
         seconds["load_seconds"] += time.perf_counter() - start
 
 
-def _load_executable(file):
-    if file is None or not file.exists():
-        return None
-    from jax.experimental.serialize_executable import deserialize_and_load
+def _trees(exported, leaves):
+    """The argument and result trees of `exported`'s executable called on the flat
+    `leaves` (not kept on disk: they are known here)."""
+    return jax.tree_util.tree_structure((tuple(leaves), {})), exported.out_tree
 
+
+def _load_executable(file, exported, leaves):
     start = time.perf_counter()
     try:
-        blob, in_tree, out_tree = pickle.loads(file.read_bytes())
-        return deserialize_and_load(blob, in_tree, out_tree)
-    except Exception:  # damaged, or made by another runtime: compile again
-        return None
+        payload = _read_entry(file)
+        if payload is None:
+            return None
+        from jax.experimental.serialize_executable import deserialize_and_load
+
+        try:
+            return deserialize_and_load(payload, *_trees(exported, leaves))
+        except Exception:  # checked, yet not loadable by this runtime: compile again
+            _discard(file)
+            return None
     finally:
         seconds["load_seconds"] += time.perf_counter() - start
 
 
-def _save_executable(file, compiled) -> None:
+def _save_executable(file, compiled, exported, leaves) -> None:
     from jax.experimental.serialize_executable import serialize
 
     blob, in_tree, out_tree = serialize(compiled)
-    # Only built-in containers survive pickling intact (not, e.g., equinox modules).
-    if "CustomNode" in str(in_tree) + str(out_tree):
+    # The trees are not kept (`_trees` makes them again), so they must be those.
+    if (in_tree, out_tree) != _trees(exported, leaves):
         return
-    _save(file, lambda: pickle.dumps((blob, in_tree, out_tree)))
+    _save(file, lambda: blob)
 
 
-def _save(file, blob) -> None:
-    """Write `blob()` to `file` atomically (a concurrent reader sees all of it or nothing)."""
+def _save(file, blob, packed: bool = False) -> None:
+    """Write `blob()` to `file` atomically (a concurrent reader sees all of it or nothing),
+    with its digest (`_pack`) unless `packed`, readable and writable by this user only."""
     if file is None:
         return
+    tmp = file.with_suffix(f".{os.getpid()}.tmp")
     try:
         data = blob()
-        file.parent.mkdir(parents=True, exist_ok=True)
-        tmp = file.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_bytes(data)
+        file.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+        with open(fd, "wb") as f:
+            f.write(data if packed else _pack(file, data))
         os.replace(tmp, file)
     except Exception:  # a read-only cache, or no serialiser: keep it in memory only
-        pass
+        with contextlib.suppress(OSError):
+            tmp.unlink()

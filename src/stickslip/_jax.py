@@ -47,9 +47,17 @@ def _enable_compilation_cache() -> None:
     where = _cache.own_directory()
     if where is None:
         return
-    try:
-        where.mkdir(parents=True, exist_ok=True)
-    except OSError:  # read-only home: run without the cache
+    why = _cache.prepare(where)
+    if why is not None:  # run without the cache (say why where it cannot be trusted)
+        if "cannot be made" not in why:
+            import warnings
+
+            warnings.warn(
+                f"stickslip: the compiled-code cache {where} is not used: {why} (set "
+                "STICKSLIP_CACHE_DIR to a folder of your own)",
+                RuntimeWarning,
+                stacklevel=2,
+            )
         return
     jax.config.update("jax_compilation_cache_dir", str(where))
     # Only the costly compilations (the simulator's loops) are worth a disk entry.
