@@ -21,6 +21,7 @@ def extract_cycles(
     min_stick: int | None = None,
     window: int | None = None,
     thresholds: Mapping[str, float] | None = None,
+    lines=None,
 ) -> Cycles:
     r"""Find the stick-slip cycles in a measured trace and time each one.
 
@@ -53,6 +54,12 @@ def extract_cycles(
       (default 2). Shorter runs are part of a slip.
     - `window` (`force`): the samples of the Savitzky-Golay force rate (odd, >= 5). Default:
       half the median slip's length from a first pass with 11, between 5 and 101.
+    - `lines` (`force`): the spectral lines to notch out, as frequencies in the inverse of
+      `t`'s unit (the model's own when a fit simulates the data's measurement); `()` for
+      none. Default `None`: found on the trace near the mains frequencies, 50 and 60 Hz
+      and their harmonics (within 2 %; `t` in seconds), where a Welch bin stands 10 times
+      above the spectrum's level about it. Only there: a regular stick-slip's own
+      spectrum is a comb of lines at the multiples of its rate, which is signal.
     - `thresholds` (`force`): some of `spike`, `slip`, `extent`, `drop`, `split` (numbers
       > 0) to replace their defaults 5, 5, 2, 5, 25 (in noise sd, `split` in chi^2); see
       "Force traces". For a sensitivity check; the defaults are what the tests hold to.
@@ -65,8 +72,8 @@ def extract_cycles(
     the positions at the stick and the release, and $d = x(t_0) - x(t_{sl})$.
 
     **Force traces.** Spikes (samples 5 sd from a running median) are replaced by it,
-    spectral lines (a mains hum) are notched out (`info["lines_removed"]`), the noise sd
-    $\sigma$ is measured from the despiked differences, slips are the stretches where the
+    spectral lines (a mains hum) are notched out (`info["lines_removed"]`; see `lines`), the
+    noise sd $\sigma$ is measured from the despiked differences, slips are the stretches where the
     force rate lies 2 sd below the loading rate and reaches 5 sd below (the rate's sd
     measured on the trace: coloured noise widens it), kept where the force drops across
     them by more than 5 sd of that drop's estimate (also measured), and each slip is timed
@@ -107,9 +114,10 @@ def extract_cycles(
             )  # fmt: skip
         from ._force import extract_force
 
-        return extract_force(t, force, stiffness, v_b, window, thresholds)
-    if window is not None or thresholds is not None:
-        name = "window" if window is not None else "thresholds"
+        return extract_force(t, force, stiffness, v_b, window, thresholds, lines)
+    if window is not None or thresholds is not None or lines is not None:
+        given = {"window": window, "thresholds": thresholds, "lines": lines}
+        name = next(k for k, v in given.items() if v is not None)
         raise ParameterError(OWNER, name, "applies to force traces only")
     if v_b is None:
         raise ParameterError(OWNER, "v_b", "is required with x/v (the driving speed, > 0)")

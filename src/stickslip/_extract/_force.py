@@ -68,6 +68,11 @@ _SCATTER = 5.5
 # bins scatter by 1/sqrt(segments) about it (10% on the measured trace, 25% on 20 000
 # samples): 10 times is far beyond noise
 _LINE, _LINE_SEGMENT, _LINE_BINS, _MAX_LINES = 10.0, 16384, 65, 3
+# ... searched for only near the mains frequencies and their harmonics (the trace's time in
+# s), within 2 % of each: a regular stick-slip's own spectrum is a comb of lines at the
+# multiples of its rate (0.65, 1.29, 1.94 Hz ... on a 1.5 s period), which a search over
+# all frequencies took for hum and notched out, bending every loading line
+_MAINS, _MAINS_BAND = (50.0, 60.0), 0.02
 _NOTCH_Q = 30.0  # bandwidth f0 / 30: 1.7 Hz at 50 Hz, wider than the mains' wander
 _UNIFORM = 0.01  # the filters assume even sampling: steps may vary by 1%
 _MAD = 1.4826  # MAD to sd for Gaussian noise
@@ -94,7 +99,7 @@ def check_thresholds(thresholds) -> dict[str, float]:
     return out
 
 
-def extract_force(t, force, stiffness, v_b, window, thresholds=None) -> Cycles:
+def extract_force(t, force, stiffness, v_b, window, thresholds=None, lines=None) -> Cycles:
     from scipy.ndimage import median_filter
 
     k = check_positive(OWNER, "stiffness", stiffness)
@@ -113,6 +118,7 @@ def extract_force(t, force, stiffness, v_b, window, thresholds=None) -> Cycles:
         )  # fmt: skip
     if window is not None:
         window = _odd_window(window)
+    lines = _check_lines(lines, h)
     # scaled by a power of 2 (exact): a trace in any units finds the same cycles
     s_f = power_of_two(float(np.max(np.abs(f))))
     y_raw = f / s_f
@@ -123,7 +129,7 @@ def extract_force(t, force, stiffness, v_b, window, thresholds=None) -> Cycles:
     res_sd = _robust_sd(resid)
     spikes = np.abs(resid) > thr["spike"] * res_sd if res_sd > 0 else np.zeros(f.size, bool)
     s = np.where(spikes, med, y_raw)
-    s, lines = _remove_lines(s, h)
+    s, lines, line_rule = _remove_lines(s, h, lines)
     sigma = _noise_sd(s)
     idx = np.arange(s.size, dtype=float)
 
@@ -251,8 +257,7 @@ def extract_force(t, force, stiffness, v_b, window, thresholds=None) -> Cycles:
         sampling_interval=h, n_samples=int(s.size),
         thresholds=thr,
         lines_removed=lines,
-        line_rule=f"Welch bins of the despiked differences >= {_LINE:g} x their median, "
-        f"notched out (scipy iirnotch Q {_NOTCH_Q:g}, filtfilt), at most {_MAX_LINES}",
+        line_rule=line_rule,
         despike=f"running median of {_DESPIKE} samples; a sample further than "
         f"{thr['spike']:g} sd of the residual from it is replaced by it",
         spike_threshold=float(thr["spike"] * res_sd * s_f), n_spikes=int(spikes.sum()),
@@ -338,25 +343,61 @@ def _drop_sd(y, window, sigma) -> float:
     return max(white, _MAD * float(np.median(np.abs(d - np.median(d)))))
 
 
-def _remove_lines(s, h):
-    """`s` less its spectral lines (a mains hum, say): a bin of the Welch spectrum of the
-    force's differences (white for white noise; the sawtooth's own spectrum is smooth)
-    `_LINE` times the level about it or more is notched out (scipy iirnotch, Q = 30,
-    zero-phase filtfilt), the strongest first, at most `_MAX_LINES`. Returns the
-    frequencies (Hz) removed."""
+def _check_lines(lines, h):
+    """`lines` as `extract_cycles` takes it: None (search near the mains frequencies), or
+    the frequencies to notch, each > 0 and below the Nyquist frequency."""
+    if lines is None:
+        return None
+    if isinstance(lines, (str, bytes)) or not hasattr(lines, "__iter__"):
+        raise ParameterError(OWNER, "lines", "must be a sequence of frequencies (or None)")
+    out = []
+    for f in lines:
+        f = check_positive(OWNER, "lines", f)
+        if not f < 0.5 / h:
+            raise ParameterError(
+                OWNER, "lines", f"must lie below the Nyquist frequency {0.5 / h:.6g}", f
+            )
+        out.append(float(f))
+    return tuple(out)
+
+
+def _remove_lines(s, h, given=None):
+    """`s` less its spectral lines (a mains hum, say), the frequencies removed and the rule.
+    `given` (frequencies in the inverse of t's unit): notch those. None: search a Welch
+    spectrum of the force's differences (white for white noise; the sawtooth's own
+    spectrum a comb at the multiples of its rate) near the mains frequencies, 50 and 60 Hz
+    and their harmonics (`_MAINS_BAND`), for a bin `_LINE` times the level about it or
+    more, the strongest first, at most `_MAX_LINES`. Each is notched out by scipy's
+    iirnotch (Q = 30) run forwards and backwards (filtfilt: zero phase)."""
     from scipy.ndimage import median_filter
     from scipy.signal import filtfilt, iirnotch, welch
 
+    fs = 1.0 / h
+    notch = f"notched out (scipy iirnotch Q {_NOTCH_Q:g}, filtfilt)"
+    if given is not None:
+        for f0 in given:
+            b, a = iirnotch(f0, _NOTCH_Q, fs=fs)
+            s = filtfilt(b, a, s)
+        return s, [round(f, 6) for f in given], f"the lines given, {notch}"
+    rule = (
+        f"Welch bins of the despiked differences >= {_LINE:g} x their median within "
+        f"{100 * _MAINS_BAND:g} % of 50 or 60 Hz or a harmonic (t in s), {notch}, at most "
+        f"{_MAX_LINES}"
+    )
     n = min(_LINE_SEGMENT, 1 << int(np.log2(max(s.size // 8, 1))))
     if n < 256:
-        return s, []
-    fs = 1.0 / h
+        return s, [], rule
     # no per-segment detrending (scipy's costs a fifth of an extraction): a constant moves
     # only the bins below 2 (the Hann window's), which the search leaves out
     freq, power = welch(np.diff(s), fs=fs, nperseg=n, detrend=False)
     # the level about each bin: the spectrum is smooth but not flat (differencing, slips)
     base = median_filter(power, size=_LINE_BINS, mode="nearest")
     usable = (freq > 4 * fs / n) & (freq < 0.45 * fs)  # not the drift, not near Nyquist
+    mains = np.zeros(freq.size, bool)
+    for f0 in _MAINS:
+        m = np.maximum(np.round(freq / f0), 1.0)
+        mains |= np.abs(freq - m * f0) <= _MAINS_BAND * m * f0
+    usable &= mains
     excess = np.where(usable & (base > 0), power / np.where(base > 0, base, 1.0), 0.0)
     lines = []
     for _ in range(_MAX_LINES):
@@ -369,7 +410,7 @@ def _remove_lines(s, h):
         s = filtfilt(b, a, s)
         lines.append(round(f0, 3))
         excess[max(j - 4, 0) : j + 5] = 0.0
-    return s, lines
+    return s, lines, rule
 
 
 def _robust_sd(d: np.ndarray) -> float:

@@ -274,6 +274,9 @@ class Measurement:
             return dict(
                 stiffness=1.0, v_b=v_b, window=self.window,
                 thresholds=None if self.thresholds is None else dict(self.thresholds),
+                # the data's lines, notched as on the data (a search would look near the
+                # mains frequencies in Hz, not in the model's time unit)
+                lines=self.lines,
             )  # fmt: skip
         return dict(v_b=v_b, tol=self.tol, min_stick=self.min_stick)
 
