@@ -351,3 +351,100 @@ def test_out_is_checked_before_a_cluster_starts(mystudy, monkeypatch, no_work, c
         argv += ["-p", "model.params.v_b=1,2"]
     line = one_error_line(invoke(argv))
     assert line == "error: --out: . is the current directory: refusing to write results there"
+
+
+# -- replacing only what stickslip wrote -------------------------------------------------------
+@pytest.fixture
+def earlier(tmp_path, mystudy):
+    """An earlier run's results folder, `res` beside the study (its marker lists its files)."""
+    out = tmp_path / "res"
+    done = invoke(["run", mystudy / "study.yaml", "--out", out, "-q", "--no-figures"])
+    assert done.exit_code == 0, done.stderr
+    return out
+
+
+def test_force_refuses_a_results_folder_holding_the_users_files(tmp_path, mystudy, earlier):
+    """`run --force` over a results folder deleted a file the user had put into it: the
+    marker lists what stickslip wrote, and a folder holding anything else is refused."""
+    record = json.loads((earlier / MARKER).read_text())
+    assert set(record["files"]) == {"results.nc", "summary.md", "study.yaml"}
+    (earlier / "my notes.txt").write_text("mine\n")
+    (earlier / "plots").mkdir()
+    before = snapshot(earlier)
+    for command in ("run", "sweep"):
+        argv = [command, mystudy / "study.yaml", "--out", earlier, "-q", "--force"]
+        if command == "sweep":
+            argv += ["-p", "model.params.v_b=1,2"]
+        line = one_error_line(invoke(argv))
+        assert "holds files stickslip did not write (my notes.txt, plots)" in line, line
+    assert snapshot(earlier) == before
+    (earlier / "my notes.txt").unlink()
+    (earlier / "plots").rmdir()
+    done = invoke(["run", mystudy / "study.yaml", "--out", earlier, "-q", "--force"])
+    assert done.exit_code == 0, done.stderr
+
+
+def test_an_earlier_marker_without_a_listing_protects_other_files(tmp_path):
+    """A results folder of an earlier version (its marker lists no files): only the names
+    stickslip writes, and figures, may be replaced."""
+    from stickslip._output import foreign_files
+
+    out = tmp_path / "old"
+    out.mkdir()
+    (out / MARKER).write_text(json.dumps({"written_by": "stickslip"}))
+    for name in ("results.nc", "summary.md", "slip_time.png", "data.csv"):
+        (out / name).write_text("x")
+    assert foreign_files(out) == ["data.csv"]
+    with pytest.raises(ss.OutputError, match="data.csv"):
+        check_output_dir(out, force=True)
+
+
+def test_killed_runs_leftovers_are_tidied_and_an_earlier_result_restored(tmp_path):
+    """A killed run left `.NAME.partial-PID` for ever; one killed while swapping left the
+    earlier result as `.NAME.old-PID` and nothing under its name: the next write tidies the
+    first and puts the second back."""
+    from stickslip._output import partial_dir
+
+    dead = 2**22 + 12345  # above Linux's largest process id: no such process
+    out = tmp_path / "res"
+    (tmp_path / f".res.partial-{dead}").mkdir()
+    (tmp_path / f".res.partial-{dead}" / "results.nc").write_text("half")
+    (tmp_path / f".res.old-{dead}").mkdir()
+    (tmp_path / f".res.old-{dead}" / "results.nc").write_text("earlier")
+    tmp = partial_dir(out)
+    assert (out / "results.nc").read_text() == "earlier"
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["res", tmp.name])
+    (tmp_path / f".res.old-{dead}").mkdir()  # the swap was done: the old copy goes
+    partial_dir(out)
+    assert not (tmp_path / f".res.old-{dead}").exists() and (out / "results.nc").exists()
+
+
+def test_an_interrupt_a_library_swallowed_still_stops_the_command(tmp_path, mystudy, earlier):
+    """JAX's garbage-collection callback swallowed an interrupt now and then (`Exception
+    ignored ... KeyboardInterrupt`): the run went on, exited 0 and replaced the earlier
+    result. Now the command exits 130 and the earlier result stays as it was."""
+    import signal
+
+    import stickslip.study.run as run_module
+
+    before = snapshot(earlier)
+    compute = run_module._compute
+
+    class Swallows:
+        def __del__(self):  # an interrupt raised here is "ignored" by Python
+            os.kill(os.getpid(), signal.SIGINT)
+
+    def interrupted_compute(*args, **kwargs):
+        Swallows()
+        return compute(*args, **kwargs)
+
+    run_module._compute = interrupted_compute
+    try:
+        done = invoke(["run", mystudy / "study.yaml", "--out", earlier, "-q", "--force",
+                       "--no-figures"])  # fmt: skip
+    finally:
+        run_module._compute = compute
+    assert done.exit_code == 130, (done.exit_code, done.stderr)
+    assert "interrupted" in done.stderr and "Traceback" not in done.stderr
+    assert snapshot(earlier) == before
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".res")] == []

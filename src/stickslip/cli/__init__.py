@@ -88,7 +88,8 @@ def quick_exit(code):
     atexit._run_exitfuncs()
     for stream in (sys.stdout, sys.stderr):
         try:
-            stream.flush()
+            if stream is not None:  # (`None`: the process started with it closed)
+                stream.flush()
         except (OSError, ValueError):  # closed, or a closed pipe: as the ordinary exit
             pass
     os._exit(code or 0)

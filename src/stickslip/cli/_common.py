@@ -8,7 +8,7 @@ import sys
 
 import click
 
-EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
+EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 
 MAX_MESSAGE = 300  # characters of an error line: enough to name the field and the reason
@@ -38,20 +38,28 @@ def handle_errors(func):
 
     @functools.wraps(func)
     def wrapper(*args, debug: bool = False, **kwargs):
+        from .._output import catch_interrupts
+
+        caught = catch_interrupts()
         try:
-            return func(*args, **kwargs)
+            with caught:
+                done = func(*args, **kwargs)
         except _bad_input() as err:
             click.echo(f"error: {one_line(err)}", err=True)
             sys.exit(EXIT_BAD_INPUT)
         except KeyboardInterrupt:
             click.echo("interrupted: nothing was written under the output name", err=True)
-            sys.exit(130)
+            sys.exit(EXIT_INTERRUPTED)
         except Exception as err:  # a failure during the run
             if debug:
                 raise
             text = one_line(f"{type(err).__name__}: {err}".rstrip(": "))
             click.echo(f"error: run failed: {text} (--debug shows the traceback)", err=True)
             sys.exit(EXIT_FAILURE)
+        if caught.caught:  # one that came after the results were in place
+            click.echo("interrupted: the results were complete and are written", err=True)
+            sys.exit(EXIT_INTERRUPTED)
+        return done
 
     return click.option("--debug", is_flag=True, help="Show the full traceback of a failure.")(
         wrapper

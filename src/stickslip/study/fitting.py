@@ -31,7 +31,6 @@ import re
 import shutil
 import stat
 import sys
-import tempfile
 import types
 import warnings
 
@@ -476,10 +475,10 @@ def _fit_lines(result, scales) -> list[str]:
 
 
 def write_fit(result, study, out: pathlib.Path, force: bool, scales=None):
+    from .._output import partial_dir
     from .write import _replace
 
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = pathlib.Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    tmp = partial_dir(out)
     try:
         record = _record(result, study.model.params, study.model.name)
         (tmp / "fit.json").write_text(json.dumps(record, indent=2, default=float) + "\n")
@@ -535,13 +534,13 @@ def write_comparison(comparison, study, out: pathlib.Path, force: bool, scales=N
     candidate against the data), summary.md (the chosen
     model, its parameters with their intervals, in SI for a force trace with `scales`, its
     p-values and verdict, the comparison's table, and every warning)."""
+    from .._output import partial_dir
     from .write import _replace
 
     specs = {name: model for name, model, _, _ in study.fit.models(study.model)}
     chosen = comparison.chosen_name
     best = comparison.chosen
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = pathlib.Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    tmp = partial_dir(out)
     try:
         records = {
             name: _record(r, specs[name].params, specs[name].name)

@@ -1,10 +1,11 @@
 """Writing a study's results: `results.nc`, figures and `summary.md`, atomically.
 
 Everything is written into a temporary directory beside the target (`.NAME.partial-PID`),
-with the marker file `.stickslip-results` that lets `--force` recognise the folder later,
-and moved into place when complete. A run stopped midway leaves that temporary directory and
-nothing under the final name; an existing target (replaced only with `--force`) is moved
-aside and deleted only after the new results are in place.
+with the marker file `.stickslip-results` that lists the files and lets `--force` recognise
+the folder later, and moved into place when complete. A run stopped midway leaves nothing
+under the final name (the next run removes its temporary directory); an existing target
+(replaced only with `--force`, and only if it holds nothing but what stickslip wrote) is
+moved aside and deleted only after the new results are in place.
 """
 
 from __future__ import annotations
@@ -24,11 +25,10 @@ NETCDF = "results.nc"
 
 
 def write_results(ds: xr.Dataset, study: Study, out: pathlib.Path, *, force, figures, say):
+    from .._output import partial_dir
+
     out = pathlib.Path(out)
-    tmp = out.parent / f".{out.name}.partial-{os.getpid()}"
-    if tmp.exists():
-        shutil.rmtree(tmp)
-    tmp.mkdir(parents=True)
+    tmp = partial_dir(out)
     timings = {}
     try:
         if figures:
@@ -52,21 +52,32 @@ def write_results(ds: xr.Dataset, study: Study, out: pathlib.Path, *, force, fig
 
 def _replace(tmp: pathlib.Path, out: pathlib.Path, force: bool, contents: str | None = None):
     """Move the finished results `tmp` to `out`, with the marker that makes `out` a results
-    folder (`contents`: 'run' or 'fit'; by default read from the files)."""
-    from .._output import check_replace_dir, write_marker
+    folder (`contents`: 'run' or 'fit'; by default read from the files). The swap happens
+    whole or not at all: an interrupt before it (or one a library swallowed earlier) leaves
+    the earlier results as they were; one during it is raised once it is done."""
+    from .._output import check_interrupted, check_replace_dir, no_interrupts, write_marker
 
+    check_interrupted()
     if contents is None:
         contents = "fit" if (tmp / "fit.json").exists() else "run"
     write_marker(tmp, contents)
     old = None
-    if out.exists():
-        if any(out.iterdir()):
-            check_replace_dir(out, force)  # checked before the run too; it may have changed
-            old = out.parent / f".{out.name}.old-{os.getpid()}"
-            out.rename(old)
-        else:
-            out.rmdir()
-    tmp.rename(out)
+    with no_interrupts() as held:
+        if held.pending():
+            raise KeyboardInterrupt
+        if out.exists():
+            if any(out.iterdir()):
+                check_replace_dir(out, force)  # checked before the run too; it may have changed
+                old = out.parent / f".{out.name}.old-{os.getpid()}"
+                out.rename(old)
+            else:
+                out.rmdir()
+        try:
+            tmp.rename(out)
+        except BaseException:
+            if old is not None and not os.path.lexists(out):
+                old.rename(out)
+            raise
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
 
