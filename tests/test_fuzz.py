@@ -398,3 +398,153 @@ def test_outputs_never_touch_inputs(tmp_path_factory, monkeypatch, out, force, c
 @given(*_OUT_CASES)
 def test_outputs_never_touch_inputs_long(tmp_path_factory, monkeypatch, out, force, command):
     _out_property(tmp_path_factory, monkeypatch, out, force, command)
+
+
+# -- user models: shapes and regions of nan ---------------------------------------------------
+class _FuzzModel(ss.FrictionModel):
+    """An oscillator with friction noise whose methods return the shapes drawn, and whose
+    drift is `poison` where x < `below`."""
+
+    drift_shape: tuple = (2,)
+    diffusion_shape: tuple = (2, 1)
+    onset_shape: tuple = (2,)
+    noise: int = 1
+    below: float = -10.0
+    poison: float = float("nan")
+
+    @property
+    def state_names(self):
+        return ("x", "v")
+
+    @property
+    def noise_dim(self):
+        return self.noise
+
+    def drift(self, y):
+        import jax.numpy as jnp
+
+        f = jnp.stack([y[1], -y[0] - 0.02 * y[1] ** 3])
+        f = jnp.where(y[0] < self.below, self.poison, f)
+        return f if self.drift_shape == (2,) else jnp.ones(self.drift_shape) * y[0]
+
+    def diffusion(self, y):
+        import jax.numpy as jnp
+
+        return jnp.zeros(self.diffusion_shape).at[..., -1, :].set(0.3) * (y[0] * 0 + 1)
+
+    @property
+    def stick_level(self):
+        return 1.0
+
+    def onset_state(self, key):
+        import jax.numpy as jnp
+
+        return jnp.full(self.onset_shape, 2.0).at[-1:].set(0.0)
+
+
+user_models = st.builds(
+    _FuzzModel,
+    drift_shape=st.sampled_from([(2,), (2,), (2,), (3,), (), (2, 1)]),
+    diffusion_shape=st.sampled_from([(2, 1), (2, 1), (2, 1), (2,), (2, 2), (1, 1)]),
+    onset_shape=st.sampled_from([(2,), (2,), (2,), (3,), (1,)]),
+    noise=st.sampled_from([1, 1, 1, 0, 2]),
+    below=st.sampled_from([-10.0, -1.8, -1.5, -0.5, 3.0]),
+    poison=st.sampled_from([float("nan"), float("inf"), -float("inf"), 1.0]),
+)
+
+
+def _check_user_model(model):
+    try:
+        with warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always")
+            ens = ss.simulate(model, 48, 0.02, 12.0, seed=3)
+    except ss.StickSlipError as err:
+        event(f"refused: {str(err).split(' returns')[0][-30:]}")
+        assert_one_line(str(err))
+        return
+    told = [str(w.message) for w in said if "finite numbers" in str(w.message)]
+    n_bad = ens.stats["nonfinite"]
+    event(f"ran, {'some' if n_bad else 'no'} non-finite paths")
+    assert n_bad == int(ens.nonfinite.sum()) and len(told) == (1 if n_bad else 0), told
+    for message in told:
+        assert_one_line(message)
+    assert not (ens.stuck & ens.nonfinite).any()
+    for name in ("slip_time", "stick_time", "period", "slip_distance"):
+        values = getattr(ens, name)[ens.stuck]
+        assert np.all(np.isfinite(values)), name
+    assert np.all(ens.slip_time[ens.stuck & ~ens.immediate] > 0)
+
+
+test_user_models, test_user_models_long = both_tiers(user_models, _check_user_model)
+
+
+# -- a damaged compiled-code cache -------------------------------------------------------------
+damage = st.lists(
+    st.tuples(
+        st.sampled_from(["stickslip-exported", "stickslip-executable"]),
+        st.sampled_from(["flip", "cut", "swap", "empty"]),
+        st.integers(0, 2**20),
+        st.integers(1, 255),
+    ),
+    min_size=1,
+    max_size=4,
+)
+
+
+def _damage_once(where: pathlib.Path, case) -> None:
+    for folder, kind, at, xor in case:
+        files = sorted((where / folder).rglob("*.bin"))
+        if not files:
+            continue
+        file = files[at % len(files)]
+        data = bytearray(file.read_bytes())
+        if kind == "flip" and data:
+            data[at % len(data)] ^= xor
+        elif kind == "cut":
+            data = data[: at % max(len(data), 1)]
+        elif kind == "empty":
+            data = bytearray()
+        elif kind == "swap":  # another entry's bytes under this name
+            data = bytearray(files[(at + 1) % len(files)].read_bytes())
+            if len(files) == 1 and data:
+                data[len(data) // 2] ^= xor
+        file.write_bytes(bytes(data))
+
+
+def _check_cache_damage(tmp_path_factory, case):
+    """Whatever bytes of the cache's entries are changed, cut, emptied or swapped, a new
+    call neither crashes nor uses them, and gives the clean cache's numbers to the bit."""
+    import jax.numpy as jnp
+
+    from stickslip import _compile
+    from stickslip._jax import jax
+
+    where = tmp_path_factory.mktemp("cache")
+    before = jax.config.jax_compilation_cache_dir
+    x = jnp.linspace(0.0, 1.0, 64)
+    fresh = lambda: _compile.eqx.filter_jit(lambda x, y: (jnp.sin(x) * 1.25, {"y": y[0] * 2}))  # noqa: E731
+    try:
+        jax.config.update("jax_compilation_cache_dir", str(where))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # ("damaged entries ... removed")
+            flat = lambda out: np.concatenate([np.ravel(a) for a in jax.tree.leaves(out)])  # noqa: E731
+            clean = flat(_compile.call(fresh(), x, (x[:3],), paths=64))
+            _damage_once(where, case)
+            again = flat(_compile.call(fresh(), x, (x[:3],), paths=64))
+            third = flat(_compile.call(fresh(), x, (x[:3],), paths=64))
+    finally:
+        jax.config.update("jax_compilation_cache_dir", before)
+    assert again.tobytes() == clean.tobytes() and third.tobytes() == clean.tobytes()
+
+
+@settings(max_examples=15, derandomize=True, **_COMMON)
+@given(damage)
+def test_cache_damage(tmp_path_factory, case):
+    _check_cache_damage(tmp_path_factory, case)
+
+
+@pytest.mark.slow
+@settings(max_examples=200, derandomize=True, **_COMMON)
+@given(damage)
+def test_cache_damage_long(tmp_path_factory, case):
+    _check_cache_damage(tmp_path_factory, case)

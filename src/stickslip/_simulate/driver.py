@@ -19,6 +19,7 @@ from .. import _background, _compile, _rng
 from .._errors import ParameterError, ResourceError, check_choice, check_int, check_positive
 from .._jax import jax, jnp
 from .._model import CreepingSlider, FrictionModel, LinearGaussian, _to_arrays
+from .._model_check import check_shapes, explain, warn_nonfinite
 from .._solver import EulerMaruyama, ExactGaussian
 from .._solver.base import over_paths
 from . import bridge, localise
@@ -469,6 +470,7 @@ def _validate(owner, model, n_paths, dt, t_max, seed, solver, monitor, chunk_siz
         raise ParameterError(
             owner, "model", "is a chain of blocks: simulate it with stickslip.simulate_chain"
         )
+    check_shapes(owner, model)
     n_paths = check_int(owner, "n_paths", n_paths, minimum=1)
     dt = check_positive(owner, "dt", dt)
     t_max = check_positive(owner, "t_max", t_max)
@@ -560,6 +562,8 @@ def simulate(
     if isinstance(model, CreepingSlider):  # one motion through stick and slip, integrated
         from . import creep
 
+        check_shapes("simulate", model)
+
         args = creep.check_args("simulate", model, n_paths, dt, t_max, seed, solver, monitor)
         creep.refuse_options(
             "simulate", record_upcrossings=(record_upcrossings, 0), client=(client, None),
@@ -637,11 +641,13 @@ def _simulate_block(model, dt, t_max, seed, opts, start, stop, bar=None) -> dict
         miss_sum=run.miss_sum(),
         compile_seconds=run.timer.compile_seconds,
         unlocated=int(np.sum(~located & out["stuck"])),
+        nonfinite=int(np.sum(run.nonfinite)),
     )
     info = run.info(model, seed=seed, chunk_size=opts["chunk_size"])
     return dict(
         out=out, onset_state=X0.T, stick_state=stick_state.T, next_onset_state=next_onset.T,
-        upcrossings=upcrossings, info=info, stats=stats,
+        upcrossings=upcrossings, info=info, stats=stats, nonfinite=run.nonfinite,
+        nonfinite_at=run.nonfinite_at,
     )  # fmt: skip
 
 
@@ -684,9 +690,16 @@ def _join_blocks(parts, model, wall0, tasks) -> Ensemble:
     stats["wall_seconds"] = time.perf_counter() - wall0
     if tasks:
         stats["tasks"] = tasks  # compile_seconds: summed over the tasks
+    nonfinite = join([p["nonfinite"] for p in parts])
+    if stats["nonfinite"]:
+        info = parts[0]["info"]
+        at = next(p["nonfinite_at"] for p in parts if p["nonfinite_at"])
+        where = explain(model, *at, dt=info["dt"], steps=int(info["t_max"] / info["dt"]))
+        stats["nonfinite_where"] = where
+        warn_nonfinite("simulate", model, stats["nonfinite"], n_paths, where, stacklevel=4)
     return Ensemble(
         **out, **states, upcrossings=upcrossings, state_names=tuple(model.state_names),
-        info=parts[0]["info"], stats=stats,
+        info=parts[0]["info"], stats=stats, nonfinite=nonfinite,
     )  # fmt: skip
 
 
@@ -704,6 +717,9 @@ class _Run:
         self.timer = _compile.Timer()
         # Compiled calls made and arrays they handed back (`count_call`).
         self.stats = {"dispatches": 0, "transfers": 0}
+        # Paths that left the finite numbers (`first_passages`), and one's last finite and
+        # first non-finite states, to say where (`_model_check.explain`).
+        self.nonfinite, self.nonfinite_at, self.onsets = None, None, None
         self._count_lock = threading.Lock()
         self.model = _to_arrays(model)
         # What the compiled slip-phase code (stepping, in-step location, upcrossings) is
@@ -877,12 +893,24 @@ class _Run:
             # wanted would have saved, about, is rent for it (`_compile.rent`).
             wasted = (time.perf_counter() - start) * (1.0 - chunk_size / want)
             _compile.rent(self._want_key(want), wasted)
+        # Paths whose state left the finite numbers: found while stepping (`_chunk`), or
+        # from a non-finite onset (and at the stick: `cycle_outputs`).
+        stepped = [p[6] if len(p) > 6 else np.zeros(p[2].size, dtype=bool) for p in parts]
+        self.nonfinite = np.concatenate(stepped) if len(parts) > 1 else stepped[0]
         if len(parts) == 1:  # as they are (the onset states: a read-only view; callers copy)
-            self.miss, self.onset_positions = parts[0][4:]
-            return parts[0][:4]
-        self.miss = np.concatenate([p[4] for p in parts])
-        self.onset_positions = np.concatenate([p[5] for p in parts])
-        return tuple(np.concatenate([p[i] for p in parts], axis=-1) for i in range(4))
+            self.miss, self.onset_positions = parts[0][4:6]
+            out = parts[0][:4]
+        else:
+            self.miss = np.concatenate([p[4] for p in parts])
+            self.onset_positions = np.concatenate([p[5] for p in parts])
+            out = tuple(np.concatenate([p[i] for p in parts], axis=-1) for i in range(4))
+        self.onsets = out[0]
+        onset_bad = ~np.isfinite(out[0]).all(axis=0)
+        if onset_bad.any():
+            self.nonfinite = self.nonfinite | onset_bad
+            if self.nonfinite_at is None:
+                self.nonfinite_at = (None, out[0][:, np.argmax(onset_bad)].copy(), None)
+        return out
 
     def miss_sum(self) -> float:
         """Summed bounds on a missed crossing over the paths of the last `first_passages`:
@@ -902,6 +930,15 @@ class _Run:
         X1, T_st, x_sl = (np.asarray(a)[..., :n] for a in (X1, T_st, x_sl))
         x_start = self.onset_positions
         stuck = np.isfinite(t_stick) & (t_stick <= self.t_max)
+        # A stick reached in a non-finite state (an infinite drift crosses any level at
+        # once) is no stick: those paths are counted apart (`nonfinite`), as are the ones
+        # that left the finite numbers while slipping.
+        at_stick = stuck & ~(np.isfinite(stick_state).all(axis=0) & np.isfinite(T_st))
+        if at_stick.any() and self.nonfinite_at is None:
+            k = np.argmax(at_stick)
+            self.nonfinite_at = (self.onsets[:, k].copy(), stick_state[:, k].copy(), None)
+        self.nonfinite = self.nonfinite | at_stick
+        stuck &= ~self.nonfinite
         nan = np.where(stuck, 1.0, np.nan)
         stick_state *= nan  # no stick state for the paths that never stuck
         slip_time = t_stick * nan
@@ -1038,6 +1075,7 @@ class _Run:
         t_stick = np.full(count, np.nan)
         stick_state = X0[:, :count].copy()
         located = np.ones(count, dtype=bool)
+        nonfinite = np.zeros(count, dtype=bool)
         miss_end = np.zeros(size)
         slot = np.arange(size)
         slot[count:] = -1
@@ -1074,6 +1112,7 @@ class _Run:
                     count * (1 + PAST_SLOTS if past else 1), X0.shape[0], exact=not past
                 )
             first = False
+            slipping = ks == SLIPPING
             start = time.perf_counter()
             out = self._counted(loop(*args, paths=size))
             # The states stay where the loop left them for its next call (read here through
@@ -1089,6 +1128,18 @@ class _Run:
             self.stats["buffers"] += 1
             passing = ks == PASSED
             ks[passing] = SLIPPING
+            # A slipping path whose state left the finite numbers (a model's drift that is
+            # nan somewhere) never sticks: its crossing variable compares false. It is
+            # stopped here and counted apart (`cycle_outputs`), not run on to t_max.
+            gone = np.flatnonzero(~np.isfinite(X).all(axis=0) & slipping & (slot >= 0))
+            if gone.size:
+                nonfinite[slot.take(gone)] = True
+                ks[gone] = INACTIVE
+                if self.nonfinite_at is None or not np.isfinite(self.nonfinite_at[0]).all():
+                    # (one that left in the call's last step: its step's start is finite)
+                    last = np.isfinite(X_prev[:, gone]).all(axis=0)
+                    g = gone[np.argmax(last)]
+                    self.nonfinite_at = (X_prev[:, g].copy(), X[:, g].copy(), X0[:, slot[g]])
             # (+ 0.0 elsewhere: the same numbers as a select, without its branches; 2x faster)
             offset = offset + (ks == SLIPPING) * float(taken)
             real = slot >= 0
@@ -1157,7 +1208,8 @@ class _Run:
             self._locate_chunk(X_end, X_prev_end, k_end, path, count, t_stick, stick_state, located)
         imm = immediate[:count]
         t_stick[imm] = 0.0
-        return X0[:, :count], stick_state, t_stick, located, miss_end[:count], x_start[:count]
+        return (X0[:, :count], stick_state, t_stick, located, miss_end[:count], x_start[:count],
+                nonfinite)  # fmt: skip
 
     def _speculates(self, size: int) -> bool:
         """Whether a buffer of `size` paths steps past candidates (leaves them for the end;

@@ -28,6 +28,11 @@ class Ensemble:
     `upcrossings` (with `simulate(record_upcrossings=K)`): every upcrossing of the free
     slip-phase process, for the empirical crossing statistics (`Upcrossings`).
 
+    `nonfinite`: True where the path's state left the finite numbers (a model's drift or
+    diffusion that is `nan` or infinite somewhere): such a path is not `stuck` and its
+    outputs are `nan`; `stats["nonfinite"]` counts them, `stats["nonfinite_where"]` says
+    where one appeared, and `simulate` warns.
+
     `info` records how the run was made (model, solver, monitor, dt, t_max, seed, chunk size)
     and `stats` what it cost (wall and compile time, path-steps computed).
     """
@@ -46,6 +51,7 @@ class Ensemble:
     info: dict[str, Any]
     stats: dict[str, Any]
     upcrossings: Any = None
+    nonfinite: np.ndarray | None = None
 
     @property
     def n_paths(self) -> int:
