@@ -626,3 +626,45 @@ def test_bracketed_median_is_numpys():
     with_nan = arrays["normal"].copy()
     with_nan[17] = np.nan
     assert np.isnan(median(with_nan))
+
+
+@pytest.mark.parametrize("given, sd", [("x", 0.0), ("v", 0.0), ("x", 1e-2), ("v", 0.05)])
+def test_a_mis_scaled_or_sign_flipped_trace_is_refused(series, given, sd):
+    """`--v-b` half the truth gave 11 cycles of 25 with slip times x10 and no warning, v_b
+    1e-6 a negative slip distance, a sign-flipped x 10 bogus cycles (5-10 % off warned, and
+    1.5-2x was refused for force traces only). The sticks' own speed is now estimated without
+    v_b: a v_b more than 25 % off it is refused, a flipped sign is named, and up to 25 % off
+    gives the same cycles with a warning."""
+    t, x, v = measured(series, 0.1)
+    noise = sd * np.random.default_rng(11).standard_normal(t.size)
+    trace = (x if given == "x" else v) + noise
+    ref = ss.extract_cycles(t, v_b=V_B, **{given: trace})
+    for off in (0.5, 0.67, 1.5, 2.0, 1e-6, 1e6):
+        with pytest.raises(ss.ParameterError, match="disagrees with the trace") as err:
+            ss.extract_cycles(t, v_b=V_B * off, **{given: trace})
+        assert err.value.parameter == "v_b" and "\n" not in str(err.value)
+    with pytest.raises(ss.DataError, match=f"is the sign of {given} flipped"):
+        ss.extract_cycles(t, v_b=V_B, **{given: -trace})
+    for off in (0.85, 1.2):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            found = ss.extract_cycles(t, v_b=V_B * off, **{given: trace})
+        assert len(caught) == 1 and "from the given v_b" in str(caught[0].message)
+        assert abs(len(found) - len(ref)) <= 1
+        assert found.info["v_b_sticks"] == pytest.approx(V_B, rel=0.02)
+
+
+def test_no_slip_distance_below_what_the_belt_allows():
+    """In a slip v < v_b, so x rises by less than v_b T_sl: a trace whose sticks move at v_b
+    but whose "slips" climb faster (no stick-slip at all) is refused, never a slip distance
+    below -v_b T_sl."""
+    t = np.arange(0.0, 60.0, 0.01)
+    phase = np.mod(t, 6.0)
+    v = np.where(phase < 4.0, 1.0, 1.0 - 0.8 * np.sin(np.pi * (phase - 4.0) / 2.0))
+    good = ss.extract_cycles(t, v=v, v_b=1.0)
+    assert len(good) >= 8 and np.all(good["slip_distance"] > -good["slip_time"])
+    x = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
+    x = x + np.where(phase >= 4.0, 3.0 * (phase - 4.0), np.where(t >= 4.0, 6.0, 0.0))
+    x += 6.0 * np.floor((t - 4.0) / 6.0).clip(0)  # (the climbs add up, the sticks stay flat)
+    with pytest.raises((ss.DataError, ss.ParameterError)):
+        ss.extract_cycles(t, x, v_b=1.0)

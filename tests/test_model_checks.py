@@ -164,3 +164,12 @@ def test_every_registered_model_passes_the_probe():
         model = ss.get_model(name).example()
         if model is not None and not isinstance(model, ss.plugin.ChainModel):
             check_shapes("simulate", model)
+
+
+def test_successive_cycles_say_where_a_model_left_the_finite_numbers():
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        series = ss.simulate_cycles(Poisoned(below=-1.5), 8, 0.01, 60.0, seed=1)
+    told = [str(w.message) for w in said if "finite numbers" in str(w.message)]
+    assert series.stats["nonfinite"] > 0 and len(told) == 1, told
+    assert "Poisoned.drift returns nan" in told[0]

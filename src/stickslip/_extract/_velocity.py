@@ -16,6 +16,16 @@ _ROUNDING = 1e-9  # relative floor of tol: differenced positions carry rounding 
 _FIRST_BAND = 0.05  # the first noise estimate looks within 5% of the velocity spread of v_b
 _MIN_SLIP_SAMPLES = 3  # fewer sampling intervals per slip cannot time it
 _VB_WARN = 0.02  # a given v_b further than 2% from the sticks' own speed is worth a warning
+# A given v_b further than 25% from the sticks' own speed (estimated without it, `_sticks_speed`)
+# is a mistake (units, a factor 2, a flipped sign), not a belt that slips: refused. Sticks
+# share one speed and hold it: among the samples whose velocity holds, the densest window of
+# 2% of the velocity range finds it where it stands out as a peak: at least 5% of those
+# samples, and 10 times as many as a window 4 widths to either side (a slip's turning point,
+# where the velocity also dwells, made 2-4 times; noise about 1). Else nothing is said.
+_VB_REFUSE, _MODE_WIDTH, _MODE_SHARE, _MODE_PEAK = 0.25, 0.02, 0.05, 10.0
+# Beyond 10% the band about v_b may miss the sticks (it spans 5% of the velocity range); the
+# peak's own precision, on a noisy trace smoothed to find it, is a few %.
+_VB_SHIFT = 0.1
 # Stuck values that cluster no more than chance are noise: independent flags with a
 # fraction p stuck make runs whose sample-weighted mean length is (1 + p)/(1 - p); a real
 # stick holds its values for its whole length, far beyond that. 3x leaves room for short
@@ -58,6 +68,15 @@ def extract_velocity(t, x, v, v_b, tol, min_stick) -> Cycles:
                 OWNER, name, f"overflows in units of v_b={v_b:.3g} and the trace's duration: "
                 "the values and v_b differ by more than the float range; rescale them",
             )  # fmt: skip
+    # The sticks' own speed, found without v_b: a v_b it contradicts is refused; one off by
+    # more than `_VB_SHIFT` is replaced by it (the band below then starts there and finds
+    # the speed to the noise's precision, as it does from a v_b closer to it).
+    vb_given = vb
+    v_st = _sticks_speed(r + vb)
+    if v_st is not None:
+        _check_v_b(v_st * s_v, v_b, "x" if v is None else "v")
+        if abs(v_st - vb) > _VB_SHIFT * vb:
+            r, vb = r - (v_st - vb), v_st
     with np.errstate(over="ignore", invalid="ignore"):  # a huge v's integral: not used then
         if x is None:
             xx = np.concatenate([[0.0], np.cumsum(0.5 * (vv[1:] + vv[:-1]) * np.diff(tt))])
@@ -88,10 +107,12 @@ def extract_velocity(t, x, v, v_b, tol, min_stick) -> Cycles:
             # it may be one fluctuation of a slip that passes near v_b, not a stick
             min_stick = max(min_stick, window)
     # the sticks' own speed: v_b as given is off by `center` (a few % at most is expected)
-    if abs(center) > _VB_WARN * vb:
+    off = vb + center - vb_given
+    if abs(off) > _VB_WARN * vb_given:
         warnings.warn(
             f"extract_cycles: the sticks move at {(vb + center) * s_v:.6g}, "
-            f"{100 * center / vb:+.2g}% from the given v_b = {v_b:.6g}; using the sticks' speed",
+            f"{100 * off / vb_given:+.2g}% from the given v_b = {v_b:.6g}; using the sticks' "
+            "speed",
             stacklevel=3,
         )
     if kind == "point":
@@ -157,6 +178,17 @@ def extract_velocity(t, x, v, v_b, tol, min_stick) -> Cycles:
         )  # fmt: skip
     slip_time = (stick - release)[keep]
     distance = ((offsets[:-1] + vb_used * release) - (offsets[1:] + vb_used * stick))[keep]
+    # In a slip v < v_b, so x rises by less than v_b T_sl: d > -v_b T_sl, up to the position
+    # noise at both ends. A cycle past that bound is no slip of this trace at this v_b.
+    impossible = distance < -vb_used * slip_time - 2 * _NOISE_SIGMAS * pos_sd
+    if impossible.any():
+        k = int(np.argmax(impossible))
+        raise DataError(
+            f"extract_cycles: the cycle released at t = {release[keep][k] * s_t + t0:.6g} has a "
+            f"slip distance of {distance[k] * s_t * s_v:.4g}, below -v_b T_sl = "
+            f"{-vb_used * slip_time[k] * s_t * s_v:.4g} (x cannot rise faster than the belt "
+            "while slipping): check v_b and the sign and units of the trace"
+        )
     stick_time = (next_release - stick)[keep]
     if np.median(slip_time) < _MIN_SLIP_SAMPLES * h:
         med = float(np.median(slip_time))
@@ -186,6 +218,61 @@ def extract_velocity(t, x, v, v_b, tol, min_stick) -> Cycles:
         sampling_interval=float(h * s_t), n_sticks=len(found), n_joined=n_split,
     )  # fmt: skip
     return Cycles(table, info)
+
+
+def _sticks_speed(vel: np.ndarray) -> float | None:
+    """The speed the sticks move at, found without the given v_b (`_MODE_PEAK`): on the
+    velocity as it is, else smoothed (Savitzky-Golay, quadratic, over 11, 31 then 101
+    samples: a noisy trace's peak stands out once the noise is averaged); `None` where no
+    speed stands out."""
+    found = _speed_peak(vel)
+    for window in (11, 31, 101):
+        if found is not None or window >= vel.size:
+            break
+        from scipy.signal import savgol_filter
+
+        exponent = int(np.frexp(np.max(np.abs(vel)))[1])  # (scaled by a power of 2: exact)
+        smooth = np.ldexp(savgol_filter(np.ldexp(vel, -exponent), window, 2), exponent)
+        found = _speed_peak(smooth)
+    return found
+
+
+def _speed_peak(vel: np.ndarray) -> float | None:
+    """The median of the densest window, `_MODE_WIDTH` of the velocity range wide, of the
+    samples whose velocity holds (a change to the next sample no larger than the median
+    change), where it is a peak (`_MODE_SHARE`, `_MODE_PEAK`); else `None`."""
+    if vel.size < 8:
+        return None
+    change = np.abs(np.diff(vel))
+    flat = np.sort(vel[:-1][change <= np.median(change)])
+    lo, hi = np.percentile(vel, [1, 99])
+    width = _MODE_WIDTH * float(hi - lo)
+    if flat.size < 8 or not width > 0:
+        return None
+    counts = np.searchsorted(flat, flat + width, side="right") - np.arange(flat.size)
+    best = int(np.argmax(counts))
+    if counts[best] < _MODE_SHARE * flat.size:
+        return None
+    mode = float(np.median(flat[best : best + counts[best]]))
+    for side in (-4.0, 4.0):
+        a, b = np.searchsorted(flat, mode + (side + np.array([-0.5, 0.5])) * width)
+        if counts[best] < _MODE_PEAK * max(b - a, 1):
+            return None
+    return mode
+
+
+def _check_v_b(v_st: float, v_b: float, name: str) -> None:
+    """Refuse a v_b that the sticks' own speed `v_st` contradicts (see `_VB_REFUSE`)."""
+    if v_st <= 0:
+        raise DataError(
+            f"extract_cycles: the sticks move at {v_st:.4g}, against the belt's v_b = {v_b:.4g} "
+            f"> 0: is the sign of {name} flipped? (a stick moves with the belt, at +v_b)"
+        )
+    if abs(v_st / v_b - 1.0) > _VB_REFUSE:
+        raise ParameterError(
+            OWNER, "v_b", f"disagrees with the trace: its sticks move at {v_st:.4g}, "
+            f"{v_st / v_b:.3g} times v_b; check v_b and the units of {name} and t", v_b,
+        )  # fmt: skip
 
 
 def _noise_band(r: np.ndarray) -> tuple[float, float, float]:

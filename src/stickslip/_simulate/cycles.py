@@ -17,6 +17,7 @@ from .. import _background, _compile, _rng
 from .._errors import ParameterError, check_int
 from .._jax import jnp
 from .._model import CreepingSlider, FrictionModel
+from .._model_check import explain
 from .driver import _next_pow2, _Run, _validate, _zeros, check_memory
 from .hybrid import INACTIVE, SLIPPING
 from .loop import solve
@@ -187,6 +188,17 @@ def simulate_cycles(
     for p in parts:
         for k, v in p["stats"].items():
             stats[k] = stats.get(k, 0) + v
+    if stats.get("nonfinite"):
+        at = next(p["nonfinite_at"] for p in parts if p["nonfinite_at"])
+        where = explain(model, *at, dt=dt, steps=int(t_max / dt))
+        stats["nonfinite_where"] = where
+        warnings.warn(
+            f"simulate_cycles: {stats['nonfinite']} cycle(s) left the finite numbers, {where}: "
+            "each ends its path's series there, not counted as a stick "
+            "(stats['nonfinite']); check the model there",
+            RuntimeWarning,
+            stacklevel=2,
+        )
     stats["wall_seconds"] = time.perf_counter() - wall0
     return CycleSeries(table, traces, tuple(model.state_names), info, stats)
 
@@ -249,6 +261,7 @@ def _cycles_block(model, dt, t_max, seed, opts, start, stop) -> dict:
     memory = bool(model.carries_state)
     first, batch = 0, (1 if memory else _FIRST_BATCH)
     onsets = None  # (d, paths): where the next slips start (a model with memory)
+    nonfinite = 0  # cycles whose state left the finite numbers (`_Run.cycle_outputs`)
     while active.any() and first < max_cycles:
         count = min(batch, max_cycles - first)
         ids = np.nonzero(active)[0]
@@ -260,6 +273,7 @@ def _cycles_block(model, dt, t_max, seed, opts, start, stop) -> dict:
         given = None if onsets is None else onsets[:, ids]
         X0, stick_state, t_stick, _ = run.first_passages(slots, 2**16, onsets=given)
         X1, out = run.cycle_outputs(slots + np.uint32(1), 0, stick_state, t_stick)
+        nonfinite += int(np.sum(run.nonfinite))  # (their series end: the period is inf)
         if memory:
             onsets = np.zeros((X1.shape[0], n_paths)) if onsets is None else onsets
             onsets[:, ids] = X1
@@ -295,8 +309,9 @@ def _cycles_block(model, dt, t_max, seed, opts, start, stop) -> dict:
         )
     }  # fmt: skip
     info = run.info(model, seed=seed, n_paths=n_paths)
-    stats = dict(run.stats, compile_seconds=run.timer.compile_seconds)
-    return dict(cycles=cycles, traces=traces, late=late, info=info, stats=stats)
+    stats = dict(run.stats, compile_seconds=run.timer.compile_seconds, nonfinite=nonfinite)
+    return dict(cycles=cycles, traces=traces, late=late, info=info, stats=stats,
+                nonfinite_at=run.nonfinite_at)  # fmt: skip
 
 
 def _traces(run, table, path_ids):
