@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import argparse
 import concurrent.futures
-import dataclasses
 import importlib.util
 import json
 import math
@@ -119,16 +118,27 @@ def one_set(case: str, i: int, n_sim: int | None) -> dict:
     scales = r.diagnostics["scales"]
     d = r.diagnostics.get("dependence", {})
     x_unit = slider.scales.length
-    gaps = (np.asarray(true["threshold"]) - rig.kinetic_friction - rig.damping * rig.v_b)
+    gaps = np.asarray(true["threshold"]) - rig.kinetic_friction - rig.damping * rig.v_b
     return dict(
-        case=case, set=i, n_cycles=len(cycles), seconds=time.perf_counter() - t0,
-        fit_seconds=r.diagnostics["seconds"], evaluations=r.diagnostics["evaluations"],
-        estimate=r.estimate, ci=r.ci, truth=truth, scales=scales,
-        v_b_ratio=cycles.info["v_b_estimated"] / rig.v_b, window=cycles.info["window"],
+        case=case,
+        set=i,
+        n_cycles=len(cycles),
+        seconds=time.perf_counter() - t0,
+        fit_seconds=r.diagnostics["seconds"],
+        evaluations=r.diagnostics["evaluations"],
+        estimate=r.estimate,
+        ci=r.ci,
+        truth=truth,
+        scales=scales,
+        v_b_ratio=cycles.info["v_b_estimated"] / rig.v_b,
+        window=cycles.info["window"],
         sample_threshold_mean=float(np.mean(gaps / (rig.stiffness * x_unit))),
         sample_threshold_sd=float(np.std(gaps / (rig.stiffness * x_unit), ddof=1)),
-        dependence=dict(lag=d.get("lag"), acf={k: v[:2] for k, v in d.get("acf", {}).items()},
-                        se_ratio=d.get("se_ratio")),  # fmt: skip
+        dependence=dict(
+            lag=d.get("lag"),
+            acf={k: v[:2] for k, v in d.get("acf", {}).items()},
+            se_ratio=d.get("se_ratio"),
+        ),  # fmt: skip
         warnings=[str(w.message) for w in caught if str(w.message).startswith("fit:")],
     )
 
