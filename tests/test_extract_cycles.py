@@ -668,3 +668,15 @@ def test_no_slip_distance_below_what_the_belt_allows():
     x += 6.0 * np.floor((t - 4.0) / 6.0).clip(0)  # (the climbs add up, the sticks stay flat)
     with pytest.raises((ss.DataError, ss.ParameterError)):
         ss.extract_cycles(t, x, v_b=1.0)
+
+
+def test_a_ramp_and_a_single_slip_are_named_as_such():
+    """A ramp with no slips and a trace of one slip were told to check v_b and tol."""
+    t = np.arange(0.0, 10.0, 0.01)
+    with pytest.raises(ss.DataError, match="never slips"):
+        ss.extract_cycles(t, 2.0 * t, v_b=2.0)
+    v = np.ones_like(t)
+    slip = (t > 4) & (t < 5)
+    v[slip] = 1.0 - np.sin(np.pi * (t[slip] - 4.0))
+    with pytest.raises(ss.DataError, match="a single slip between two stick phases"):
+        ss.extract_cycles(t, v=v, v_b=1.0)

@@ -448,3 +448,11 @@ def test_an_interrupt_a_library_swallowed_still_stops_the_command(tmp_path, myst
     assert "interrupted" in done.stderr and "Traceback" not in done.stderr
     assert snapshot(earlier) == before
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".res")] == []
+
+
+def test_a_run_logged_to_a_file_says_its_stages(tmp_path, mystudy):
+    """A long run whose stderr is not a terminal (a log file) said nothing until its end:
+    it now writes a line per stage, and no bars."""
+    done = invoke(["run", mystudy / "study.yaml", "--out", tmp_path / "res", "--no-figures"])
+    assert done.exit_code == 0, done.stderr
+    assert "simulate: 200 paths" in done.stderr and "\r" not in done.stderr

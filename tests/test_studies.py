@@ -130,7 +130,9 @@ def test_overrides_and_force(tmp_path):
     out = tmp_path / "r"
     out.mkdir()
     (out / "old.txt").write_text("old")
-    (out / ".stickslip-results").write_text('{"written_by": "stickslip"}')  # earlier results
+    (out / ".stickslip-results").write_text(  # earlier results: the marker lists old.txt
+        '{"written_by": "stickslip", "files": ["old.txt"]}'
+    )
     study = small_study(outputs=["slip_time"], analytic=[])
     with pytest.raises(ss.OutputError, match="use --force"):
         ss.run_study(study, out, progress=False)
@@ -149,7 +151,9 @@ def test_failure_while_writing_leaves_nothing(tmp_path, monkeypatch):
     out = tmp_path / "r"
     out.mkdir()
     (out / "old.txt").write_text("old")
-    (out / ".stickslip-results").write_text('{"written_by": "stickslip"}')  # earlier results
+    (out / ".stickslip-results").write_text(  # earlier results: the marker lists old.txt
+        '{"written_by": "stickslip", "files": ["old.txt"]}'
+    )
 
     def broken(*args, **kwargs):
         raise RuntimeError("disk full")

@@ -301,3 +301,9 @@ def test_a_nested_free_parameter_is_checked_against_the_model_params():
     )
     with pytest.raises(StudyError, match=r"fit\.free\.threshold_params\.sdx.*entries: mean, sd"):
         load_study(RANDOM_THRESHOLD | {"fit": fit | {"free": {"threshold_params.sdx": [0.05, 1]}}})
+
+
+def test_a_yaml_merge_key_is_named_not_called_a_syntax_error(tmp_path):
+    text = STUDY + "base: &p {v_b: 1.0}\nmore:\n  <<: *p\n  D: 0.4\n"
+    line = check_refused(tmp_path, text, field="", words=["merge key '<<'", "line 9"])
+    assert "syntax error" not in line

@@ -171,6 +171,16 @@ def extract_velocity(t, x, v, v_b, tol, min_stick) -> Cycles:
     stick, next_release = sticks[1:], releases[1:]
     keep = np.isfinite(release) & np.isfinite(stick) & np.isfinite(next_release)
     if not keep.any():
+        if len(found) == 1 and found[0][1] - found[0][0] + 1 >= 0.9 * n:
+            raise DataError(
+                "extract_cycles: the trace never slips: it moves at the sticks' speed "
+                f"{vb_used * s_v:.4g} throughout (one stick phase, no slip to time)"
+            )
+        if len(found) == 2:
+            raise DataError(
+                "extract_cycles: the trace holds a single slip between two stick phases; a "
+                "complete cycle runs from a release to the next one: record a longer trace"
+            )
         raise ParameterError(
             OWNER, "v_b", f"no complete stick-slip cycle in the trace ({len(found)} stick "
             f"phase(s) found with tol={tol_u * s_v:.3g}); check v_b and tol, or record a "

@@ -93,6 +93,12 @@ def output_options(func):
     )(func)
 
 
+def default_progress():
+    """A run's progress on stderr: bars on a terminal, else a line per stage (a long run
+    writing to a log file said nothing until its end)."""
+    return None if sys.stderr.isatty() else "lines"
+
+
 def report_written(out: str, quiet: bool):
     if not quiet:
         click.echo(f"results in {out}/ (summary.md, results.nc, figures)")

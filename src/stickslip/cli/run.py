@@ -7,6 +7,7 @@ import click
 from ._common import (
     dask_client,
     dask_option,
+    default_progress,
     handle_errors,
     output_options,
     report_written,
@@ -43,6 +44,6 @@ def run(study, out, overrides, force, no_figures, quiet, dask):
             overrides=list(overrides),
             force=force,
             figures=not no_figures,
-            progress=False if quiet else None,
+            progress=False if quiet else default_progress(),
         )
     report_written(out, quiet)

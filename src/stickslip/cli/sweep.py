@@ -7,6 +7,7 @@ import click
 from ._common import (
     dask_client,
     dask_option,
+    default_progress,
     handle_errors,
     output_options,
     report_written,
@@ -71,6 +72,6 @@ def sweep(study, params, zipped, out, overrides, force, quiet, dask):
             client=client,
             overrides=overrides,
             force=force,
-            progress=False if quiet else None,
+            progress=False if quiet else default_progress(),
         )
     report_written(out, quiet)

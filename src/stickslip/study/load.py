@@ -194,6 +194,10 @@ def read_yaml(text: str, source: str | None = None) -> dict:
     except yaml.MarkedYAMLError as err:
         mark = err.problem_mark or err.context_mark
         where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
+        if "2002:merge" in str(err.problem):  # valid YAML, a feature studies do without
+            reason = (f"a YAML merge key '<<' at {where.rstrip(': ')} is not supported: write "
+                      "the keys out (an alias of a whole value, *name, works)")  # fmt: skip
+            raise StudyError(source, None, reason) from None
         problem = "; ".join(p for p in (err.context, err.problem) if p) or "invalid YAML"
         raise StudyError(source, None, f"YAML syntax error at {where}{problem}") from None
     except yaml.YAMLError as err:

@@ -40,7 +40,7 @@ def run_study(
     *,
     overrides=None,
     force: bool = False,
-    progress: bool | None = None,
+    progress: bool | str | None = None,
     figures: bool = True,
     client=None,
 ):
@@ -57,7 +57,8 @@ def run_study(
       beside it and moved into place at the end, so a run stopped midway leaves no
       half-written file under a final name.
     - `overrides`: `["key=value", ...]` applied to the study first (dotted keys, YAML values).
-    - `progress`: progress messages and bars on stderr (default: when stderr is a terminal).
+    - `progress`: progress messages and bars on stderr (default: when stderr is a terminal);
+      `"lines"`: the messages alone, a line per stage or sweep point (for a log file).
     - `figures`: write the figures (with `out`).
     - `client`: a Dask cluster to run on (a `dask.distributed.Client`, a scheduler address or
       `"local"`): the points of a sweep run as tasks, a single point's simulations as blocks
@@ -71,9 +72,12 @@ def run_study(
     inputs = [study] if isinstance(study, (str, os.PathLike)) else []
     study = load_study(study, overrides)
     out_dir = None if out is None else _check_out(out, force, inputs)
-    if progress is None:
-        progress = sys.stderr.isatty()
-    say = _Progress(progress)
+    # Bars on a terminal; elsewhere (a log file, a batch job's output) `"lines"` gives the
+    # stage messages alone, one line each, which a file keeps readable.
+    say = _Progress(
+        progress is True or progress == "lines" or progress is None and sys.stderr.isatty()
+    )
+    progress = progress is True or progress is None and sys.stderr.isatty()
     points = [Point(s, values) for values, s in study.points()]
     from .. import _distributed
 
