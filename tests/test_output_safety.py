@@ -456,3 +456,38 @@ def test_a_run_logged_to_a_file_says_its_stages(tmp_path, mystudy):
     done = invoke(["run", mystudy / "study.yaml", "--out", tmp_path / "res", "--no-figures"])
     assert done.exit_code == 0, done.stderr
     assert "simulate: 200 paths" in done.stderr and "\r" not in done.stderr
+
+
+@pytest.mark.slow  # ten runs of a new process, each interrupted (about a minute)
+def test_interrupts_at_random_moments_end_in_130_with_the_earlier_result(tmp_path, mystudy):
+    """SIGINT during `run --force`: 3 in 20 were swallowed (exit 0, the earlier result
+    replaced). Each now ends the command with 130 and the earlier result as it was, or, if
+    it came after the swap, with the new result complete; never a traceback."""
+    import random
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "res"
+    done = invoke(["run", mystudy / "study.yaml", "--out", out, "-q", "--no-figures"])
+    assert done.exit_code == 0
+    argv = [sys.executable, "-m", "stickslip.cli", "run", str(mystudy / "study.yaml")]
+    argv += ["--out", str(out), "--force", "-q", "--no-figures"]
+    argv += ["--set", "simulation.n_paths=20000"]
+    delays = random.Random(7).sample([0.5 + 0.4 * k for k in range(20)], 10)
+    outcomes = []
+    for delay in delays:
+        before = snapshot(out)
+        proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        time.sleep(delay)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=300)
+        outcomes.append(proc.returncode)
+        assert proc.returncode in (0, 130), (delay, proc.returncode, err)
+        assert "Traceback" not in err and "Exception ignored" not in err, err
+        if proc.returncode == 130:
+            assert snapshot(out) == before, delay
+        assert is_results_folder(out) and (out / "results.nc").exists()
+        assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".res")] == []
+    assert 130 in outcomes
