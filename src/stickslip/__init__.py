@@ -68,6 +68,8 @@ _LAZY = {
     "extract_cycles": ".extract",
     "read_cycles": ".extract",
     "Cycles": ".extract",
+    "analyse_run": ".extract",
+    "Run": ".extract",
     "Slider": ".units",
     "SliderCycles": ".units",
 }

@@ -9,7 +9,8 @@ extension $F/k$ plays the part of $x$.
 - `_velocity`: position / velocity traces (`x=`, `v=`), transitions from the velocity;
 - `_force`: force traces (`force=`, `stiffness=`): despiking, slips found from the force
   rate, each slip timed by fitting its damped half-oscillation;
-- `_cycles`: the `Cycles` table and its CSV form (settings in a `#` header).
+- `_cycles`: the `Cycles` table and its CSV form (settings in a `#` header);
+- `_regime`: `analyse_run`, a force trace read in whichever regime it shows.
 """
 
 from __future__ import annotations
@@ -19,3 +20,5 @@ from ._cycles import FORCE_COLUMNS as FORCE_COLUMNS
 from ._cycles import Cycles as Cycles
 from ._cycles import read_cycles as read_cycles
 from ._extract import extract_cycles as extract_cycles
+from ._regime import Run as Run
+from ._regime import analyse_run as analyse_run

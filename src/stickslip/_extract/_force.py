@@ -74,6 +74,13 @@ _LINE, _LINE_SEGMENT, _LINE_BINS, _MAX_LINES = 10.0, 16384, 65, 3
 # all frequencies took for hum and notched out, bending every loading line
 _MAINS, _MAINS_BAND = (50.0, 60.0), 0.02
 _NOTCH_Q = 30.0  # bandwidth f0 / 30: 1.7 Hz at 50 Hz, wider than the mains' wander
+# Stick-slip against sliding: the skewness of the force rate at the first pass's window.
+# A stick-slip force rises slowly and falls fast (many small positive rates, a few large
+# negative ones); an oscillation rises and falls alike, steady sliding is noise. On the six
+# public paper-on-paper runs: -2.2 to -6.7 for the three stick-slip runs (the 1100 um/s
+# one has rounded sticks, whose varying rate scatters 10.5 times the noise's), -0.64 to
+# -0.10 for the three oscillating ones; between them, a factor 2 from either.
+_SKEW = -1.2
 _UNIFORM = 0.01  # the filters assume even sampling: steps may vary by 1%
 _MAD = 1.4826  # MAD to sd for Gaussian noise
 _LONG = 1.6  # a fit this many median slips long may be two slips
@@ -149,6 +156,7 @@ def extract_force(t, force, stiffness, v_b, window, thresholds=None, lines=None)
     first = window or _FIRST_WINDOW
     rate, g, regions, rate_sd, white_sd = _slip_stretches(s, first, sigma, thr)
     scatter = rate_sd / white_sd
+    skew = _skewness(rate)
     search = None
     if window is None:
         # the median length of the stretches weighted by the drop each carries: the big
@@ -169,11 +177,14 @@ def extract_force(t, force, stiffness, v_b, window, thresholds=None, lines=None)
     # the larger of the two passes': coloured sensor noise peaks at one scale, a force that
     # never sticks scatters at all
     scatter = max(scatter, rate_sd / white_sd)
-    if scatter > _SCATTER:
+    # a rate that scatters far more than the noise explains: sliding, unless the force
+    # still rises slowly and falls fast (rounded sticks, whose rate varies along them)
+    if scatter > _SCATTER and skew > _SKEW:
         raise DataError(
             f"extract_cycles: no stick found: the force rate scatters {scatter:.3g} times as "
-            f"much as the samples' noise (sd {sigma * s_f:.3g}) explains, where a stick-slip "
-            "trace follows a loading line between rare drops: continuous sliding?"
+            f"much as the samples' noise (sd {sigma * s_f:.3g}) explains and rises and falls "
+            f"alike (skewness {skew:+.2f}; a stick-slip force rises slowly and falls fast, "
+            f"below {_SKEW:g}): an oscillation or steady sliding (analyse_run reads which)"
         )
     a, b = regions
     stick = _stick_mask(s.size, regions, window)
@@ -305,6 +316,7 @@ def extract_force(t, force, stiffness, v_b, window, thresholds=None, lines=None)
         rate_noise_rule="robust sd of the force rate about the loading rate (at least "
         "white noise's)",
         rate_noise_ratio=float(rate_sd / white_sd),
+        rate_skewness=float(skew),
         slip_rate_threshold=float(thr["slip"] * rate_sd * s_f / h),
         extent_rate_threshold=float(thr["extent"] * rate_sd * s_f / h),
         drop_noise_sd=float(drop_sd * s_f),
@@ -320,6 +332,42 @@ def extract_force(t, force, stiffness, v_b, window, thresholds=None, lines=None)
         tol=float(thr["drop"] * sigma * s_f),
     )  # fmt: skip
     return Cycles(table, info)
+
+
+def _skewness(rate) -> float:
+    """The third standardised moment of the force rate (0 for a constant rate)."""
+    u = rate - np.mean(rate)
+    sd = float(np.sqrt(np.mean(u * u)))
+    return float(np.mean(u**3) / sd**3) if sd > 0 else 0.0
+
+
+def read_regime(t, f) -> dict:
+    """Whether a force trace is stick-slip by its shape (`analyse_run`): despiked and its
+    mains lines notched as `extract_force` does, its rate at the first pass's window, its
+    skewness against `_SKEW` and the share of samples where it falls, in one line; the
+    despiked force, its mean and the samples' noise sd (N)."""
+    from scipy.ndimage import median_filter
+    from scipy.signal import savgol_filter
+
+    h = median(np.diff(t))
+    med = median_filter(f, size=_DESPIKE, mode="nearest")
+    resid = f - med
+    res_sd = _robust_sd(resid)
+    spikes = np.abs(resid) > THRESHOLDS["spike"] * res_sd if res_sd > 0 else resid != resid
+    s = np.where(spikes, med, f)
+    s, _, _ = _remove_lines(s, h)
+    window = min(_FIRST_WINDOW, s.size - 1 - (s.size % 2 == 0))
+    rate = savgol_filter(s, window, 2, deriv=1, mode="interp")
+    skew = _skewness(rate)
+    fall = float(np.mean(rate < 0))
+    stick_slip = skew <= _SKEW
+    evidence = (
+        f"the force rate is skewed {skew:+.2f} and falls on {100 * fall:.0f} % of the "
+        f"samples ({'a slow rise and a fast fall' if stick_slip else 'rising and falling alike'}"
+        f"; stick-slip below {_SKEW:g})"
+    )
+    return dict(stick_slip=bool(stick_slip), evidence=evidence, despiked=s, skew=skew,
+                fall=fall, mean=float(np.mean(s)), noise=float(_noise_sd(s)))  # fmt: skip
 
 
 def _stick_mask(size, regions, window) -> np.ndarray:
@@ -513,11 +561,7 @@ def _remove_lines(s, h, given=None):
     # the level about each bin: the spectrum is smooth but not flat (differencing, slips)
     base = median_filter(power, size=_LINE_BINS, mode="nearest")
     usable = (freq > 4 * fs / n) & (freq < 0.45 * fs)  # not the drift, not near Nyquist
-    mains = np.zeros(freq.size, bool)
-    for f0 in _MAINS:
-        m = np.maximum(np.round(freq / f0), 1.0)
-        mains |= np.abs(freq - m * f0) <= _MAINS_BAND * m * f0
-    usable &= mains
+    usable &= _near_mains(freq)
     excess = np.where(usable & (base > 0), power / np.where(base > 0, base, 1.0), 0.0)
     lines = []
     for _ in range(_MAX_LINES):
@@ -526,11 +570,23 @@ def _remove_lines(s, h, given=None):
             break
         near = slice(max(j - 2, 0), j + 3)
         f0 = float(np.sum(freq[near] * power[near]) / np.sum(power[near]))
+        excess[max(j - 4, 0) : j + 5] = 0.0
+        if not _near_mains(f0):  # a broad peak's shoulder in the band, centred outside it
+            continue
         b, a = iirnotch(f0, _NOTCH_Q, fs=fs)
         s = filtfilt(b, a, s)
         lines.append(round(f0, 3))
-        excess[max(j - 4, 0) : j + 5] = 0.0
     return s, lines, rule
+
+
+def _near_mains(freq):
+    """Whether each frequency lies within `_MAINS_BAND` of 50 or 60 Hz or a harmonic."""
+    freq = np.asarray(freq, float)
+    out = np.zeros(freq.shape, bool)
+    for f0 in _MAINS:
+        m = np.maximum(np.round(freq / f0), 1.0)
+        out |= np.abs(freq - m * f0) <= _MAINS_BAND * m * f0
+    return out
 
 
 def _robust_sd(d: np.ndarray) -> float:
