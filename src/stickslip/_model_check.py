@@ -56,11 +56,11 @@ def check_shapes(owner: str, model) -> None:
         )  # fmt: skip
     state = f"a state of shape ({d},) ({', '.join(names)})"
     _probe(owner, name, "onset_state", model.onset_state, (jax.random.key(0),), (d,),
-           f"a key (expected a state of shape ({d},): {', '.join(names)})")  # fmt: skip
+           "a key", f" (the state: {', '.join(names)})")  # fmt: skip
     y = jax.ShapeDtypeStruct((d,), jnp.float64)
     _probe(owner, name, "drift", model.drift, (y,), (d,), state)
-    _probe(owner, name, "diffusion", model.diffusion, (y,), (d, int(noise_dim)),
-           f"{state} (expected (state, noise_dim))")  # fmt: skip
+    _probe(owner, name, "diffusion", model.diffusion, (y,), (d, int(noise_dim)), state,
+           " (state, noise_dim)")  # fmt: skip
     for method in ("crossing", "crossing_rate", "crossing_noise"):
         _probe(owner, name, method, getattr(model, method), (y,), (), state)
     try:
@@ -76,7 +76,7 @@ def check_shapes(owner: str, model) -> None:
     _checked.add(key)
 
 
-def _probe(owner, name, method, fn, args, expected, what):
+def _probe(owner, name, method, fn, args, expected, what, meaning=""):
     from ._jax import jax
 
     try:
@@ -94,8 +94,9 @@ def _probe(owner, name, method, fn, args, expected, what):
     if shape is None or tuple(shape) != expected:
         got = "no array" if shape is None else f"shape {tuple(shape)}"
         raise ParameterError(
-            owner, "model", f"{name}.{method} returns {got} for {what}: expected shape {expected}"
-        )
+            owner, "model",
+            f"{name}.{method} returns {got} for {what}: expected shape {expected}{meaning}",
+        )  # fmt: skip
 
 
 def _short(err: BaseException) -> str:

@@ -40,7 +40,12 @@ def extract_cycles(
       `None`: it is then estimated from the sticks' loading slope, $g / k$. Either way the
       speed the sticks actually move at is measured, used, and recorded in `info`; a given
       `v_b` that disagrees by more than 2% gives a one-line warning (by more than a factor
-      2, with force, a `DataError`: units).
+      2, with force, a `DataError`: units). With `x`/`v` the sticks' speed is first found
+      without `v_b` (the peak of the velocities that hold, on the trace smoothed where it is
+      noisy): a `v_b` more than 25% from it is a `ParameterError`, sticks that move
+      backwards (a flipped sign) a `DataError`, and a `v_b` 10-25% off is replaced by it
+      (with the warning). A slip distance below $-v_b T_{sl}$, which no slip can have (the
+      velocity stays below $v_b$), is a `DataError`.
     - `tol` (`x`/`v`): a velocity value is *stuck* when $|v - v_{st}| \le$ `tol`, with
       $v_{st}$ the sticks' speed (the robust centre of the values near `v_b`). Default: 5
       robust sd of the stuck values' noise, $5 \times 1.4826\,\mathrm{MAD}$, and at least
