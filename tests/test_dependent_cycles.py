@@ -73,8 +73,10 @@ def test_the_structural_lag_follows_the_onset():
     fixed = RT(**BASE, threshold="normal", threshold_params={"mean": 1.0, "sd": 0.0})
     assert intervals.structural_lag(random) == 1
     assert intervals.structural_lag(fixed) == 0
-    aging = ss.get_model("rate-and-state").example()
-    assert intervals.structural_lag(aging) is None
+    class Remembers:  # a model that carries state across cycles: no probe, the scores
+        carries_state = True
+
+    assert intervals.structural_lag(Remembers()) is None
 
 
 def _candidate(name, model, box, n_free):

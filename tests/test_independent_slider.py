@@ -158,6 +158,7 @@ def test_propagator_is_exact():
     assert abs(p1.phi[2, 2] - math.exp(-h / rig.noise_time)) < 1e-15
 
 
+@pytest.mark.slow
 def test_ou_variance_and_correlation():
     """20000 independent paths of the exact step, each started at xi = 0: the variance after
     t = tau_c, and after 20 tau_c (stationary) with the correlation at lag tau_c."""
@@ -216,6 +217,7 @@ def _coarsen(fine, coarse, nf, ratio):
     return np.linalg.solve(coarse.chol, eta_c.T).T
 
 
+@pytest.mark.slow
 def test_xi_zero_at_every_release_and_crossings_converge():
     """xi = 0 at each release of a noisy trace; and the crossing found inside a step
     converges: the same path at steps h, h/4 and h/16 (the coarse noise made from the fine
@@ -341,6 +343,7 @@ def test_sensor_hum_line():
 
 
 # ---------------------------------------------------------------- 6. speed
+@pytest.mark.slow
 def test_speed_of_a_300_s_trace():
     t0 = time.process_time()
     t, y, tr = sim.make_trace(0, 300.0)
