@@ -70,6 +70,7 @@ _LAZY = {
     "Cycles": ".extract",
     "analyse_run": ".extract",
     "Run": ".extract",
+    "Campaign": ".study.campaign",
     "Slider": ".units",
     "SliderCycles": ".units",
 }
