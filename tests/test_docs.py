@@ -22,9 +22,10 @@ BLOCK_BASH = re.compile(r"^```bash\n(.*?)^```", re.S | re.M)
 # in the default tier by their own test files); the README's run in the default tier. And
 # (5-7 s each cold) extending.md and goodness.md: tests/test_plugin_package.py and
 # tests/test_goodness.py run what they show in the default tier; rate_and_state.md (its
-# compiled solve, 8 s cold): tests/test_rate_and_state.py runs it.
+# compiled solve, 8 s cold): tests/test_rate_and_state.py runs it. runs.md reads the whole
+# public grid (7-13 s): tests/test_analyse_run.py and tests/test_campaign.py run its parts.
 SLOW = {"distributed.md", "estimator.md", "models.md", "compare.md", "fit.md", "extending.md",
-        "goodness.md", "rate_and_state.md"}  # fmt: skip
+        "goodness.md", "rate_and_state.md", "runs.md"}  # fmt: skip
 
 
 @pytest.mark.parametrize(
