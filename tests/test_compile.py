@@ -428,6 +428,8 @@ def _damage(cache_dir) -> int:
     return len(entries)
 
 
+@pytest.mark.slow  # three new processes compiling (~10-20 s); tests/test_fuzz.py damages
+# the entries of a small program in the default tier
 def test_a_damaged_cache_is_rebuilt_with_the_same_numbers(tmp_path):
     """Bytes changed in every trace and executable on disk, and two entries swapped: the
     next process neither crashes nor uses them. It says so once, makes them again, and
@@ -444,46 +446,60 @@ def test_a_damaged_cache_is_rebuilt_with_the_same_numbers(tmp_path):
     assert again["slip_time"] == clean["slip_time"]
 
 
-TINY = """
-import json
-import jax.numpy as jnp
-from stickslip import _compile
-y = _compile.call(_compile.eqx.filter_jit(lambda x: jnp.sin(x) * 1.25), jnp.ones(64), paths=64)
-print(json.dumps({"info": dict(_compile.stats), "slip_time": float(y.sum())}))
-"""
+@pytest.fixture
+def own_cache(tmp_path):
+    """JAX's cache directory (and so stickslip's entries) in `tmp_path` for the test."""
+    before = _compile.jax.config.jax_compilation_cache_dir
+    _compile.jax.config.update("jax_compilation_cache_dir", str(tmp_path))
+    yield tmp_path
+    _compile.jax.config.update("jax_compilation_cache_dir", before)
 
 
-def test_entries_others_may_write_are_not_loaded(tmp_path):
-    """An executable is code: an entry that belongs to another user, or that others may
-    write, is not loaded (the run compiles and says so once); a cache folder of another
-    user's is not used at all."""
-    env = dict(os.environ, STICKSLIP_CACHE_DIR=str(tmp_path))
-    run = lambda: subprocess.run([sys.executable, "-c", TINY], env=env, capture_output=True,
-                                 text=True, check=True)  # fmt: skip  # noqa: E731
-    first = json.loads(run().stdout)
-    (entry,) = _compile.executable_dir(tmp_path).glob("*.bin")
+def _tiny_call():
+    """A small program, kept on disk; a new function object each time, so that only the
+    disk can give its executable (as to a new process)."""
+    import jax.numpy as jnp
+
+    f = _compile.eqx.filter_jit(lambda x: jnp.sin(x) * 1.25)
+    return float(_compile.call(f, jnp.linspace(0.0, 1.0, 64), paths=64).sum())
+
+
+def test_entries_others_may_write_are_not_loaded(own_cache, monkeypatch):
+    """An executable is code: an entry that others may write (or another user's) is not
+    loaded; the run compiles, says so once and keeps its own copy, this user's only."""
+    first = _tiny_call()
+    (entry,) = _compile.executable_dir(own_cache).glob("*.bin")
     entry.chmod(0o666)
-    done = run()
-    second = json.loads(done.stdout)
-    assert second["info"]["executables_loaded"] == 0 and second["info"]["compiles"] == 1
-    assert second["slip_time"] == first["slip_time"]
-    assert done.stderr.count("belong to another user or others may write them") == 1
+    monkeypatch.setattr(_compile, "_reported", set())
+    before = dict(_compile.stats)
+    with pytest.warns(RuntimeWarning, match="belong to another user or others may write them"):
+        assert _tiny_call() == first
+    assert _compile.stats["compiles"] == before["compiles"] + 1
+    assert _compile.stats["executables_loaded"] == before["executables_loaded"]
     assert entry.stat().st_mode & 0o777 == 0o600  # made again, this user's only
-    assert json.loads(run().stdout)["info"]["executables_loaded"] == 1
-    if os.getuid() == 0:  # (only root can give a folder away)
-        other = tmp_path / "other"
-        other.mkdir(mode=0o755)
-        os.chown(other, 12345, 12345)
-        code = "import stickslip._jax as j; print(j.CACHE_SET_HERE)"
-        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                              env=dict(env, STICKSLIP_CACHE_DIR=str(other)))  # fmt: skip
-        assert done.stdout.strip() == "False"
-        assert "belongs to another user" in done.stderr
+    assert _tiny_call() == first
+    assert _compile.stats["executables_loaded"] == before["executables_loaded"] + 1
+
+
+@pytest.mark.skipif(os.getuid() != 0, reason="only root can give a folder away")
+def test_a_cache_folder_of_another_user_is_not_used(tmp_path):
+    from stickslip import _cache
+
+    other = tmp_path / "other"
+    other.mkdir(mode=0o755)
+    os.chown(other, 12345, 12345)
+    assert "belongs to another user" in _cache.prepare(other)
+    shared = tmp_path / "shared"  # a folder everyone may write, as /tmp: left as it is
+    shared.mkdir()
+    shared.chmod(0o1777)
+    assert "others may write it" in _cache.prepare(shared, tighten=True)
+    assert shared.stat().st_mode & 0o7777 == 0o1777
 
 
 def test_a_new_cache_folder_is_this_users_only(tmp_path, monkeypatch):
-    """The cache folder is made readable and writable by its user only; one of this user's
-    that others may write is closed to them."""
+    """The cache folder is made readable and writable by its user only; stickslip's own
+    default folder, where others may write it, is closed to them; a folder the user named
+    is never changed (it is refused, with the command that closes it)."""
     from stickslip import _cache
 
     made = tmp_path / "a" / "jax"
@@ -491,4 +507,7 @@ def test_a_new_cache_folder_is_this_users_only(tmp_path, monkeypatch):
     open_one = tmp_path / "open"
     open_one.mkdir()
     open_one.chmod(0o777)
-    assert _cache.prepare(open_one) is None and open_one.stat().st_mode & 0o022 == 0
+    assert "chmod go-w" in _cache.prepare(open_one)  # named by the user: left as it is
+    assert open_one.stat().st_mode & 0o777 == 0o777
+    assert _cache.prepare(open_one, tighten=True) is None  # stickslip's own default folder
+    assert open_one.stat().st_mode & 0o022 == 0

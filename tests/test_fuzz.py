@@ -537,7 +537,7 @@ def _check_cache_damage(tmp_path_factory, case):
     assert again.tobytes() == clean.tobytes() and third.tobytes() == clean.tobytes()
 
 
-@settings(max_examples=15, derandomize=True, **_COMMON)
+@settings(max_examples=10, derandomize=True, **_COMMON)
 @given(damage)
 def test_cache_damage(tmp_path_factory, case):
     _check_cache_damage(tmp_path_factory, case)

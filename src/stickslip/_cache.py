@@ -43,11 +43,13 @@ def trusted(st: os.stat_result) -> bool:
     return st.st_uid in (os.getuid(), 0) and not st.st_mode & 0o022
 
 
-def prepare(where: pathlib.Path) -> str | None:
+def prepare(where: pathlib.Path, tighten: bool = False) -> str | None:
     """Make the cache directory `where` (readable and writable by this user only) or check
-    the one there; `None` if it may be used, else why not. A folder of this user's that its
-    group or others may write is closed to them (only this user's processes write a cache:
-    a folder shared by several users would run one user's code in another's process)."""
+    the one there; `None` if it may be used, else why not: it belongs to another user, or
+    its group or others may write it (a folder shared by several users would run one
+    user's code in another's process). With `tighten` (stickslip's own default folder,
+    which no one else has reason to write), such a folder of this user's is closed to the
+    others instead; a folder named by the user is never changed."""
     try:
         where.mkdir(mode=0o700, parents=True, exist_ok=True)
         st = where.stat()
@@ -57,13 +59,16 @@ def prepare(where: pathlib.Path) -> str | None:
         return "it is not a folder"
     if trusted(st):
         return None
-    if hasattr(os, "getuid") and st.st_uid == os.getuid():
+    ours = hasattr(os, "getuid") and st.st_uid == os.getuid()
+    if ours and tighten and not st.st_mode & stat.S_ISVTX:
         try:
             where.chmod(stat.S_IMODE(st.st_mode) & ~0o022)
             return None
         except OSError as err:
             return f"others may write it and it cannot be closed to them ({err.strerror})"
-    return "it belongs to another user or others may write it"
+    if ours:
+        return f"others may write it (chmod go-w {where} makes it yours only)"
+    return "it belongs to another user"
 
 
 def directory() -> tuple[pathlib.Path | None, str]:

@@ -47,7 +47,7 @@ def _enable_compilation_cache() -> None:
     where = _cache.own_directory()
     if where is None:
         return
-    why = _cache.prepare(where)
+    why = _cache.prepare(where, tighten="STICKSLIP_CACHE_DIR" not in os.environ)
     if why is not None:  # run without the cache (say why where it cannot be trusted)
         if "cannot be made" not in why:
             import warnings
