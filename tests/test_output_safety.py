@@ -491,3 +491,27 @@ def test_interrupts_at_random_moments_end_in_130_with_the_earlier_result(tmp_pat
         assert is_results_folder(out) and (out / "results.nc").exists()
         assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".res")] == []
     assert 130 in outcomes
+
+
+def test_an_interrupt_during_the_swap_puts_the_earlier_results_back(tmp_path, monkeypatch):
+    """An interrupt that another thread took and Python raised mid-swap (after the earlier
+    results were moved aside): they go back in place, and the new ones are not kept."""
+    from stickslip.study.write import _replace
+
+    out, tmp = tmp_path / "res", tmp_path / ".res.partial-1"
+    for folder, text in ((out, "earlier"), (tmp, "new")):
+        folder.mkdir()
+        (folder / "results.nc").write_text(text)
+    (out / MARKER).write_text(json.dumps({"written_by": "stickslip", "files": ["results.nc"]}))
+    rename = pathlib.Path.rename
+
+    def interrupted(self, target):
+        if self == tmp:
+            raise KeyboardInterrupt
+        return rename(self, target)
+
+    monkeypatch.setattr(pathlib.Path, "rename", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        _replace(tmp, out, force=True)
+    assert (out / "results.nc").read_text() == "earlier"
+    assert not list(tmp_path.glob(".res.old-*"))

@@ -62,20 +62,23 @@ def _replace(tmp: pathlib.Path, out: pathlib.Path, force: bool, contents: str | 
         contents = "fit" if (tmp / "fit.json").exists() else "run"
     write_marker(tmp, contents)
     old = None
+    # (SIGINT is held back in this thread; a process's other threads may still take it, and
+    # then the interrupt is raised here: the earlier results go back in place. A process
+    # killed in between leaves them as `.NAME.old-PID`, which the next run puts back.)
     with no_interrupts() as held:
         if held.pending():
             raise KeyboardInterrupt
-        if out.exists():
-            if any(out.iterdir()):
-                check_replace_dir(out, force)  # checked before the run too; it may have changed
-                old = out.parent / f".{out.name}.old-{os.getpid()}"
-                out.rename(old)
-            else:
-                out.rmdir()
         try:
+            if out.exists():
+                if any(out.iterdir()):
+                    check_replace_dir(out, force)  # checked before the run; it may have changed
+                    old = out.parent / f".{out.name}.old-{os.getpid()}"
+                    out.rename(old)
+                else:
+                    out.rmdir()
             tmp.rename(out)
         except BaseException:
-            if old is not None and not os.path.lexists(out):
+            if old is not None and os.path.lexists(old) and not os.path.lexists(out):
                 old.rename(out)
             raise
     if old is not None:
