@@ -154,7 +154,7 @@ def summary(records: list[dict]) -> list[dict]:
         for k in sets[0]["estimate"]:
             scale = sets[0]["scales"][k]
             truth = sets[0]["truth"][k]
-            est, se, cover, above, lag1, widen = [], [], 0, 0, [], []
+            est, se, cover, above, lag1, lag2, widen = [], [], 0, 0, [], [], []
             for r in sets:
                 lo, hi = r["ci"][k]
                 e = _to_fit(scale, r["estimate"][k])
@@ -166,6 +166,7 @@ def summary(records: list[dict]) -> list[dict]:
                 acf = (r["dependence"].get("acf") or {}).get(k)
                 if acf:
                     lag1.append(acf[0])
+                    lag2.append(acf[1] if len(acf) > 1 else math.nan)
                 ratio = (r["dependence"].get("se_ratio") or {}).get(k)
                 if ratio:
                     widen.append(ratio)
@@ -176,6 +177,7 @@ def summary(records: list[dict]) -> list[dict]:
                 spread=spread, se=mean_se, ratio=spread / mean_se,
                 bias=float(np.mean(est) - _to_fit(scale, truth)),
                 lag1=float(np.mean(lag1)) if lag1 else math.nan,
+                lag2=float(np.nanmean(lag2)) if lag2 else math.nan,
                 widen=float(np.mean(widen)) if widen else math.nan,
                 seconds=float(np.mean([r["fit_seconds"] for r in sets])),
                 cycles=float(np.mean([r["n_cycles"] for r in sets])),
@@ -186,14 +188,16 @@ def summary(records: list[dict]) -> list[dict]:
 def table(rows) -> str:
     lines = [
         "| case | parameter | covered | above the truth | spread / mean SE | mean bias "
-        "(fit coord.) | scores' lag-1 autocorr. | SE widening for it | cycles | s a fit |",
+        "(fit coord.) | scores' autocorr. lag 1, lag 2 | SE widening for lag 1 | cycles "
+        "| s a fit |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         lines.append(
             f"| {r['case']} | {r['parameter']} | {r['covered']}/{r['sets']} | "
             f"{r['above']}/{r['sets']} | {r['ratio']:.2f} | {r['bias']:+.3f} | "
-            f"{r['lag1']:+.2f} | {r['widen']:.2f} | {r['cycles']:.0f} | {r['seconds']:.0f} |"
+            f"{r['lag1']:+.2f}, {r['lag2']:+.2f} | {r['widen']:.2f} | {r['cycles']:.0f} | "
+            f"{r['seconds']:.0f} |"
         )
     return "\n".join(lines)
 
