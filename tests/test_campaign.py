@@ -54,9 +54,32 @@ def test_bad_campaign_entries_are_named(tmp_path):
         Campaign.from_yaml(_yaml(tmp_path, [{**good, "stifness": 1}]))
     with pytest.raises(StudyError, match=r"runs\.0\.v_b"):
         Campaign.from_yaml(_yaml(tmp_path, [{**good, "v_b": -1.0}]))
-    with pytest.raises(StudyError, match="no such file"):
+    with pytest.raises(StudyError, match=r"runs\.0\.file: .*no such file"):
         Campaign.from_yaml(_yaml(tmp_path, [{**good, "file": str(tmp_path / "none.mat")}]))
-    with pytest.raises(StudyError, match=r"runs\.0\.force: no column 'F'"):
+    with pytest.raises(StudyError, match=r"runs\.0\.file: .*must include t and F"):
         Campaign.from_yaml(_yaml(tmp_path, [{**good, "force": "F"}]))
     with pytest.raises(StudyError, match="no such file"):
         Campaign.from_yaml(tmp_path / "missing.yaml")
+
+
+def test_the_campaign_command(tmp_path):
+    from conftest import run_cli
+
+    path = _yaml(tmp_path, [_run("k168Nm_v4300.mat", 168, 4.3e-3),
+                            _run("k2254Nm_v4300.mat", 2254, 4.3e-3)])  # fmt: skip
+    done = run_cli("campaign", path, "--out", "out", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert "oscillation at" in done.stdout
+    assert {p.name for p in (tmp_path / "out").iterdir()} >= {
+        "runs.csv",
+        "runs.nc",
+        "regime_map.png",
+        "runs.png",
+    }
+    again = run_cli("campaign", path, "--out", "out", cwd=tmp_path)
+    assert again.returncode == 2 and "--force" in again.stderr
+    assert run_cli("campaign", path, "--out", "out", "--force", cwd=tmp_path).returncode == 0
+    (tmp_path / "bad.yaml").write_text("runs:\n  - {file: x.mat, stifness: 1, v_b: 1}\n")
+    bad = run_cli("campaign", "bad.yaml", "--out", "out2", cwd=tmp_path)
+    assert bad.returncode == 2 and "stifness" in bad.stderr and len(bad.stderr.splitlines()) == 1
+    assert not (tmp_path / "out2").exists()

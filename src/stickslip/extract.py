@@ -12,5 +12,11 @@ from ._extract import extract_cycles as extract_cycles
 from ._extract import read_cycles as read_cycles
 
 __all__ = [
-    "COLUMNS", "FORCE_COLUMNS", "Cycles", "Run", "analyse_run", "extract_cycles", "read_cycles"
+    "COLUMNS",
+    "FORCE_COLUMNS",
+    "Cycles",
+    "Run",
+    "analyse_run",
+    "extract_cycles",
+    "read_cycles",
 ]

@@ -14,6 +14,7 @@ import threading
 import click
 
 from .cache import cache
+from .campaign import campaign
 from .cycles import cycles
 from .fit import fit
 from .models import models
@@ -50,7 +51,7 @@ def main():
     """Statistics of frictional stick-slip motion."""
 
 
-for _command in (run, validate, sweep, models, schema, cycles, fit, cache):
+for _command in (run, validate, sweep, models, schema, cycles, fit, cache, campaign):
     main.add_command(_command)
 
 

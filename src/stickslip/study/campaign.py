@@ -16,7 +16,8 @@ runs:
 
 `Campaign.from_yaml(path)` (or `stickslip campaign FILE --out DIR`) reads every run;
 `table()` gives one row a run; `write(out)` writes `runs.csv`, `runs.nc` (with the settings
-as attributes), `regime_map.png` and `runs.png`.
+as attributes), `regime_map.png` and `runs.png`. An optional `model: {name:, params:}` block
+names a model with a `critical_stiffness()` whose predicted regions the map shades.
 """
 
 from __future__ import annotations
@@ -54,8 +55,16 @@ class RunEntry(_Base):
     name: str | None = Field(None, description="a label (default: the file's name)")
 
 
+class ModelEntry(_Base):
+    name: str = Field(description="a registered model with a critical_stiffness() method")
+    params: dict[str, Any] = Field(default_factory=dict, description="its parameters")
+
+
 class CampaignFile(_Base):
     runs: list[RunEntry] = Field(min_length=1, description="the runs")
+    model: ModelEntry | None = Field(
+        None, description="a model whose predicted regions the regime map shades"
+    )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -64,12 +73,14 @@ class Campaign:
 
     - `runs`: the `Run` of each, in the file's order;
     - `traces`: each run's `(t, force)` in s and N;
-    - `source`: the campaign file (or None).
+    - `source`: the campaign file (or None);
+    - `model`: the file's model (or None), whose predicted regions `regime_map` shades.
     """
 
     runs: list
     traces: list = dataclasses.field(repr=False)
     source: str | None = None
+    model: Any = None
 
     @classmethod
     def from_yaml(cls, path) -> Campaign:
@@ -94,14 +105,28 @@ class Campaign:
         try:
             spec = CampaignFile.model_validate(data)
         except ValidationError as err:
-            e = err.errors()[0]
+            from .schema import first_error
+
+            e = first_error(err)  # an unknown key first: the typo is the news
             loc = ".".join(str(p) for p in e["loc"])
             raise StudyError(source, loc, _reason(e)) from None
         base = pathlib.Path(source).parent if source else pathlib.Path(".")
+        model = None
+        if spec.model is not None:
+            from .._errors import StickSlipError
+            from .._registry import get_model
+
+            try:
+                model = get_model(spec.model.name)(**spec.model.params)
+            except (StickSlipError, TypeError, ValueError) as err:
+                raise StudyError(source, "model", str(err)) from None
         runs, traces = [], []
         for i, entry in enumerate(spec.runs):
             path = entry.file if os.path.isabs(entry.file) else str(base / entry.file)
-            columns = read_trace(path, (entry.time, entry.force))
+            try:
+                columns = read_trace(path, (entry.time, entry.force))
+            except StudyError as err:  # the file's problem, said at the entry that names it
+                raise StudyError(source, f"runs.{i}.file", f"{entry.file}: {err.reason}") from None
             for key, column in (("time", entry.time), ("force", entry.force)):
                 if column not in columns:
                     raise StudyError(source, f"runs.{i}.{key}",
@@ -121,7 +146,7 @@ class Campaign:
                 raise StudyError(source, f"runs.{i} ({label})", str(err)) from None
             runs.append(run)
             traces.append((t, force))
-        return cls(runs, traces, source)
+        return cls(runs, traces, source, model)
 
     def table(self) -> list[dict[str, Any]]:
         """One row a run: name, stiffness, v_b, mass, regime, cycles, the median and the 10
@@ -147,19 +172,30 @@ class Campaign:
             rows.append(row)
         return rows
 
-    def write(self, out, model=None) -> list[str]:
-        """`runs.csv`, `runs.nc`, `regime_map.png` (with `model`'s predicted regions, if
-        given) and `runs.png` in the folder `out`; returns the paths written."""
-        out = pathlib.Path(out)
-        out.mkdir(parents=True, exist_ok=True)
-        rows = self.table()
-        paths = [str(out / "runs.csv"), str(out / "runs.nc"), str(out / "regime_map.png"),
-                 str(out / "runs.png")]  # fmt: skip
-        _write_csv(rows, paths[0], self.source)
-        self.to_dataset().to_netcdf(paths[1])
-        self.regime_map(paths[2], model=model)
-        self.panels(paths[3])
-        return paths
+    def write(self, out, model=None, force: bool = False) -> list[str]:
+        """`runs.csv`, `runs.nc`, `regime_map.png` (with `model`'s predicted regions, by
+        default the file's model, if any) and `runs.png` in the folder `out`, made whole in
+        a scratch folder and put in place at once (an existing results folder of stickslip's
+        is replaced with `force`, never a folder of other files); returns the paths."""
+        from .._output import check_output_dir, partial_dir
+        from .write import _replace
+
+        out = check_output_dir(out, inputs=[self.source] if self.source else [], force=force,
+                               what="--out")  # fmt: skip
+        names = ["runs.csv", "runs.nc", "regime_map.png", "runs.png"]
+        tmp = partial_dir(out)
+        try:
+            _write_csv(self.table(), tmp / names[0], self.source)
+            self.to_dataset().to_netcdf(tmp / names[1])
+            self.regime_map(tmp / names[2], model=model if model is not None else self.model)
+            self.panels(tmp / names[3])
+            _replace(tmp, out, force, "campaign")
+        finally:
+            if tmp.exists():
+                import shutil
+
+                shutil.rmtree(tmp, ignore_errors=True)
+        return [str(out / n) for n in names]
 
     def to_dataset(self):
         """The table as an `xarray.Dataset` over the runs, the settings in its attributes."""
