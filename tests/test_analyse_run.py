@@ -128,3 +128,16 @@ def test_bad_arguments_are_named():
         ss.analyse_run(t, f, stiffness=-1.0, v_b=1e-3)
     with pytest.raises(ss.ParameterError, match="mass"):
         ss.analyse_run(t, f, stiffness=1.0, v_b=1e-3, mass=0.0)
+
+
+def test_the_cycles_command_names_the_regime_of_a_run_without_cycles(tmp_path):
+    from conftest import run_cli
+
+    t, f = _load("k168Nm_v4300.mat")
+    np.savetxt(tmp_path / "fast.csv", np.c_[t, f / (MASS * G)], delimiter=",",
+               header="t,Fnorm", comments="")  # fmt: skip
+    done = run_cli("cycles", "fast.csv", "--force-column", "Fnorm", "--force-scale",
+                   MASS * G, "--stiffness", 168, "--v-b", 4.3e-3, cwd=tmp_path)  # fmt: skip
+    assert done.returncode == 2
+    assert "the run is an oscillation" in done.stderr and "Hz" in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1

@@ -93,7 +93,11 @@ def cycles(trace, v_b, force_column, force_scale, stiffness, tol, out, replace):
     except ParameterError as err:  # bad data or options: bad input, exit 2
         raise StudyError(trace, err.parameter, err.reason) from None
     except DataError as err:
-        raise StudyError(trace, None, str(err).removeprefix("extract_cycles: ")) from None
+        reason = str(err).removeprefix("extract_cycles: ")
+        if force_column and v_b is not None:  # say which regime the run is in instead
+            reason = _regime(columns["t"], columns[force_column] * force_scale, stiffness,
+                             v_b) or reason  # fmt: skip
+        raise StudyError(trace, None, reason) from None
     if force_column:
         found.info["force_column"] = force_column
         found.info["force_scale"] = force_scale
@@ -123,6 +127,21 @@ def cycles(trace, v_b, force_column, force_scale, stiffness, tol, out, replace):
     mean = found.table["slip_time"].mean() if len(found) else float("nan")
     shown = out if figure is None else f"{out} (figure {figure})"
     click.echo(f"{len(found)} cycles (mean slip time {mean:.4g}) in {shown}")
+
+
+def _regime(t, force, stiffness, v_b) -> str | None:
+    """A force trace without cycles read in its regime (`analyse_run`): 'no cycles: the
+    run is an oscillation: (evidence)', or None where it is stick-slip by its shape."""
+    from ..extract import analyse_run
+
+    try:
+        run = analyse_run(t, force, stiffness=stiffness, v_b=v_b)
+    except Exception:  # the extraction's own reason stands
+        return None
+    if run.regime == "stick-slip":
+        return None
+    what = "an oscillation" if run.regime == "oscillation" else "steady sliding"
+    return f"no cycles: the run is {what}: {run.evidence}"
 
 
 def _check_options(force_column, v_b, stiffness, tol, force_scale) -> None:
