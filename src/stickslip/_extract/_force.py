@@ -224,13 +224,7 @@ def extract_force(t, force, stiffness, v_b, window, thresholds=None, lines=None)
             )
     y = s - g * idx  # flat in a stick
     drop_sd = _drop_sd(y, window, sigma)
-    # each stretch's drop: medians of up to `window` samples either side, not reaching
-    # into the neighbouring stretches
-    lo_lim = np.concatenate([[0], b[:-1] + 1])
-    hi_lim = np.concatenate([a[1:] - 1, [s.size - 1]])
-    before = _medians(y, np.maximum(a - window, lo_lim), a)
-    after = _medians(y, b + 1, np.minimum(b + 1 + window, hi_lim + 1))
-    drops = np.where(np.isnan(before) | np.isnan(after), -np.inf, before - after)
+    lo_lim, hi_lim, drops = _stretch_drops(y, regions, window)
     largest = float(np.max(drops, initial=-np.inf) / drop_sd)
     keep = drops > thr["drop"] * drop_sd
     fits = _fit_slips(y, a[keep], b[keep], lo_lim[keep], hi_lim[keep], window, drops[keep], sigma)
@@ -414,18 +408,26 @@ def _hidden_pass(s, window, sigma, thr) -> dict:
         return out
     g = _loading_slope(s, stick)
     y = s - g * np.arange(s.size, dtype=float)
-    a, b = regions
     drop_sd = _drop_sd(y, window, sigma)
-    lo_lim = np.concatenate([[0], b[:-1] + 1])
-    hi_lim = np.concatenate([a[1:] - 1, [s.size - 1]])
-    before = _medians(y, np.maximum(a - window, lo_lim), a)
-    after = _medians(y, b + 1, np.minimum(b + 1 + window, hi_lim + 1))
-    drops = np.where(np.isnan(before) | np.isnan(after), -np.inf, before - after)
+    _, _, drops = _stretch_drops(y, regions, window)
     found = drops > thr["drop"] * drop_sd
     out["drops"] = int(np.sum(found))
     least = _HIDDEN_SHARE * float(np.median(drops[found])) if found.any() else 0.0
     out["hidden"] = _hidden_drops(y, stick, _odd_window(_SCAN * window), sigma, thr, least)
     return out
+
+
+def _stretch_drops(y, regions, window):
+    """Each stretch's drop in the flattened force `y`: the medians of up to `window`
+    samples either side, not reaching into the neighbouring stretches (-inf where a side
+    is empty); with the limits `(lo_lim, hi_lim)` each stretch's samples keep within."""
+    a, b = regions
+    lo_lim = np.concatenate([[0], b[:-1] + 1])
+    hi_lim = np.concatenate([a[1:] - 1, [y.size - 1]])
+    before = _medians(y, np.maximum(a - window, lo_lim), a)
+    after = _medians(y, b + 1, np.minimum(b + 1 + window, hi_lim + 1))
+    drops = np.where(np.isnan(before) | np.isnan(after), -np.inf, before - after)
+    return lo_lim, hi_lim, drops
 
 
 def _hidden_drops(y, stick, width, sigma, thr, least=0.0) -> int:
