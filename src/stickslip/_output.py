@@ -256,6 +256,14 @@ def _leftover_pid(name: str, prefix: str) -> int | None:
     return int(tail) if tail.isdigit() else None
 
 
+def _siblings(out: pathlib.Path) -> list[pathlib.Path]:
+    """What lies beside `out` (nothing where its folder cannot be listed)."""
+    try:
+        return list(out.parent.iterdir())
+    except OSError:
+        return []
+
+
 def clean_leftovers(out: pathlib.Path) -> None:
     """Tidy what runs killed while writing the results folder `out` left beside it (their
     process is gone): a half-written `.NAME.partial-PID` is removed; an earlier result moved
@@ -263,11 +271,7 @@ def clean_leftovers(out: pathlib.Path) -> None:
     import shutil
 
     out = pathlib.Path(out)
-    try:
-        siblings = list(out.parent.iterdir())
-    except OSError:
-        return
-    for path in siblings:
+    for path in _siblings(out):
         for kind in ("partial", "old"):
             pid = _leftover_pid(path.name, f".{out.name}.{kind}-")
             if pid is None or pid == os.getpid() or _alive(pid) or not path.is_dir():
@@ -282,11 +286,7 @@ def clean_leftovers(out: pathlib.Path) -> None:
 def clean_file_leftovers(out: pathlib.Path) -> None:
     """Remove `NAME.tmpPID` files beside the file `out` that a killed command left."""
     out = pathlib.Path(out)
-    try:
-        siblings = list(out.parent.iterdir())
-    except OSError:
-        return
-    for path in siblings:
+    for path in _siblings(out):
         pid = _leftover_pid(path.name, f"{out.name}.tmp")
         if pid is not None and pid != os.getpid() and not _alive(pid) and path.is_file():
             with _quiet():
