@@ -327,7 +327,8 @@ def _traces(run, table, path_ids):
     fixed = _recorder(run)
     n = _record_size(run, fixed, d, min(group, slots.size), group)
     group = min(group, n)
-    samples = []
+    samples = np.empty((int(np.sum(steps + 1)), d))  # each kept slip's onset and steps
+    begin = np.cumsum(steps + 1) - (steps + 1)
     for start in range(0, slots.size, group):
         idx = np.arange(start, min(start + group, slots.size))
         pad = n - idx.size
@@ -342,25 +343,34 @@ def _traces(run, table, path_ids):
             ys = np.asarray(run._counted(fixed(X, ks, path, offset, *_record_tail(run), paths=n)))
             parts.append(ys)
             X = ys[-1]
-        ys = np.concatenate(parts, axis=0) if parts else np.zeros((0, d, n))
-        for col, row in enumerate(idx):
-            k = steps[row]
-            samples.append(np.concatenate([X0[:, col : col + 1], ys[:k, :, col].T], axis=1))
+        full = np.concatenate([X0[None], *parts], axis=0)  # (steps + 1, d, n)
+        # every row's onset and first `steps` states, rows one after the other
+        count = steps[idx] + 1
+        step = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
+        samples[begin[idx[0]] : begin[idx[-1]] + count[-1]] = full[
+            step, :, np.repeat(np.arange(idx.size), count)
+        ]
+    # each row's slip samples at release + k dt, then its stick (where the slip ended)
+    ended = np.isfinite(table["slip_time"])
+    size = steps + 1 + ended
+    at = np.cumsum(size) - size
+    total = int(size.sum())
+    t = np.empty(total)
+    states = np.empty((total, d))
+    flags = np.ones(total, dtype=bool)
+    k = np.arange(samples.shape[0]) - np.repeat(begin, steps + 1)
+    into = np.repeat(at, steps + 1) + k
+    t[into] = np.repeat(table["release_time"], steps + 1) + dt * k
+    states[into] = samples
+    end = (at + size - 1)[ended]
+    t[end] = (table["release_time"] + table["slip_time"])[ended]
+    states[end] = table["stick"][:, ended].T
+    flags[end] = False
     traces = []
     for p in path_ids:
         rows = np.nonzero(table["path"] == p)[0]
-        ts, xs, flags = [], [], []
-        for row in rows:
-            slip = samples[row]
-            t0 = table["release_time"][row]
-            ts.append(t0 + dt * np.arange(slip.shape[1]))
-            xs.append(slip)
-            flags.append(np.ones(slip.shape[1], dtype=bool))
-            if np.isfinite(table["slip_time"][row]):
-                ts.append([t0 + table["slip_time"][row]])
-                xs.append(table["stick"][:, row : row + 1])
-                flags.append([False])
-        traces.append((np.concatenate(ts), np.concatenate(xs, axis=1).T, np.concatenate(flags)))
+        lo, hi = (at[rows[0]], at[rows[-1]] + size[rows[-1]]) if rows.size else (0, 0)
+        traces.append((t[lo:hi], states[lo:hi], flags[lo:hi]))
     return tuple(traces)
 
 
