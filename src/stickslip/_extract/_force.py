@@ -33,6 +33,7 @@ trace itself, and recorded in `Cycles.info`.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 from collections.abc import Mapping
@@ -41,7 +42,16 @@ import numpy as np
 
 from .._errors import DataError, ParameterError, check_positive
 from ._cycles import Cycles
-from ._input import OWNER, as_series, check_length, check_times, median, power_of_two, runs
+from ._input import (
+    OWNER,
+    as_series,
+    check_length,
+    check_times,
+    median,
+    power_of_two,
+    runs,
+    weighted_median,
+)
 
 # In noise sd. A noise excursion beyond 5 sd: probability 6e-7 per independent value.
 THRESHOLDS = {
@@ -120,8 +130,6 @@ def check_thresholds(thresholds) -> dict[str, float]:
 
 
 def extract_force(t, force, stiffness, v_b, window, thresholds=None, lines=None) -> Cycles:
-    from scipy.ndimage import median_filter
-
     k = check_positive(OWNER, "stiffness", stiffness)
     v_b = check_positive(OWNER, "v_b", v_b, allow_none=True)
     thr = check_thresholds(thresholds)
@@ -139,6 +147,36 @@ def extract_force(t, force, stiffness, v_b, window, thresholds=None, lines=None)
     if window is not None:
         window = _odd_window(window)
     lines = _check_lines(lines, h)
+    table, info = extract_slips(t, f, h, k, v_b, window, thr, lines)
+    return Cycles(table, info)
+
+
+@dataclasses.dataclass(frozen=True)
+class Cut:
+    """A force trace with the middles of its sticks cut out (the forward measurement's
+    trace, `measured_cycles`): `index`, each kept sample's index in the whole trace; `far`,
+    the kept samples as far from every slip as the cut ones (more than `Cut.FAR` windows),
+    which stand for those in the trace-wide statistics (the noise sd, the loading rate and
+    the rate's scatter, the drop's sd, the spikes' threshold): each counts `weight` times,
+    (far kept + cut) / far kept; `shift`, the force taken out of each kept sample: a
+    stick's cut ends are joined with the force lowered by the loading line's rise across
+    the cut, so that the kept trace is the whole one, less the cut samples, on a line that
+    stays continuous (added back to the peak forces)."""
+
+    index: np.ndarray
+    far: np.ndarray
+    weight: float
+    shift: np.ndarray | None = None
+
+    FAR = 2  # in windows of the force rate: what a slip moves (rate, medians) lies within
+
+
+def extract_slips(t, f, h, k, v_b, window, thr, lines, cut: Cut | None = None):
+    """The extraction of a force trace whose settings are checked: `(table, info)`. `t`
+    and `f` are evenly sampled at `h` unless `cut` says which samples of such a trace they
+    are (`Cut`)."""
+    from scipy.ndimage import median_filter
+
     # scaled by a power of 2 (exact): a trace in any units finds the same cycles
     s_f = power_of_two(float(np.max(np.abs(f))))
     y_raw = f / s_f
@@ -146,19 +184,22 @@ def extract_force(t, force, stiffness, v_b, window, thresholds=None, lines=None)
         raise DataError("extract_cycles: no stick-slip: the force is constant")
     med = median_filter(y_raw, size=_DESPIKE, mode="nearest")
     resid = y_raw - med
-    res_sd = _robust_sd(resid)
+    far, weight = (None, 1.0) if cut is None else (cut.far, cut.weight)
+    res_sd = _robust_sd(resid, far, weight)
     spikes = np.abs(resid) > thr["spike"] * res_sd if res_sd > 0 else np.zeros(f.size, bool)
     s = np.where(spikes, med, y_raw)
     s, lines, line_rule = _remove_lines(s, h, lines)
-    sigma = _noise_sd(s)
+    sigma = _noise_sd(s, far, weight)
     idx = np.arange(s.size, dtype=float)
 
     first = window or _FIRST_WINDOW
-    rate, g, regions, rate_sd, white_sd = _slip_stretches(s, first, sigma, thr)
+    rate, g, regions, rate_sd, white_sd = _slip_stretches(s, first, sigma, thr, far, weight)
     scatter = rate_sd / white_sd
-    skew = _skewness(rate)
+    skew = _skewness(rate, far, weight)
     search = None
     if window is None:
+        if cut is not None:
+            raise ParameterError(OWNER, "window", "must be given for a cut trace")
         # the median length of the stretches weighted by the drop each carries: the big
         # slips set the scale, not the many short stretches of small noise bumps
         lengths = regions[1] - regions[0] + 1
@@ -173,7 +214,8 @@ def extract_force(t, force, stiffness, v_b, window, thresholds=None, lines=None)
         # ... then wider while the sticks still hide force drops (`_choose_window`)
         window, search = _choose_window(s, window, sigma, thr, regions)
         if window != first:
-            rate, g, regions, rate_sd, white_sd = _slip_stretches(s, window, sigma, thr)
+            rate, g, regions, rate_sd, white_sd = _slip_stretches(s, window, sigma, thr, far,
+                                                                  weight)  # fmt: skip
     # the larger of the two passes': coloured sensor noise peaks at one scale, a force that
     # never sticks scatters at all
     scatter = max(scatter, rate_sd / white_sd)
@@ -223,7 +265,7 @@ def extract_force(t, force, stiffness, v_b, window, thresholds=None, lines=None)
                 stacklevel=3,
             )
     y = s - g * idx  # flat in a stick
-    drop_sd = _drop_sd(y, window, sigma)
+    drop_sd = _drop_sd(y, window, sigma, far, weight)
     lo_lim, hi_lim, drops = _stretch_drops(y, regions, window)
     largest = float(np.max(drops, initial=-np.inf) / drop_sd)
     keep = drops > thr["drop"] * drop_sd
@@ -273,15 +315,16 @@ def extract_force(t, force, stiffness, v_b, window, thresholds=None, lines=None)
         slip_distance=drop_f[keep] / k,
         stick_time=stick_time[keep],
         period=(slip_time + stick_time)[keep],
-        peak_force=((y0 + g * i0) * s_f)[:-1][keep],
+        peak_force=((y0 + g * i0) * s_f + _shift(cut, i0))[:-1][keep],
         force_drop=drop_f[keep],
     )
     ok = fits[:, 7].astype(bool)
+    n_samples = s.size if cut is None else int(cut.index[-1] - cut.index[0] + 1)
     info = dict(
         input="force", units="force in the units given (N), time in s, lengths in m",
         stiffness=k, v_b=v_b, v_b_estimated=float(v_b_est),
         v_b_rule="loading slope of the sticks (pooled least squares between slips) / stiffness",
-        sampling_interval=h, n_samples=int(s.size),
+        sampling_interval=h, n_samples=n_samples,
         thresholds=thr,
         lines_removed=lines,
         line_rule=line_rule,
@@ -325,14 +368,23 @@ def extract_force(t, force, stiffness, v_b, window, thresholds=None, lines=None)
         n_slips=int(len(fits)), n_fit_failed=int((~ok).sum()), n_split=n_split,
         tol=float(thr["drop"] * sigma * s_f),
     )  # fmt: skip
-    return Cycles(table, info)
+    return table, info
 
 
-def _skewness(rate) -> float:
-    """The third standardised moment of the force rate (0 for a constant rate)."""
-    u = rate - np.mean(rate)
-    sd = float(np.sqrt(np.mean(u * u)))
-    return float(np.mean(u**3) / sd**3) if sd > 0 else 0.0
+def _shift(cut, i) -> np.ndarray | float:
+    """The force a cut trace's samples at (fractional) positions `i` were lowered by."""
+    if cut is None or cut.shift is None:
+        return 0.0
+    return np.interp(i, np.arange(cut.shift.size, dtype=float), cut.shift)
+
+
+def _skewness(rate, far=None, weight=1.0) -> float:
+    """The third standardised moment of the force rate (0 for a constant rate); with `far`,
+    those samples count `weight` times (`Cut`)."""
+    w = None if far is None else np.where(far, weight, 1.0)
+    u = rate - np.average(rate, weights=w)
+    sd = float(np.sqrt(np.average(u * u, weights=w)))
+    return float(np.average(u**3, weights=w) / sd**3) if sd > 0 else 0.0
 
 
 def read_regime(t, f) -> dict:
@@ -501,7 +553,7 @@ def _loading_slope(s, stick) -> float:
     return float(np.dot(j, y - np.repeat(mean_y, n)) / var) if var > 0 else 0.0
 
 
-def _drop_sd(y, window, sigma) -> float:
+def _drop_sd(y, window, sigma, far=None, weight=1.0) -> float:
     """The sd of a drop's estimate, the median of `window` samples of the flattened force
     before a slip less that after: for white noise 1.2533 sigma sqrt(2 / window); measured
     on the trace (consecutive blocks, robustly: slips are a few % of them) where the noise
@@ -513,7 +565,12 @@ def _drop_sd(y, window, sigma) -> float:
     # each block's middle value (the window is odd): np.median's, without its per-row mean
     blocks = np.partition(y[: n * window].reshape(n, window), window // 2, axis=1)
     d = np.diff(blocks[:, window // 2])
-    return max(white, _MAD * float(np.median(np.abs(d - np.median(d)))))
+    if far is None:
+        return max(white, _MAD * float(np.median(np.abs(d - np.median(d)))))
+    far = far[: n * window].reshape(n, window).all(axis=1)
+    far = far[1:] & far[:-1]
+    return max(white, _MAD * weighted_median(np.abs(d - weighted_median(d, far, weight)), far,
+                                             weight))  # fmt: skip
 
 
 def _check_lines(lines, h):
@@ -594,35 +651,38 @@ def _near_mains(freq):
     return out
 
 
-def _robust_sd(d: np.ndarray) -> float:
+def _robust_sd(d: np.ndarray, far=None, weight=1.0) -> float:
     """1.4826 MAD; where over half the values are equal (coarsely quantised, quiet), the
-    rms of the values within their 99th percentile of size (0 if they are all equal)."""
-    sd = _MAD * median(np.abs(d - median(d)))
+    rms of the values within their 99th percentile of size (0 if they are all equal).
+    With `far`, those values count `weight` times (`Cut`)."""
+    sd = _MAD * weighted_median(np.abs(d - weighted_median(d, far, weight)), far, weight)
     if sd > 0:
         return sd
     small = d[np.abs(d) <= np.percentile(np.abs(d), 99)]
     return float(np.sqrt(np.mean(small**2)))
 
 
-def _noise_sd(s: np.ndarray) -> float:
-    sd = _robust_sd(np.diff(s)) / np.sqrt(2.0)
+def _noise_sd(s: np.ndarray, far=None, weight=1.0) -> float:
+    far = None if far is None else far[1:] & far[:-1]
+    sd = _robust_sd(np.diff(s), far, weight) / np.sqrt(2.0)
     return sd if sd > 0 else 1e-12
 
 
-def _slip_stretches(s, window, sigma, thr):
+def _slip_stretches(s, window, sigma, thr, far=None, weight=1.0):
     """The force rate, the loading rate (median), the stretches (first, last) where the
     rate lies `extent` sd below it and reaches `slip` sd below, the rate's noise sd
-    (measured) and white noise's."""
+    (measured) and white noise's; with `far`, those samples count `weight` times in the
+    median and the sd (`Cut`)."""
     from scipy.signal import savgol_filter
 
     if window >= s.size:
         raise ParameterError(OWNER, "window", f"must be shorter than the trace ({s.size})")
     rate = savgol_filter(s, window, 2, deriv=1, mode="interp")
     white_sd = sigma * math.sqrt(12.0 / (window * (window**2 - 1.0)))
-    g = median(rate)
+    g = weighted_median(rate, far, weight)
     u = rate - g
     # slips are a few % of the samples: the MAD sees the noise only
-    rate_sd = max(white_sd, _MAD * median(np.abs(u)))
+    rate_sd = max(white_sd, _MAD * weighted_median(np.abs(u), far, weight))
     first, last = runs(u < -thr["extent"] * rate_sd)
     core = np.concatenate([[0], np.cumsum(u < -thr["slip"] * rate_sd)])
     has_core = core[last + 1] - core[first] > 0
@@ -661,6 +721,20 @@ def _shape_jac(phi, kappa):
     return S, d_phi, d_kappa
 
 
+def _shape_inside(phi, kappa):
+    """`_shape_jac` for 0 < phi < 1 (inside the slip), without its masks."""
+    angle = np.pi * phi
+    cos, sin = np.cos(angle), np.sin(angle)
+    decay = np.exp(-kappa * phi)
+    tail = np.exp(-kappa)
+    full = 1.0 + tail
+    inner = cos + kappa / np.pi * sin
+    num = 1.0 - decay * inner
+    d_phi = decay * sin * (np.pi + kappa**2 / np.pi) / full
+    d_kappa = decay * (phi * inner - sin / np.pi) / full + num * tail / full**2
+    return num / full, d_phi, d_kappa
+
+
 _COS_PI, _SIN_PI = float(np.cos(np.array([np.pi]))[0]), float(np.sin(np.array([np.pi]))[0])
 
 
@@ -685,7 +759,8 @@ def _fit_slips(y, a, b, lo_lim, hi_lim, window, drop, sigma) -> np.ndarray:
     length = hi - lo + 1
     for sel in _batches(length):
         x, yy, mask = _windows(y, lo[sel], length[sel])
-        p, ok, cost, cov = _lm(_single, x, yy, mask, p0[sel], lower[sel], upper[sel], sigma)
+        p, ok, cost, cov = _lm(_normal_single, x, yy, mask, p0[sel], lower[sel], upper[sel],
+                               sigma)  # fmt: skip
         sd0 = np.sqrt(np.maximum(cov[:, 0, 0], 0.0))
         sd1 = np.sqrt(np.maximum(cov[:, 0, 0] + cov[:, 1, 1] + 2 * cov[:, 0, 1], 0.0))
         i0_fit = p[:, 0] + lo[sel]
@@ -723,17 +798,17 @@ def _double(x, p):
     return base - da * sa - db * sb, jac
 
 
-def _lm(model, x, yy, mask, p, lower, upper, sigma, max_iter=100):
-    """Levenberg-Marquardt on a batch of fits (rows of p) of `model`, the soft-L1 loss at
-    f_scale 2 sigma by iteratively reweighted least squares, a parameter on its bound
-    held there while the gradient pushes it out, steps clipped into the bounds. Returns
-    the parameters, whether each converged, its final cost (`_soft_l1` units) and the
-    covariance (J^T W J)^-1 sigma^2 (the robust loss's weights W: spikes the despiking
-    missed do not narrow the errors)."""
+def _lm(normal, x, yy, mask, p, lower, upper, sigma, max_iter=100):
+    """Levenberg-Marquardt on a batch of fits (rows of p), the soft-L1 loss at f_scale
+    2 sigma by iteratively reweighted least squares, a parameter on its bound held there
+    while the gradient pushes it out, steps clipped into the bounds. `normal(x, yy, mask,
+    p, sigma)` gives the residuals and the reweighted normal equations (`_normal_single`,
+    `_normal`). Returns the parameters, whether each converged, its final cost
+    (`_soft_l1` units) and the covariance (J^T W J)^-1 sigma^2 (the robust loss's weights
+    W: spikes the despiking missed do not narrow the errors)."""
     n, k = p.shape
     p = p.copy()
-    m, jac = model(x, p)
-    r = np.where(mask, m - yy, 0.0)
+    r, A_all, grad_all = normal(x, yy, mask, p, sigma)
     cost = np.sum(_soft_l1(r, sigma), axis=1)
     lam = np.full(n, 1e-3)
     done = np.zeros(n, bool)
@@ -742,12 +817,7 @@ def _lm(model, x, yy, mask, p, lower, upper, sigma, max_iter=100):
         act = np.flatnonzero(~done)
         if act.size == 0:
             break
-        w = mask[act] / np.sqrt(1.0 + (r[act] / (2.0 * sigma)) ** 2)
-        J = jac[act]
-        # batched BLAS products (np.einsum over the batch is ~10x slower here)
-        JwT = (J * w[..., None]).transpose(0, 2, 1)
-        A = JwT @ J
-        grad = (JwT @ r[act][..., None])[..., 0]
+        A, grad = A_all[act], grad_all[act]
         pa = p[act]
         fixed = ((pa <= lower[act]) & (grad > 0)) | ((pa >= upper[act]) & (grad < 0))
         free = (~fixed).astype(float)
@@ -760,22 +830,88 @@ def _lm(model, x, yy, mask, p, lower, upper, sigma, max_iter=100):
         except np.linalg.LinAlgError:
             step = -np.einsum("nij,nj->ni", np.linalg.pinv(A_damped), grad)
         trial = np.clip(pa + step, lower[act], upper[act])
-        m_t, jac_t = model(x, trial)
-        r_t = np.where(mask[act], m_t - yy[act], 0.0)
+        r_t, A_t, grad_t = normal(x, yy[act], mask[act], trial, sigma)
         cost_t = np.sum(_soft_l1(r_t, sigma), axis=1)
         better = np.isfinite(cost_t) & (cost_t < cost[act])
         gain = np.where(better, cost[act] - cost_t, 0.0)
         good = act[better]
-        p[good], r[good], jac[good], cost[good] = trial[better], r_t[better], jac_t[better], \
-            cost_t[better]  # fmt: skip
+        p[good], r[good], cost[good] = trial[better], r_t[better], cost_t[better]
+        A_all[good], grad_all[good] = A_t[better], grad_t[better]
         lam[good] = np.maximum(lam[good] / 3.0, 1e-9)
         lam[act[~better]] *= 4.0
         # converged: a step that gains less than 1e-8 of the cost (in chi^2: nothing), or
         # no step at any damping gains at all
         done[act] = (better & (gain <= 1e-8 * np.maximum(cost[act], 1.0))) | (lam[act] > 1e10)
-    w = mask / np.sqrt(1.0 + (r / (2.0 * sigma)) ** 2)
-    A = (jac * w[..., None]).transpose(0, 2, 1) @ jac
-    return p, done, cost, np.linalg.pinv(A) * sigma**2
+    return p, done, cost, np.linalg.pinv(A_all) * sigma**2
+
+
+def _weights(r, mask, sigma):
+    """The soft-L1 loss's IRLS weights at f_scale 2 sigma (0 off the mask)."""
+    return mask / np.sqrt(1.0 + (r / (2.0 * sigma)) ** 2)
+
+
+def _normal(model):
+    """The normal equations of a `model(x, p) -> (values, Jacobian)` (`_double`): the
+    residuals, J^T W J and J^T W r."""
+
+    def normal(x, yy, mask, p, sigma):
+        m, jac = model(x, p)
+        r = np.where(mask, m - yy, 0.0)
+        # batched BLAS products (np.einsum over the batch is ~10x slower here)
+        JwT = (jac * _weights(r, mask, sigma)[..., None]).transpose(0, 2, 1)
+        return r, JwT @ jac, (JwT @ r[..., None])[..., 0]
+
+    return normal
+
+
+def _normal_single(x, yy, mask, p, sigma):
+    """`_normal(_single)` computed where the slip moves the model only: before its release
+    the model is y0 (the Jacobian's only non-zero column that of y0), after its stick y0 - D
+    (those of y0 and D), so the flat samples enter J^T W J and J^T W r through four sums
+    of their weights and weighted residuals, and the shape and its derivatives are
+    evaluated on the samples strictly inside the slip (a fit's window is mostly stick: 3-4
+    times fewer samples, the same numbers to rounding)."""
+    i0, T, y0, D, kappa = p.T
+    n, width = yy.shape
+    end = i0 + T
+    after = x[None, :] >= end[:, None]
+    m = y0[:, None] - D[:, None] * after
+    # the samples inside: x = floor(i0) + 1, ... while x < i0 + T
+    first = np.floor(i0).astype(np.int64) + 1
+    count = np.maximum(np.ceil(end).astype(np.int64) - first, 0)
+    span = int(min(count.max(initial=0), width))
+    j = np.arange(span)
+    xs = first[:, None] + j[None, :]
+    inside = (j[None, :] < count[:, None]) & (xs >= 0) & (xs < width)
+    xs = np.clip(xs, 0, width - 1)
+    phi = np.where(inside, (xs - i0[:, None]) / T[:, None], 0.5)
+    S, S_phi, S_kappa = _shape_inside(phi, kappa[:, None])
+    # (a sample outside the slip is written over with its own flat value)
+    np.put_along_axis(m, xs, np.where(inside, y0[:, None] - D[:, None] * S,
+                                      np.take_along_axis(m, xs, axis=1)), axis=1)  # fmt: skip
+    r = np.where(mask, m - yy, 0.0)
+    w = _weights(r, mask, sigma)
+    wr = w * r
+    flat = ~(x[None, :] > i0[:, None]) | after  # (the samples inside are counted below)
+    flat_w, flat_wr = np.sum(w * flat, axis=1), np.sum(wr * flat, axis=1)
+    after_w, after_wr = np.sum(w * after, axis=1), np.sum(wr * after, axis=1)
+    jac = np.empty(S.shape + (5,))
+    jac[..., 0] = D[:, None] * S_phi / T[:, None]
+    jac[..., 1] = jac[..., 0] * phi
+    jac[..., 2] = 1.0
+    np.negative(S, out=jac[..., 3])
+    jac[..., 4] = -D[:, None] * S_kappa
+    ws = np.where(inside, np.take_along_axis(w, xs, axis=1), 0.0)
+    JwT = (jac * ws[..., None]).transpose(0, 2, 1)
+    A = JwT @ jac
+    grad = (JwT @ np.take_along_axis(r, xs, axis=1)[..., None])[..., 0]
+    A[:, 2, 2] += flat_w
+    A[:, 2, 3] -= after_w
+    A[:, 3, 2] -= after_w
+    A[:, 3, 3] += after_w
+    grad[:, 2] += flat_wr
+    grad[:, 3] -= after_wr
+    return r, A, grad
 
 
 def _batches(length):
@@ -829,7 +965,8 @@ def _fit_doubles(y, fits, sigma, min_gain, min_drop):
     result = [None] * n
     for sel in _batches(length):
         x, yy, mask = _windows(y, lo[sel], length[sel])
-        p, ok, cost2, cov = _lm(_double, x, yy, mask, p0[sel], lower[sel], upper[sel], sigma)
+        p, ok, cost2, cov = _lm(_normal(_double), x, yy, mask, p0[sel], lower[sel], upper[sel],
+                                sigma)  # fmt: skip
         sd = np.sqrt(np.maximum(np.einsum("nii->ni", cov), 0.0))
         for row, j in enumerate(sel.tolist()):
             i0a, ta, da, ka, gap, tb, db, kb, base = p[row]

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .._errors import ParameterError
@@ -103,3 +105,28 @@ def median(a: np.ndarray) -> float:
         return float(np.median(a))
     part = np.partition(between, [r0, r1] if r1 > r0 else r0)
     return float(np.mean(part[r0 : r1 + 1]))  # (np.median's own mean of the middle values)
+
+
+def weighted_median(a: np.ndarray, far=None, weight: float = 1.0) -> float:
+    """`median(a)`, or with `far` (a mask of `a`) the median where each of those values
+    counts `weight` (>= 1) times, the others once: the lowest value of `a[far]` at which the
+    counted values up to it reach half the total (or the plain median where no value is
+    far). It stands for a trace whose far samples are `weight` times as many (`_force.Cut`):
+    a value of `a[far]` at a resolution of one in their number. A few selections of
+    `a[far]`: from its own median, each finds the rank the near values' count leaves it
+    until the value repeats (the near values are a minority, their count moves slowly)."""
+    if far is None:
+        return median(a)
+    outer, inner = a[far], a[~far]
+    if outer.size == 0:
+        return median(a)
+    half = 0.5 * (inner.size + weight * outer.size)
+    value = median(outer)
+    for _ in range(20):
+        below = np.count_nonzero(inner <= value)
+        rank = int(np.clip(math.ceil((half - below) / weight) - 1, 0, outer.size - 1))
+        new = float(np.partition(outer, rank)[rank])
+        if new == value:
+            break
+        value = new
+    return value
