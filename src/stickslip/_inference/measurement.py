@@ -92,6 +92,15 @@ _FINEST = 0.25
 # Peak bytes per sample of the sampled trace: the grid, x, v, the noise, the signal and the
 # extraction's work arrays of one path (about ten float arrays at a time), counted on all.
 _TRACE_BYTES = 8 * 10
+# How the forward measurement treats a force trace's sticks (`measured_cycles`): "cut",
+# only the stretches about the slips synthesised and extracted (`_cut_grid`), or "whole".
+STICKS = ("cut", "whole")
+# The samples kept about a slip (`_cut_grid`): its own length and this many force-rate
+# windows either side. The extraction's shape fit takes the slip's stretch (its length and
+# half a window each side) and as much again either side (at least a window), its drop the
+# median of a window beyond that: 2 windows and the slip's length from it; one more for
+# the force rate's filter and the despiking's running median.
+_CUT_MARGIN = 3
 # A spike `extract_cycles` found is replaced by the running median whatever its height
 # beyond the threshold (the height is not reported): simulated spikes are twice it.
 _SPIKE_HEIGHT = 2.0
@@ -299,9 +308,11 @@ class MeasuredTrace:
 
 
 def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
-                   dt: float | None = None) -> MeasuredTrace:  # fmt: skip
+                   dt: float | None = None, sticks: str = "whole") -> MeasuredTrace:  # fmt: skip
     """The model as a continuous trace of about `n_cycles` successive cycles, sampled and
-    made noisy as `measurement` says; see `measured_cycles`."""
+    made noisy as `measurement` says; see `measured_cycles`. `sticks="cut"` (a force trace
+    with a given `window`): the middles of the long sticks left out (`_cut_grid`), each
+    trace's `cut` saying which samples of the whole trace were kept."""
     from .._model import FrictionModel, time_scales
     from .._simulate import simulate, simulate_cycles
     from .._simulate.driver import check_memory
@@ -319,6 +330,10 @@ def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
         raise ParameterError(owner, "measurement", "must be a Measurement")
     n_cycles = check_int(owner, "n_cycles", n_cycles, minimum=10)
     seed = check_int(owner, "seed", seed, minimum=0)
+    if sticks not in STICKS:
+        raise ParameterError(owner, "sticks", f"must be one of {', '.join(map(repr, STICKS))}",
+                             sticks)  # fmt: skip
+    cut = sticks == "cut" and measurement.signal == "force" and measurement.window is not None
     h = measurement.sampling_interval
     scales = time_scales(model)
     fast, slow = (1.0, 1.0) if scales is None else scales
@@ -353,21 +368,33 @@ def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
         rows = table["path"] == p
         cycles = (table["release_time"][rows], table["slip_time"][rows],
                   table["stick_time"][rows])  # fmt: skip
-        uniforms = None
+        uniforms, kept = None, None
         if measurement.signal == "force":
             # one uniform grid (`extract_cycles` refuses an uneven force trace), its noise
             # and spikes keyed by cycle
-            grid = h * np.arange(int(np.floor(t[-1] / h)) + 1)
-            noise, uniforms = _keyed_samples(*cycles, grid.size, h, seed, p,
-                                             measurement.noise_sd > 0,
-                                             measurement.spike_fraction > 0)  # fmt: skip
+            n = int(np.floor(t[-1] / h)) + 1
+            if cut:
+                kept = _cut_grid(*cycles, n, h, measurement.window)
+            at = None if kept is None else kept.index
+            grid = h * (np.arange(n) if at is None else at)
+            noise, uniforms = _keyed_samples(*cycles, n, h, seed, p, measurement.noise_sd > 0,
+                                             measurement.spike_fraction > 0, at)  # fmt: skip
         else:
             grid, noise = _keyed_grid(*cycles, t[-1], h, seed, p)
         # linear between samples: exact along a stick (x grows at v_b from the stick
         # state to the next onset, v = v_b), the slips as in `_STEPS_PER_SAMPLE`
         x = np.interp(grid, t, states[:, ix])
         v = np.interp(grid, t, states[:, iv])
-        traces.append(_record(measurement, grid, x, v, noise, rng, uniforms))
+        if kept is not None:
+            # the cut stretches' rise taken out: the sticks' line continues across a cut
+            kept = dataclasses.replace(
+                kept, shift=model.v_b * h * (kept.index - np.arange(kept.index.size))
+            )
+            x = x - kept.shift
+        signals = _record(measurement, grid, x, v, noise, rng, uniforms, lines=kept is None)
+        if kept is not None:
+            signals["cut"] = kept
+        traces.append(signals)
     return MeasuredTrace(tuple(traces), dict(series.cycles), measurement, dt)
 
 
@@ -415,43 +442,93 @@ def _segments(release, slip, stick, end, h):
     return anchors[keep], starts[keep]
 
 
-def _keyed_samples(release, slip, stick, n, h, seed, path, normals, spikes):
-    """Standard normal noise of the `n` samples `k h` of a uniform grid (a force trace), if
-    `normals`, and, if `spikes`, uniforms that place its spikes (`_record`), both keyed by
-    cycle: a sample in cycle c's stretch (`_segments`) `j` samples from the first at or
-    after c's release takes value `j` of c's own stream (`j >= 0`: forward; `j < 0`: value
-    `-j - 1` of a backward one). A parameter change that moves the cycles before c therefore
-    leaves the noise about c's slip as it was, up to the release's phase within one interval
-    (the grid cannot be re-anchored: `extract_cycles` refuses an uneven force trace). A
-    stream of its own per cycle rather than a shared pool (`_keyed_grid`): a force trace's
-    cycle spans thousands of samples (2900 on the measured slider), so a pool's stretches
-    would overlap often."""
-    # samples k h for k < n: a stretch starting in [(n - 1) h, n h) holds none (skipped
-    # below), and the first stretch, from 0, is always kept
+def _keyed_samples(release, slip, stick, n, h, seed, path, normals, spikes, at=None):
+    """Standard normal noise of the samples `k h` (`k` in `at`, by default all `n` of the
+    uniform grid: a force trace), if `normals`, and, if `spikes`, uniforms that place its
+    spikes (`_record`), both keyed by cycle: a sample in cycle c's stretch (`_segments`)
+    `j` samples from the first at or after c's release (j < 0 before it) takes the value
+    of `(seed, path, c, j)` (`_hashed`). A parameter change that moves the cycles before c
+    therefore leaves the noise about c's slip as it was, up to the release's phase within
+    one interval (the grid cannot be re-anchored: `extract_cycles` refuses an uneven force
+    trace), and a sample's value does not depend on which others are drawn (a cut trace,
+    `_cut_grid`, has the whole trace's noise on the samples it keeps)."""
     anchors, starts = _segments(release, slip, stick, n * h, h)
     first = np.minimum(np.ceil(starts / h - 1e-9), n).astype(np.int64)
-    bounds = np.r_[first, n]
     zero = np.ceil(release[anchors] / h - 1e-9).astype(np.int64)
-    noise = np.empty(n) if normals else None
-    uniforms = np.empty(n) if spikes else None
-    kinds = tuple(
-        (out, draw, stream)
-        for out, draw, stream in ((noise, "standard_normal", 0), (uniforms, "random", 2))
-        if out is not None
-    )
-    for a, lo, hi, z in zip(anchors.tolist(), bounds[:-1].tolist(), bounds[1:].tolist(),
-                            zero.tolist(), strict=True):  # fmt: skip
-        if hi <= lo:
-            continue
-        mid = min(max(z, lo), hi)  # samples lo..mid-1 before the release, mid..hi-1 after
-        for out, draw, stream in kinds:
-            if hi > mid:
-                rng = np.random.default_rng([seed, _NOISE_STREAM, path, a, stream])
-                out[mid:hi] = getattr(rng, draw)(hi - z)[mid - z :]
-            if mid > lo:
-                rng = np.random.default_rng([seed, _NOISE_STREAM, path, a, stream + 1])
-                out[lo:mid] = getattr(rng, draw)(z - lo)[::-1][: mid - lo]
+    k = np.arange(n, dtype=np.int64) if at is None else np.asarray(at, np.int64)
+    stretch = np.searchsorted(first, k, side="right") - 1  # first[0] is 0
+    offset = k - zero[stretch]
+    cycle = anchors[stretch]
+    noise = _hashed(seed, path, cycle, offset, 0, "normal") if normals else None
+    uniforms = _hashed(seed, path, cycle, offset, 2, "uniform") if spikes else None
     return noise, uniforms
+
+
+_GOLDEN = 0x9E3779B97F4A7C15  # splitmix64's increment
+
+
+def _mix(z: np.ndarray) -> np.ndarray:
+    """splitmix64's finaliser of uint64 values (products wrap around: modulo 2**64)."""
+    z = z ^ (z >> np.uint64(30))
+    z = z * np.uint64(0xBF58476D1CE4E5B9)
+    z = z ^ (z >> np.uint64(27))
+    z = z * np.uint64(0x94D049BB133111EB)
+    return z ^ (z >> np.uint64(31))
+
+
+def _hashed(seed, path, cycle, offset, stream, kind):
+    """A standard normal (`kind="normal"`) or uniform on (0, 1) for each `(cycle, offset)`
+    of `(seed, path, stream)`: splitmix64's output at `offset` of the stream whose state the
+    key hashes to (the uniform from its top 53 bits, the normal its inverse cdf), computed
+    for all samples at once and the same whichever others are drawn. The noise's own
+    stream (`_NOISE_STREAM`), far from the simulator's keys."""
+    from scipy.special import ndtri
+
+    golden = np.uint64(_GOLDEN)
+    with np.errstate(over="ignore"):
+        head = np.zeros(1, np.uint64)
+        for value in (seed, _NOISE_STREAM, path, stream):
+            head = _mix(head + (np.uint64(value) + np.uint64(1)) * golden)
+        key = _mix(head + np.asarray(cycle).astype(np.uint64) * golden)
+        bits = _mix(key + np.asarray(offset).astype(np.uint64) * golden)
+    u = ((bits >> np.uint64(11)).astype(float) + 0.5) * 2.0**-53
+    return ndtri(u) if kind == "normal" else u
+
+
+def _cut_grid(release, slip, stick, n, h, window):
+    """Which samples of a force trace's uniform grid (`n` samples at `h`) the forward
+    measurement keeps (`sticks="cut"`): about each slip, from `_CUT_MARGIN` windows plus
+    its own length before its release to as many after its stick, the long sticks'
+    middles cut out (a cut of fewer than `window` samples is not made). What a slip moves
+    in the extraction lies within a few windows and its own length of it (the force rate,
+    the medians either side, the shape fit's samples); the rest of a stick is a line and
+    the noise, of which the kept far samples (`Cut.far`) stand for the cut ones in the
+    trace-wide statistics. Returns a `Cut`."""
+    from .._extract._force import Cut
+
+    r = release / h
+    e = np.where(np.isfinite(slip), (release + slip) / h, n - 1.0)
+    length = np.where(np.isfinite(slip), slip / h, 0.0)
+    margin = length + _CUT_MARGIN * window
+    lo = np.clip(np.floor(r - margin), 0, n - 1).astype(np.int64)
+    hi = np.clip(np.ceil(e + margin), 0, n - 1).astype(np.int64)
+    # merge the intervals that overlap or leave less than a window between them
+    hi = np.maximum.accumulate(hi)
+    new = np.r_[True, lo[1:] > hi[:-1] + window]
+    lo = lo[new]
+    hi = np.maximum.reduceat(hi, np.flatnonzero(new))
+    counts = hi - lo + 1
+    index = np.repeat(lo - (np.cumsum(counts) - counts), counts) + np.arange(counts.sum())
+    # the distance of each kept sample to the nearest slip [release, stick]
+    j = np.searchsorted(r, index, side="right") - 1
+    after = np.where(j >= 0, index - e[np.maximum(j, 0)], np.inf)
+    before = np.where(j + 1 < r.size, r[np.minimum(j + 1, r.size - 1)] - index, np.inf)
+    inside = (j >= 0) & (index <= e[np.maximum(j, 0)])
+    distance = np.where(inside, 0.0, np.minimum(np.where(after > 0, after, np.inf), before))
+    far = distance > Cut.FAR * window
+    n_far = int(far.sum())
+    weight = (n_far + (n - index.size)) / n_far if n_far else 1.0
+    return Cut(index=index, far=far, weight=float(weight))
 
 
 _POOLS: dict[int, np.ndarray] = {}
@@ -468,10 +545,12 @@ def _pool(seed: int) -> np.ndarray:
     return _POOLS[seed]
 
 
-def _record(m: Measurement, t, x, v, unit_noise, rng, uniforms=None) -> dict[str, np.ndarray]:
+def _record(m: Measurement, t, x, v, unit_noise, rng, uniforms=None,
+            lines: bool = True) -> dict[str, np.ndarray]:  # fmt: skip
     """The signal(s) `m` records at times `t`: `unit_noise` (standard normals, one a sample)
-    times the noise sd; a force trace's lines with phases drawn from `rng`, its spikes where
-    `uniforms` (one a sample) fall below the spike fraction, upwards below half of it."""
+    times the noise sd; a force trace's lines (if `lines`) with phases drawn from `rng`, its
+    spikes where `uniforms` (one a sample) fall below the spike fraction, upwards below
+    half of it."""
     noise = m.noise_sd * unit_noise if m.noise_sd > 0 and unit_noise is not None else 0.0
     if m.signal == "x":
         return dict(t=t, x=x + noise)
@@ -480,7 +559,7 @@ def _record(m: Measurement, t, x, v, unit_noise, rng, uniforms=None) -> dict[str
     if m.signal == "x and v":
         return dict(t=t, x=x, v=v + noise)
     force = x + noise
-    for f in m.lines:
+    for f in m.lines if lines else ():
         force = force + m.line_amplitude * np.sin(2 * np.pi * f * t + rng.uniform(0, 2 * np.pi))
     if m.spike_fraction > 0:
         at = np.flatnonzero(uniforms < m.spike_fraction)
@@ -489,7 +568,8 @@ def _record(m: Measurement, t, x, v, unit_noise, rng, uniforms=None) -> dict[str
 
 
 def measured_cycles(model, measurement: Measurement, n_cycles: int, seed: int, *,
-                    dt: float | None = None) -> dict[str, np.ndarray]:  # fmt: skip
+                    dt: float | None = None,
+                    sticks: str = "cut") -> dict[str, np.ndarray]:  # fmt: skip
     r"""The model's cycles as `measurement` sees them: simulated as a continuous trace,
     sampled, made noisy and extracted with the data's settings.
 
@@ -504,7 +584,12 @@ def measured_cycles(model, measurement: Measurement, n_cycles: int, seed: int, *
     - `seed`: the simulation's seed, and the noise's (its own stream): the same seed gives
       the same cycles, and the same noise draws at every parameter value;
     - `dt`: the simulator's step (default: half the sampling interval, within an eighth
-      and a half of the model's fastest time scale).
+      and a half of the model's fastest time scale);
+    - `sticks`: `"cut"` (default) synthesises and extracts a force trace only about its
+      slips, the long sticks' middles left out (`_cut_grid`; the same cycles as the whole
+      trace gives, to within the extraction's timing error: docs/fit.md); `"whole"`
+      every sample. Position and velocity traces, and a force measurement without a
+      `window`, are synthesised whole.
 
     **Returns:** a dict with the measurement's `columns` (model units; force columns in
     units of $k x_0$), the cycles of all paths concatenated.
@@ -514,8 +599,9 @@ def measured_cycles(model, measurement: Measurement, n_cycles: int, seed: int, *
     shows no cycles through this measurement (e.g. sampling too coarse for this model, or
     no stick-slip), with `extract_cycles`' reason.
     """
-    trace = measured_trace(model, measurement, n_cycles, seed, dt=dt)
+    trace = measured_trace(model, measurement, n_cycles, seed, dt=dt, sticks=sticks)
     from .._extract import extract_cycles
+    from .._extract._force import check_thresholds, extract_slips
 
     settings = measurement.extract_settings(float(model.v_b))
     tables = []
@@ -525,7 +611,15 @@ def measured_cycles(model, measurement: Measurement, n_cycles: int, seed: int, *
             # here is about the simulation, which the fit reports in its own terms
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                tables.append(extract_cycles(**signals, **settings).table)
+                if "cut" in signals:
+                    tables.append(extract_slips(
+                        signals["t"], signals["force"], measurement.sampling_interval, 1.0,
+                        float(model.v_b), measurement.window,
+                        check_thresholds(settings["thresholds"]), settings["lines"],
+                        cut=signals["cut"],
+                    )[0])  # fmt: skip
+                else:
+                    tables.append(extract_cycles(**signals, **settings).table)
         except StickSlipError as err:
             raise DataError(
                 f"measured_cycles: the simulated trace (path {p}) shows no cycles through "
