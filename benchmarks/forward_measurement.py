@@ -78,7 +78,7 @@ def extracted(model, measurement, n, seed, sticks):
                 tables.append(extract_slips(
                     signals["t"], signals["force"], measurement.sampling_interval, 1.0,
                     float(model.v_b), measurement.window,
-                    check_thresholds(settings["thresholds"]), settings["lines"],
+                    check_thresholds(settings["thresholds"]), (),  # notched already
                     cut=signals["cut"],
                 )[0])  # fmt: skip
             else:

@@ -83,7 +83,7 @@ _LINE, _LINE_SEGMENT, _LINE_BINS, _MAX_LINES = 10.0, 16384, 65, 3
 # multiples of its rate (0.65, 1.29, 1.94 Hz ... on a 1.5 s period), which a search over
 # all frequencies took for hum and notched out, bending every loading line
 _MAINS, _MAINS_BAND = (50.0, 60.0), 0.02
-_NOTCH_Q = 30.0  # bandwidth f0 / 30: 1.7 Hz at 50 Hz, wider than the mains' wander
+NOTCH_Q = 30.0  # bandwidth f0 / 30: 1.7 Hz at 50 Hz, wider than the mains' wander
 # Stick-slip against sliding: the skewness of the force rate at the first pass's window.
 # A stick-slip force rises slowly and falls fast (many small positive rates, a few large
 # negative ones); an oscillation rises and falls alike, steady sliding is noise. On the six
@@ -235,7 +235,11 @@ def extract_slips(t, f, h, k, v_b, window, thr, lines, cut: Cut | None = None):
             "extract_cycles: no stick found: the force rate lies below its median on "
             f"{100 * (1 - stick.mean()):.3g}% of the trace"
         )
-    g = _loading_slope(s, stick)  # per sample, from the sticks alone
+    if cut is None:
+        g = _loading_slope(s, stick)  # per sample, from the sticks alone
+    else:  # on the whole trace's positions: the slips' ends weigh as they would there
+        g = _loading_slope(s + (0.0 if cut.shift is None else cut.shift / s_f), stick,
+                           cut.index.astype(float))  # fmt: skip
     if g <= 0:
         raise DataError(
             "extract_cycles: no stick found: between the force drops the force does not rise "
@@ -533,7 +537,7 @@ def _medians(y, start, stop) -> np.ndarray:
     return out
 
 
-def _loading_slope(s, stick) -> float:
+def _loading_slope(s, stick, position=None) -> float:
     """The sticks' pooled least-squares slope: each stick's own line, one common slope (an
     offset drift moves each stick's level, hardly its slope). Its sd is sigma over the root
     of the summed squared spreads of the sticks' sample indices: far below 1% here. Each
@@ -546,6 +550,12 @@ def _loading_slope(s, stick) -> float:
         return 0.0
     y = s[stick]
     starts = np.concatenate([[0], np.cumsum(n)[:-1]])
+    if position is not None:  # a cut trace: its samples' positions in the whole one
+        x = position[stick]
+        x = x - np.repeat(np.add.reduceat(x, starts) / n, n)
+        var = float(np.dot(x, x))
+        return float(np.dot(x, y - np.repeat(np.add.reduceat(y, starts) / n, n)) / var) \
+            if var > 0 else 0.0  # fmt: skip
     mean_y = np.add.reduceat(y, starts) / n
     # each sample's index within its stick, less the stick's mean index
     j = np.arange(y.size, dtype=float) - np.repeat(starts + 0.5 * (n - 1), n)
@@ -603,10 +613,10 @@ def _remove_lines(s, h, given=None):
     from scipy.signal import filtfilt, iirnotch, welch
 
     fs = 1.0 / h
-    notch = f"notched out (scipy iirnotch Q {_NOTCH_Q:g}, filtfilt)"
+    notch = f"notched out (scipy iirnotch Q {NOTCH_Q:g}, filtfilt)"
     if given is not None:
         for f0 in given:
-            b, a = iirnotch(f0, _NOTCH_Q, fs=fs)
+            b, a = iirnotch(f0, NOTCH_Q, fs=fs)
             s = filtfilt(b, a, s)
         return s, [round(f, 6) for f in given], f"the lines given, {notch}"
     rule = (
@@ -635,7 +645,7 @@ def _remove_lines(s, h, given=None):
         excess[max(j - 4, 0) : j + 5] = 0.0
         if not _near_mains(f0):  # a broad peak's shoulder in the band, centred outside it
             continue
-        b, a = iirnotch(f0, _NOTCH_Q, fs=fs)
+        b, a = iirnotch(f0, NOTCH_Q, fs=fs)
         s = filtfilt(b, a, s)
         lines.append(round(f0, 3))
     return s, lines, rule
