@@ -33,9 +33,10 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 BASE = "6c2a2da"  # the tree before the cut forward measurement
 
 
-def fit_once(sticks: str, n_sim: int) -> dict:
-    """Warm, then fit; the estimates, intervals and times (run in this process, with
-    whichever `stickslip` it imports)."""
+def slider_problem():
+    """The fit's data and settings, `(cycles, slider, known, free)`, after measuring 1000
+    model cycles once (compiling what the fit runs), with whichever `stickslip` this
+    process imports."""
     sys.path.insert(0, str(ROOT / "examples"))
     from slider_fit import BOX, TAU, ZETA, reference_slider
     from slider_trace import extract, load
@@ -43,18 +44,27 @@ def fit_once(sticks: str, n_sim: int) -> dict:
     import stickslip as ss
     from stickslip._inference import measurement as meas
 
-    if sticks == "whole":  # every sample, in a tree that can cut
-        import functools
-
-        meas.measured_cycles = functools.partial(meas.measured_cycles, sticks="whole")
     t, force = load("k168Nm_v42.mat")
     cycles, _ = extract(t, force)
     slider = reference_slider(cycles)
     known = dict(zeta=ZETA, v_b=slider.dimensionless()["v_b"], tau=TAU, x0=1.0)
     free = {"omega0": BOX["omega0"], "D": BOX["D"]}
     model = ss.get_model("langevin")(omega0=1.2, D=0.4, **known)
-    measurement = ss.Measurement.from_cycles(cycles, scales=slider)
-    meas.measured_cycles(model, measurement, 1000, 0)  # warm: compile what the fit runs
+    meas.measured_cycles(model, ss.Measurement.from_cycles(cycles, scales=slider), 1000, 0)
+    return cycles, slider, known, free
+
+
+def fit_once(sticks: str, n_sim: int) -> dict:
+    """Warm, then fit; the estimates, intervals and times (run in this process, with
+    whichever `stickslip` it imports)."""
+    import stickslip as ss
+    from stickslip._inference import measurement as meas
+
+    if sticks == "whole":  # every sample, in a tree that can cut
+        import functools
+
+        meas.measured_cycles = functools.partial(meas.measured_cycles, sticks="whole")
+    cycles, slider, known, free = slider_problem()
     t0, c0 = time.perf_counter(), time.process_time()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

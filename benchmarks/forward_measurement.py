@@ -34,7 +34,6 @@ import json
 import pathlib
 import sys
 import time
-import warnings
 
 import numpy as np
 
@@ -60,29 +59,14 @@ def setting():
     return model, measurement
 
 
-def extracted(model, measurement, n, seed, sticks):
+def measure(model, measurement, n, seed, sticks):
     """The measured trace's cycles per path (full tables, release times included), the
     simulation's truth, and the seconds it took."""
-    from stickslip._extract import extract_cycles
-    from stickslip._extract._force import check_thresholds, extract_slips
-    from stickslip._inference.measurement import measured_trace
+    from stickslip._inference.measurement import extracted, measured_trace
 
     t0 = time.perf_counter()
     trace = measured_trace(model, measurement, n, seed, sticks=sticks)
-    settings = measurement.extract_settings(float(model.v_b))
-    tables = []
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        for signals in trace.traces:
-            if "cut" in signals:
-                tables.append(extract_slips(
-                    signals["t"], signals["force"], measurement.sampling_interval, 1.0,
-                    float(model.v_b), measurement.window,
-                    check_thresholds(settings["thresholds"]), (),  # notched already
-                    cut=signals["cut"],
-                )[0])  # fmt: skip
-            else:
-                tables.append(extract_cycles(**signals, **settings).table)
+    tables = [extracted(signals, measurement, float(model.v_b)) for signals in trace.traces]
     return tables, trace.truth, time.perf_counter() - t0
 
 
@@ -109,7 +93,7 @@ def main():
     h = measurement.sampling_interval
     tol = measurement.window * h
     for sticks in ("whole", "cut"):  # warm both paths alike
-        extracted(model, measurement, args.cycles, 0, sticks)
+        measure(model, measurement, args.cycles, 0, sticks)
     seconds = {"whole": 0.0, "cut": 0.0}
     diffs = {k: [] for k in COLUMNS}
     errors = {k: [] for k in COLUMNS}
@@ -117,7 +101,7 @@ def main():
     for seed in range(1, args.chunks + 1):
         out = {}
         for sticks in ("whole", "cut"):
-            tables, truth, sec = extracted(model, measurement, args.cycles, seed, sticks)
+            tables, truth, sec = measure(model, measurement, args.cycles, seed, sticks)
             out[sticks] = (tables, truth)
             seconds[sticks] += sec
         model_cycles += out["whole"][1]["release_time"].size

@@ -46,7 +46,8 @@ def _both(n, seed, **changes):
         reference = ss.extract_cycles(**w, **settings)
         cut = measured_trace(model, m, n, seed, sticks="cut")
         (c,) = cut.traces
-        # (the cut trace's lines are notched as it is made: `_notched`)
+        # (the cut trace's lines are notched as it is made: `_notched`; the extraction's
+        # info, which `extracted` leaves out, has the trace-wide statistics)
         table, info = extract_slips(c["t"], c["force"], m.sampling_interval, 1.0, model.v_b,
                                     m.window, check_thresholds(None), (), cut=c["cut"])  # fmt: skip
     np.testing.assert_array_equal(whole.truth["release_time"], cut.truth["release_time"])

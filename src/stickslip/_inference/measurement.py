@@ -682,32 +682,37 @@ def measured_cycles(model, measurement: Measurement, n_cycles: int, seed: int, *
     no stick-slip), with `extract_cycles`' reason.
     """
     trace = measured_trace(model, measurement, n_cycles, seed, dt=dt, sticks=sticks)
-    from .._extract import extract_cycles
-    from .._extract._force import check_thresholds, extract_slips
-
-    settings = measurement.extract_settings(float(model.v_b))
     tables = []
     for p, signals in enumerate(trace.traces):
         try:
-            # the simulated sticks move at exactly v_b and the noise is the data's: a warning
-            # here is about the simulation, which the fit reports in its own terms
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                if "cut" in signals:
-                    tables.append(extract_slips(
-                        signals["t"], signals["force"], measurement.sampling_interval, 1.0,
-                        float(model.v_b), measurement.window,
-                        check_thresholds(settings["thresholds"]), (),  # notched already
-                        cut=signals["cut"],
-                    )[0])  # fmt: skip
-                else:
-                    tables.append(extract_cycles(**signals, **settings).table)
+            tables.append(extracted(signals, measurement, float(model.v_b)))
         except StickSlipError as err:
             raise DataError(
                 f"measured_cycles: the simulated trace (path {p}) shows no cycles through "
                 f"this measurement: {err}"
             ) from None
     return {k: np.concatenate([tb[k] for tb in tables]) for k in measurement.columns}
+
+
+def extracted(signals: dict, measurement: Measurement, v_b: float) -> dict[str, np.ndarray]:
+    """The whole cycle table of one path of a `MeasuredTrace`: `extract_cycles` with the
+    measurement's settings, or for a cut force trace (`"cut"` in `signals`) the same
+    extraction on the kept samples, without the notch its making applied already. The
+    simulated sticks move at exactly v_b and the noise is the data's: a warning here is
+    about the simulation, which the fit reports in its own terms, and is not shown."""
+    from .._extract import extract_cycles
+    from .._extract._force import check_thresholds, extract_slips
+
+    settings = measurement.extract_settings(v_b)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        if "cut" not in signals:
+            return extract_cycles(**signals, **settings).table
+        return extract_slips(
+            signals["t"], signals["force"], measurement.sampling_interval, 1.0, v_b,
+            measurement.window, check_thresholds(settings["thresholds"]), (),
+            cut=signals["cut"],
+        )[0]  # fmt: skip
 
 
 def _number(info: Mapping, key: str) -> float:
