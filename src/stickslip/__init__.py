@@ -58,6 +58,7 @@ _LAZY = {
     "SelectionWarning": ".selection",
     "fit": "._inference.fit",
     "FitResult": "._inference.result",
+    "load_fit": "._inference.saved",
     "goodness_of_fit": "._inference.goodness",
     "GoodnessOfFit": "._inference.goodness",
     "compare_fits": "._inference.compare",

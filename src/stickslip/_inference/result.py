@@ -68,6 +68,16 @@ class FitResult:
         lines += [f"warning: {w}" for w in self.diagnostics.get("warnings", ())]
         return "\n".join(lines)
 
+    def save(self, path) -> None:
+        """Write this fit to `path` as one JSON file (`stickslip.load_fit` reads it back):
+        the model and its arguments, the estimate and intervals, the data's columns, the
+        measurement, the settings and diagnostics, the goodness of fit. The cycles
+        simulated at the design points are not kept (`compare_fits` simulates them again,
+        the same cycles). A file already at `path` is replaced whole."""
+        from .saved import save_fit
+
+        save_fit(self, path)
+
     def simulated(self, n_sim: int | None = None, seed: int | None = None) -> dict:
         """Cycles of the fitted model (at the estimate) as the data see them: through the
         data's measurement for a `Cycles` (sampled, noisy, extracted with its settings),

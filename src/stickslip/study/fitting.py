@@ -21,7 +21,6 @@ the summary then states the estimates in SI too.
 from __future__ import annotations
 
 import codecs
-import dataclasses
 import difflib
 import json
 import math
@@ -36,6 +35,7 @@ import warnings
 
 import numpy as np
 
+from .._inference.saved import jsonable
 from .load import StudyError, load_study
 
 # A table of cycles is small (`stickslip cycles` writes about 60 B a row): the cap keeps a
@@ -324,21 +324,6 @@ def run_fit(study, out=None, *, overrides=None, force: bool = False, progress: b
     return comparison
 
 
-def _jsonable(value):
-    """JSON-ready settings: NumPy scalars and arrays to Python, dataclasses to dicts."""
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return _jsonable(dataclasses.asdict(value))
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
-
-
 def _verdict(result) -> str:
     """One plain sentence: do the data reject the fitted model?"""
     from .._inference.goodness import ALPHA
@@ -376,13 +361,13 @@ def _record(result, params: dict, model_name: str) -> dict:
         rejected=None if result.goodness is None else bool(result.goodness.rejected),
         method=result.method,
         goodness_method=None if result.goodness is None else result.goodness.method,
-        fixed=_jsonable({k: v for k, v in params.items() if k not in result.estimate}),
+        fixed=jsonable({k: v for k, v in params.items() if k not in result.estimate}),
         settings={k: d[k] for k in ("n_sim", "dt", "t_max", "seed", "n_data")},
-        measurement=_jsonable(d.get("measurement")),
+        measurement=jsonable(d.get("measurement")),
         covariance=d["covariance"],
         evaluations=d["evaluations"],
-        optimizer=_jsonable(d["optimizer"]),
-        mc_noise=_jsonable(d["mc_noise"]),
+        optimizer=jsonable(d["optimizer"]),
+        mc_noise=jsonable(d["mc_noise"]),
         seconds=d["seconds"],
         warnings=d["warnings"],
     )
@@ -551,7 +536,7 @@ def write_comparison(comparison, study, out: pathlib.Path, force: bool, scales=N
             "chosen": chosen,
             "candidates": records,
             "comparison": dict(
-                table=_jsonable(comparison.table), tests=_jsonable(comparison.tests),
+                table=jsonable(comparison.table), tests=jsonable(comparison.tests),
                 alpha=comparison.alpha, n_boot=comparison.n_boot, method=comparison.method,
                 warnings=comparison.warnings,
             ),

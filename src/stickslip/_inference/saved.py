@@ -1,0 +1,149 @@
+"""A fit on disk: `FitResult.save(path)` and `load_fit(path)`.
+
+One JSON file (readable, diffable, and loaded without executing anything: no pickle):
+the model by its registered name and the arguments that rebuild it, the estimate, the
+intervals, the log-likelihood, the data's columns, the measurement, the settings and the
+diagnostics (the evaluated points, the covariance and Hessian, the design's points and
+values, the warnings) and the goodness of fit when there was one. Not kept: the cycles the
+fit simulated at its design points (`compare_fits` simulates them again, the same cycles:
+a function of the point and the seed). A loaded fit simulates, plots, compares and checks
+as the one saved (`simulated()` gives the same cycles for the same seed).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import pathlib
+
+import numpy as np
+
+from .._errors import DataError, ParameterError
+
+FORMAT = "stickslip fit"
+VERSION = 1
+# What of `diagnostics` is written (the rest is rebuilt: `to_fit` from the scales, the
+# measurement's aliases `observe`, `trace` and `sampling` from it).
+_KEPT = ("n_sim", "dt", "t_max", "seed", "n_data", "zero_fraction", "bandwidth", "scales",
+         "covariance", "hessian", "evaluations", "points", "seconds", "warnings",
+         "optimizer", "design", "mc_noise", "dependence")  # fmt: skip
+
+
+def jsonable(value):
+    """JSON-ready values: NumPy scalars and arrays to Python, dataclasses to dicts, tuples
+    to lists (non-finite floats stay, as JSON's NaN and Infinity extensions)."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return jsonable(dataclasses.asdict(value))
+    if isinstance(value, dict):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def save_fit(result, path) -> pathlib.Path:
+    """Write `result` (a `FitResult`) to `path` as JSON, through a temporary file renamed
+    into place (a file already there is replaced whole or not at all). Returns the path."""
+    from .._registry import model_name
+    from .params import model_kwargs
+
+    path = pathlib.Path(path)
+    d = result.diagnostics
+    params = jsonable(model_kwargs(result.model))
+    try:
+        json.dumps(params)
+    except TypeError as err:
+        raise ParameterError(
+            "FitResult.save", "model", f"has parameters JSON cannot hold ({err}); a model "
+            "whose parameters are numbers, strings, lists and dicts can be saved",
+        ) from None  # fmt: skip
+    design = dict(d.get("design") or {})
+    design["samples"] = None  # simulated again where needed (the same cycles)
+    diagnostics = {k: d[k] for k in _KEPT if k in d}
+    diagnostics["design"] = design
+    measurement = d.get("measurement")
+    document = dict(
+        format=FORMAT, version=VERSION, stickslip=_version(),
+        model=model_name(type(result.model)), params=params,
+        estimate=result.estimate, ci=result.ci, log_likelihood=result.log_likelihood,
+        method=result.method, data=result.data,
+        measurement=None if measurement is None else dataclasses.asdict(measurement),
+        diagnostics=diagnostics,
+        goodness=None if result.goodness is None else dataclasses.asdict(result.goodness),
+    )  # fmt: skip
+    text = json.dumps(jsonable(document), indent=1)
+    part = path.with_name(f".{path.name}.partial-{os.getpid()}")
+    try:
+        part.write_text(text)
+        os.replace(part, path)
+    finally:
+        part.unlink(missing_ok=True)
+    return path
+
+
+def load_fit(path):
+    """The `FitResult` saved at `path` (`FitResult.save`).
+
+    **Raises:** `DataError` for a file that is not a saved fit (not JSON, another format,
+    a newer version, a field missing), naming the file and what is wrong; `PluginError`
+    where its model is not installed."""
+    from .._registry import get_model
+    from .goodness import GoodnessOfFit
+    from .measurement import Measurement
+    from .params import ToFit
+    from .result import FitResult
+
+    path = pathlib.Path(path)
+    try:
+        document = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise DataError(f"load_fit: {path} cannot be read as a saved fit: {err}") from None
+    if not isinstance(document, dict) or document.get("format") != FORMAT:
+        raise DataError(f"load_fit: {path} is not a saved stickslip fit (no '{FORMAT}' format)")
+    if document.get("version", math.inf) > VERSION:
+        raise DataError(
+            f"load_fit: {path} was saved in format version {document.get('version')} by "
+            f"stickslip {document.get('stickslip')}; this version reads up to {VERSION}"
+        )
+    need = ("model", "params", "estimate", "ci", "log_likelihood", "method", "data",
+            "measurement", "diagnostics", "goodness")  # fmt: skip
+    missing = [k for k in need if k not in document]
+    if missing:
+        raise DataError(f"load_fit: {path} lacks {', '.join(missing)}")
+    model = get_model(document["model"])(**document["params"])
+    data = {k: np.asarray(v, float) for k, v in document["data"].items()}
+    measurement = document["measurement"]
+    if measurement is not None:
+        if measurement.get("thresholds") is not None:
+            measurement["thresholds"] = dict(measurement["thresholds"])
+        for key in ("lines", "columns"):
+            measurement[key] = tuple(measurement[key])
+        measurement = Measurement(**measurement)
+    d = dict(document["diagnostics"])
+    d.update(measurement=measurement, observe=measurement, trace=measurement is not None,
+             sampling=None if measurement is None else measurement.sampling_interval,
+             to_fit=ToFit(d["scales"]))  # fmt: skip
+    d["points"] = [(np.asarray(x, float), float(v)) for x, v in d.get("points", [])]
+    goodness = document["goodness"]
+    if goodness is not None:
+        for key in ("replicates", "data", "reference"):
+            goodness[key] = {k: np.asarray(v, float) for k, v in goodness[key].items()}
+        goodness = GoodnessOfFit(**goodness)
+    return FitResult(
+        estimate={k: float(v) for k, v in document["estimate"].items()},
+        ci={k: (float(a), float(b)) for k, (a, b) in document["ci"].items()},
+        log_likelihood=float(document["log_likelihood"]), method=document["method"],
+        diagnostics=d, data=data, model=model, goodness=goodness,
+    )  # fmt: skip
+
+
+def _version() -> str:
+    from .. import __version__
+
+    return str(__version__)
