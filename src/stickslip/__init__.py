@@ -59,6 +59,7 @@ _LAZY = {
     "fit": "._inference.fit",
     "FitResult": "._inference.result",
     "load_fit": "._inference.saved",
+    "Prediction": "._inference.predict",
     "goodness_of_fit": "._inference.goodness",
     "GoodnessOfFit": "._inference.goodness",
     "compare_fits": "._inference.compare",

@@ -70,6 +70,7 @@ def _estimate(
     came with that measurement."""
     wall0 = time.perf_counter()
     owner = "fit"
+    units = scales  # (a Slider or Scales; `scales` names the fit coordinates below)
     Model = _model_class(model)
     data, measured = _measurement(data, trace, sampling, scales, owner)
     if measurement is not None:
@@ -248,6 +249,7 @@ def _estimate(
         ),
         mc_noise=mc_noise,
         dependence=dependence,
+        units=units,  # the SI mapping given (`FitResult.predict`)
     )  # fmt: skip
     return FitResult(
         estimate=estimate, ci=ci, log_likelihood=ll_hat, method=method,

@@ -68,6 +68,23 @@ class FitResult:
         lines += [f"warning: {w}" for w in self.diagnostics.get("warnings", ())]
         return "\n".join(lines)
 
+    def predict(self, run=None, *, stiffness=None, v_b=None, n_sim=None, seed=None):
+        """What this fit predicts for a slider at another spring and driving speed, with
+        the physical parameters it estimated (an effective mass, damping, noise and
+        threshold in SI, by the `Slider` the fit was given as `scales`).
+
+        - `run`: a measured run's `Cycles` (a force trace, from `extract_cycles`): its
+          stiffness and loading speed, its measurement, and a predictive p-value per
+          observable against its cycles;
+        - `stiffness` (N/m), `v_b` (m/s): without a run, both; with one, to override its;
+        - `n_sim`, `seed`: the simulation (default the fit's `n_sim`, its seed plus 1).
+
+        **Returns:** a `Prediction` (`regime`, `cycles` in SI, `p_values`, `summary()`).
+        Needs a fit made with `scales=Slider(...)`."""
+        from .predict import predict
+
+        return predict(self, run, stiffness=stiffness, v_b=v_b, n_sim=n_sim, seed=seed)
+
     def save(self, path) -> None:
         """Write this fit to `path` as one JSON file (`stickslip.load_fit` reads it back):
         the model and its arguments, the estimate and intervals, the data's columns, the

@@ -29,6 +29,8 @@ VERSION = 1
 _KEPT = ("n_sim", "dt", "t_max", "seed", "n_data", "zero_fraction", "bandwidth", "scales",
          "covariance", "hessian", "evaluations", "points", "seconds", "warnings",
          "optimizer", "design", "mc_noise", "dependence")  # fmt: skip
+# The SI mapping a fit was given (`scales=`), by its class.
+_UNITS = ("Slider", "Scales")
 
 
 def jsonable(value):
@@ -68,13 +70,16 @@ def save_fit(result, path) -> pathlib.Path:
     diagnostics = {k: d[k] for k in _KEPT if k in d}
     diagnostics["design"] = design
     measurement = d.get("measurement")
+    units = d.get("units")
+    if units is not None:
+        units = dict(dataclasses.asdict(units), kind=type(units).__name__)
     document = dict(
         format=FORMAT, version=VERSION, stickslip=_version(),
         model=model_name(type(result.model)), params=params,
         estimate=result.estimate, ci=result.ci, log_likelihood=result.log_likelihood,
         method=result.method, data=result.data,
         measurement=None if measurement is None else dataclasses.asdict(measurement),
-        diagnostics=diagnostics,
+        diagnostics=diagnostics, units=units,
         goodness=None if result.goodness is None else dataclasses.asdict(result.goodness),
     )  # fmt: skip
     text = json.dumps(jsonable(document), indent=1)
@@ -128,8 +133,9 @@ def load_fit(path):
     d = dict(document["diagnostics"])
     d.update(measurement=measurement, observe=measurement, trace=measurement is not None,
              sampling=None if measurement is None else measurement.sampling_interval,
-             to_fit=ToFit(d["scales"]))  # fmt: skip
+             to_fit=ToFit(d.get("scales", {})))  # fmt: skip
     d["points"] = [(np.asarray(x, float), float(v)) for x, v in d.get("points", [])]
+    d["units"] = _units(document.get("units"), path)
     goodness = document["goodness"]
     if goodness is not None:
         for key in ("replicates", "data", "reference"):
@@ -141,6 +147,23 @@ def load_fit(path):
         log_likelihood=float(document["log_likelihood"]), method=document["method"],
         diagnostics=d, data=data, model=model, goodness=goodness,
     )  # fmt: skip
+
+
+def _units(saved, path):
+    """The `Slider` or `Scales` a fit was given, from its saved fields (None if none)."""
+    from ..units import Scales, Slider
+
+    if saved is None:
+        return None
+    kind = saved.pop("kind", None)
+    if kind not in _UNITS:
+        raise DataError(f"load_fit: {path}: its units are of an unknown kind ({kind!r})")
+    if kind == "Scales":
+        return Scales(**saved)
+    if saved.get("threshold") is not None:
+        law, params = saved["threshold"]
+        saved["threshold"] = (law, dict(params))
+    return Slider(**saved)
 
 
 def _version() -> str:

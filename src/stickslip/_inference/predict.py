@@ -1,0 +1,170 @@
+r"""A fitted slider at another spring and speed: `FitResult.predict`.
+
+A fit to a force trace in SI (`fit(..., cycles, scales=slider)`) estimates the model in
+the units of its reference `Slider`; `Slider.si_parameters` reads the estimate as physical
+quantities: the effective mass $m/\omega_0^2$ (a fitted natural frequency at the rig's
+stiffness), the damping $c$, the noise intensity $S$ and its correlation time, the static
+threshold in newtons. A prediction keeps those and changes what the experimenter sets, the
+spring's stiffness $k$ and the driving speed $V$: the slider at $(k, V)$ is simulated in
+its own units and its cycles given in SI, through a measured run's own measurement when a
+run is given (its sampling, noise, spikes, lines and extraction settings, at its stiffness
+and loading speed), with a predictive p-value per observable against the run's cycles.
+
+The p-values are two-sample Kolmogorov-Smirnov tests of the run's cycles against the
+predicted ones at the estimate (a plug-in check: the estimate's own uncertainty is not
+propagated, so they are somewhat small when the fit's intervals are wide).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+
+from .._errors import DataError, ParameterError, StickSlipError, check_int, check_positive
+
+OWNER = "FitResult.predict"
+# The parameters `Slider.si_parameters` maps; the others of a model (`eta0`) are settings.
+_PHYSICAL = ("omega0", "zeta", "D", "tau", "v_b", "x0", "threshold", "threshold_params")
+# What a run's cycles are compared in: the force trace's columns, in SI.
+_OBSERVABLES = ("stick_time", "slip_time", "force_drop")
+# A prediction without a run: this many independent cycles, each followed up to this many
+# of the predicted slider's slow time scales.
+_N_CYCLES = 4000
+_STUCK = 0.5  # a slider whose cycles stick again in at least this share: stick-slip
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Prediction:
+    """What a fitted model predicts at a stiffness and driving speed (`FitResult.predict`).
+
+    - `slider`: the predicted slider in SI (the fit's physical parameters at `stiffness`
+      and `v_b`);
+    - `regime`: `"stick-slip"`; `"no stick"` where the slider does not stick again within
+      the simulated time; `"unresolved"` where the run's measurement shows no cycles of
+      the predicted slider (its p-values are then 0); and `evidence`, the numbers or the
+      extraction's reason that decided it;
+    - `cycles`: the predicted per-cycle values in SI (`stick_time`, `slip_time` in s,
+      `force_drop` in N), through the run's measurement when a run was given;
+    - `data`: the run's cycles in the same columns (None without a run), and `p_values`,
+      `{observable: p}` of each against the prediction (None without a run);
+    - `method`: what was done, in words.
+    """
+
+    slider: Any
+    regime: str
+    evidence: str
+    cycles: dict[str, np.ndarray]
+    data: dict[str, np.ndarray] | None
+    p_values: dict[str, float] | None
+    method: str
+
+    def medians(self) -> dict[str, tuple[float, float | None]]:
+        """`{observable: (predicted median, the run's median or None)}`."""
+        return {
+            k: (float(np.median(v)) if v.size else math.nan,
+                None if self.data is None else float(np.median(self.data[k])))
+            for k, v in self.cycles.items()
+        }  # fmt: skip
+
+    def summary(self) -> str:
+        s = self.slider
+        lines = [f"prediction at k = {s.stiffness:.6g} N/m, V = {s.v_b:.4g} m/s: {self.regime} "
+                 f"({self.evidence})", self.method]  # fmt: skip
+        for k, (model, data) in self.medians().items():
+            shown = "" if data is None else f", the run's {data:.4g}"
+            p = "" if self.p_values is None else f", p = {self.p_values[k]:.3g}"
+            lines.append(f"  {k}: median {model:.4g}{shown}{p}")
+        return "\n".join(lines)
+
+
+def predict(result, run=None, *, stiffness=None, v_b=None, n_sim=None, seed=None) -> Prediction:
+    """`FitResult.predict`: see its docstring."""
+    from ..units import Slider
+    from .params import model_kwargs
+
+    slider = result.diagnostics.get("units")
+    if not isinstance(slider, Slider):
+        raise ParameterError(
+            OWNER, "result", "must be a fit in physical units: fit(..., cycles, scales="
+            "Slider(...)) (its Slider maps the estimate to a mass, a noise and a threshold)",
+        )  # fmt: skip
+    info = None
+    if run is not None:
+        info = getattr(run, "info", None)
+        if not isinstance(info, dict) or info.get("input") != "force":
+            raise ParameterError(OWNER, "run", "must be a Cycles of a force trace (from "
+                                 "extract_cycles or analyse_run), in s, m and N")  # fmt: skip
+        stiffness = info["stiffness"] if stiffness is None else stiffness
+        v_b = info.get("v_b_estimated") if v_b is None else v_b
+    if stiffness is None or v_b is None:
+        raise ParameterError(OWNER, "stiffness" if stiffness is None else "v_b",
+                             "is required without a run")  # fmt: skip
+    stiffness = check_positive(OWNER, "stiffness", stiffness)
+    v_b = check_positive(OWNER, "v_b", v_b)
+    d = result.diagnostics
+    n_sim = d["n_sim"] if n_sim is None else check_int(OWNER, "n_sim", n_sim, minimum=100)
+    # a seed other than the fit's: the check does not reuse the draws it was tuned on
+    seed = int(d["seed"]) + 1 if seed is None else check_int(OWNER, "seed", seed, minimum=0)
+    params = model_kwargs(result.model)
+    si = slider.si_parameters({k: v for k, v in params.items() if k in _PHYSICAL})
+    si.pop("v_b", None)
+    # the fitted model's threshold, fixed or drawn, replaces the reference slider's
+    if "threshold" in si:
+        si["static_friction"] = None
+    elif "static_friction" in si:
+        si["threshold"] = None
+    try:
+        predicted = dataclasses.replace(slider, **si, stiffness=stiffness, v_b=v_b)
+    except ParameterError as err:
+        raise ParameterError(OWNER, "stiffness, v_b", f"give a slider the model refuses: "
+                             f"{err.parameter} {err.reason}") from None  # fmt: skip
+    how = (f"the fit's slider (effective mass {predicted.mass:.4g} kg, damping "
+           f"{predicted.damping:.3g} kg/s, noise {predicted.noise:.3g} N^2 s) at the given "
+           "stiffness and speed, seed {seed}")  # fmt: skip
+    if run is None:
+        return _per_cycle(predicted, n_sim, seed, how.format(seed=seed))
+    return _through(predicted, run, n_sim, seed, how.format(seed=seed))
+
+
+def _per_cycle(slider, n_sim, seed, how) -> Prediction:
+    """Independent cycles of `slider` (`Slider.simulate`), those that stuck again."""
+    n = max(int(n_sim), _N_CYCLES)
+    sim = slider.simulate(n, seed=seed, progress=False)
+    stuck = np.asarray(sim.ensemble.stuck) & ~np.asarray(sim.ensemble.immediate)
+    share = float(np.mean(np.asarray(sim.ensemble.stuck)))
+    regime = "stick-slip" if share >= _STUCK else "no stick"
+    cycles = {k: np.asarray(sim[k], float)[stuck] for k in _OBSERVABLES}
+    evidence = f"{100 * share:.1f} % of {n} simulated slips stick again"
+    return Prediction(slider, regime, evidence, cycles, None, None,
+                      f"{n} independent cycles of {how}")  # fmt: skip
+
+
+def _through(slider, run, n_sim, seed, how) -> Prediction:
+    """The slider's cycles through `run`'s measurement, in SI, against the run's."""
+    from scipy import stats
+
+    from .measurement import Measurement, measured_cycles
+
+    measurement = Measurement.from_cycles(run, scales=slider)
+    s = slider.scales
+    data = {k: np.asarray(run[k], float) for k in _OBSERVABLES}
+    try:
+        sim = measured_cycles(slider.model(), measurement, n_sim, seed)
+    except (DataError, StickSlipError) as err:
+        # no cycles through the run's measurement: the run's stick-slip is not predicted
+        empty = {k: np.zeros(0) for k in _OBSERVABLES}
+        method = f"{n_sim} model cycles of {how}, through the run's measurement"
+        return Prediction(slider, "unresolved", str(err), empty, data,
+                          {k: 0.0 for k in _OBSERVABLES}, method)  # fmt: skip
+    cycles = {"stick_time": np.asarray(sim["stick_time"]) * s.time,
+              "slip_time": np.asarray(sim["slip_time"]) * s.time,
+              "force_drop": np.asarray(sim["slip_distance"]) * s.force}  # fmt: skip
+    p = {k: float(stats.ks_2samp(data[k], cycles[k]).pvalue) for k in _OBSERVABLES}
+    evidence = f"{cycles['slip_time'].size} cycles through the run's measurement"
+    method = (f"{n_sim} model cycles of {how}, through the run's measurement (its sampling, "
+              "noise, spikes, lines and extraction settings); p-values: two-sample "
+              "Kolmogorov-Smirnov against the run's cycles, at the estimate")  # fmt: skip
+    return Prediction(slider, "stick-slip", evidence, cycles, data, p, method)
