@@ -81,8 +81,30 @@ def truth_slider(rig):
     )  # fmt: skip
 
 
-def problem(case: str):
-    """(model name, free boxes, fixed values, truth of the free parameters) in model units."""
+def held_threshold():
+    """The `random-threshold` model whose stick, where it already passed the threshold
+    drawn for the next release, releases from where it is (the generator's rule, and the
+    force's: it cannot jump down to the threshold), where the registered model, with the
+    paper's sharp reset, starts that slip from the threshold drawn. Written as a user
+    writes a law with memory (`carries_state`, `release`: docs/extending.md)."""
+    import jax.numpy as jnp
+
+    import stickslip as ss
+
+    class HeldThreshold(ss.get_model("random-threshold")):
+        carries_state = True
+
+        def release(self, key, y_stick):
+            y_next = self.onset_state(key)
+            y_next = y_next.at[0].set(jnp.maximum(y_next[0], y_stick[0]))
+            return self.stick_duration(y_stick, y_next), y_next
+
+    return HeldThreshold
+
+
+def problem(case: str, release: str = "threshold"):
+    """(model name, free boxes, fixed values, truth of the free parameters) in model units;
+    `release="stick"`: the random threshold fitted by `held_threshold()`."""
     rig = rig_of(case)
     dim = truth_slider(rig).dimensionless()
     known = dict(zeta=dim["zeta"], v_b=dim["v_b"], tau=dim["tau"])
@@ -93,18 +115,19 @@ def problem(case: str):
         truth = dict(omega0=dim["omega0"], D=dim["D"], **{
             "threshold_params.mean": dim["threshold_params"]["mean"],
             "threshold_params.sd": dim["threshold_params"]["sd"]})  # fmt: skip
-        return "random-threshold", free, {**known, "threshold": "normal"}, truth
+        model = held_threshold() if release == "stick" else "random-threshold"
+        return model, free, {**known, "threshold": "normal"}, truth
     free = {**shared, "x0": BOX["threshold"]}
     return "langevin", free, known, dict(omega0=dim["omega0"], D=dim["D"], x0=dim["x0"])
 
 
-def one_set(case: str, i: int, n_sim: int | None) -> dict:
+def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold") -> dict:
     """Make trace i, extract its cycles, fit them; the record of the set."""
     import stickslip as ss
 
     rig = rig_of(case)
     slider = truth_slider(rig)
-    model, free, fixed, truth = problem(case)
+    model, free, fixed, truth = problem(case, release)
     t0 = time.perf_counter()
     t, force, true = gen.make_trace(30_000 + i, DURATION, rig)
     with warnings.catch_warnings():
@@ -121,6 +144,7 @@ def one_set(case: str, i: int, n_sim: int | None) -> dict:
     gaps = np.asarray(true["threshold"]) - rig.kinetic_friction - rig.damping * rig.v_b
     return dict(
         case=case,
+        release=release,
         set=i,
         n_cycles=len(cycles),
         seconds=time.perf_counter() - t0,
@@ -147,10 +171,16 @@ def _to_fit(scale, x):
     return math.log(x) if scale == "log" else x
 
 
+def _label(record: dict) -> str:
+    """A record's case, and the release rule where it is not the registered model's."""
+    release = record.get("release", "threshold")
+    return record["case"] + ("" if release == "threshold" else f" (release from the {release})")
+
+
 def summary(records: list[dict]) -> list[dict]:
     rows = []
-    for case in sorted({r["case"] for r in records}):
-        sets = sorted((r for r in records if r["case"] == case), key=lambda r: r["set"])
+    for case in sorted({_label(r) for r in records}):
+        sets = sorted((r for r in records if _label(r) == case), key=lambda r: r["set"])
         for k in sets[0]["estimate"]:
             scale = sets[0]["scales"][k]
             truth = sets[0]["truth"][k]
@@ -210,7 +240,7 @@ def _read(paths) -> list[dict]:
             for line in p.read_text().splitlines():
                 if line.strip():
                     r = json.loads(line)
-                    records[r["case"], r["set"]] = r
+                    records[_label(r), r["set"]] = r
     return list(records.values())
 
 
@@ -221,6 +251,9 @@ def main():
     parser.add_argument("--first", type=int, default=0)
     parser.add_argument("--jobs", type=int, default=1, help="worker processes")
     parser.add_argument("--n-sim", type=int, default=None, help="fit's n_sim (its default)")
+    parser.add_argument("--release", choices=("threshold", "stick"), default="threshold",
+                        help="random case: a stick past its next threshold releases from the "
+                        "threshold drawn (the registered model) or from where it is")  # fmt: skip
     parser.add_argument("--log", default=None, help="JSON lines, one a set (appended)")
     parser.add_argument("--summary", nargs="+", default=None, help="summarise these logs")
     parser.add_argument("--out", default=None, help="write the summary table here")
@@ -232,10 +265,11 @@ def main():
         if args.out:
             pathlib.Path(args.out).write_text(text + "\n")
         return
-    done = {r["set"] for r in _read([args.log]) if r["case"] == args.case} if args.log else set()
+    done = {r["set"] for r in _read([args.log]) if r["case"] == args.case
+            and r.get("release", "threshold") == args.release} if args.log else set()  # fmt: skip
     todo = [i for i in range(args.first, args.first + args.sets) if i not in done]
     with concurrent.futures.ProcessPoolExecutor(args.jobs) as pool:
-        futures = {pool.submit(one_set, args.case, i, args.n_sim): i for i in todo}
+        futures = {pool.submit(one_set, args.case, i, args.n_sim, args.release): i for i in todo}
         for f in concurrent.futures.as_completed(futures):
             r = f.result()
             line = "; ".join(f"{k} {v:.4g} [{r['ci'][k][0]:.4g}, {r['ci'][k][1]:.4g}]"
