@@ -200,3 +200,32 @@ def test_weighted_median_is_the_median_of_the_values_written_out(weight):
     rank = np.searchsorted(values, np.median(expanded))
     assert values[max(rank - 1, 0)] <= got <= values[min(rank + 1, values.size - 1)]
     assert weighted_median(a, None) == np.median(a)
+
+
+def test_a_model_with_memory_runs_in_short_paths_with_the_same_law(monkeypatch):
+    """A random threshold whose stick, past its next threshold, releases from where it is
+    (memory of one cycle, written as a user writes it) is measured in paths of 32 cycles
+    (one round of `simulate_cycles` per cycle: one long path took 6x as long); its
+    measured cycles have the law of one long path's (two-sample KS per column at 0.01/3,
+    independent seeds)."""
+    import jax.numpy as jnp
+
+    from stickslip._inference import measurement as meas
+
+    class Held(ss.get_model("random-threshold")):
+        carries_state = True
+
+        def release(self, key, y_stick):
+            y_next = self.onset_state(key)
+            y_next = y_next.at[0].set(jnp.maximum(y_next[0], y_stick[0]))
+            return self.stick_duration(y_stick, y_next), y_next
+
+    params = {k: v for k, v in SLIDER.items() if k != "x0"}
+    model = Held(**params, threshold="normal", threshold_params={"mean": 1.0, "sd": 0.6})
+    m = Measurement(**{**MEASUREMENT, "columns": ("slip_time", "stick_time", "slip_distance")})
+    short = measured_cycles(model, m, 1200, 1)
+    monkeypatch.setattr(meas, "_CYCLES_PER_PATH_MEMORY", 1200)
+    long = measured_cycles(model, m, 1200, 2)
+    assert short["slip_time"].size > 800 and long["slip_time"].size > 800
+    for k in m.columns:
+        assert stats.ks_2samp(short[k], long[k]).pvalue > 0.01 / 3, k

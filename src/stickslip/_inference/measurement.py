@@ -80,6 +80,14 @@ _PILOT_HORIZON = 200.0
 # 0.2 % of them to the cut ends of each path's trace, 64 paths bound the padding.
 _CYCLES_PER_PATH = 1000
 _MAX_PATHS = 64
+# ... but a slip-and-stick model with memory (`carries_state`) runs its cycles one round at
+# a time, every path's next cycle in one round (`simulate_cycles`): 1000 cycles of one path
+# were 1000 rounds, 6x the memoryless model's time on the measured slider's random
+# threshold. In paths of this many cycles, 1000 are some 32 rounds (1.3x); each path's cut
+# ends lose ~2 of them, and each path starts at the onset state: a memory of a cycle or two
+# (a stick that carries its force into the next slip) has relaxed by the second cycle. A
+# creeping slider (rate and state), whose state relaxes over many cycles, keeps long paths.
+_CYCLES_PER_PATH_MEMORY = 32
 # The recorded slip states are interpolated linearly onto the sampling grid: with a step
 # of half the sampling interval (and of the fastest time scale) the position errs by
 # dt^2 |a| / 8 (3e-4 at dt = 0.05 on the public set), the velocity by the friction noise's
@@ -313,7 +321,7 @@ def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
     made noisy as `measurement` says; see `measured_cycles`. `sticks="cut"` (a force trace
     with a given `window`): the middles of the long sticks left out (`_cut_grid`), each
     trace's `cut` saying which samples of the whole trace were kept."""
-    from .._model import FrictionModel, time_scales
+    from .._model import CreepingSlider, FrictionModel, time_scales
     from .._simulate import simulate, simulate_cycles
     from .._simulate.driver import check_memory
 
@@ -349,7 +357,9 @@ def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
             f"{owner}: the model sticks again within {_PILOT_HORIZON:g} slow time scales in "
             f"{period.size} of {_PILOT_PATHS} cycles: no stick-slip trace to measure"
         )
-    n_paths = int(min(_MAX_PATHS, max(1, round(n_cycles / _CYCLES_PER_PATH))))
+    short = model.carries_state and not isinstance(model, CreepingSlider)
+    per_path = _CYCLES_PER_PATH_MEMORY if short else _CYCLES_PER_PATH
+    n_paths = int(min(_MAX_PATHS, max(1, round(n_cycles / per_path))))
     t_max = math.ceil(n_cycles / n_paths) * float(np.mean(period))
     check_memory(
         owner, f"a trace of {n_paths * t_max / h:.3g} samples ({n_cycles} cycles of mean period "
