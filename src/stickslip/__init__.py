@@ -58,7 +58,7 @@ _LAZY = {
     "SelectionWarning": ".selection",
     "fit": "._inference.fit",
     "FitResult": "._inference.result",
-    "load_fit": "._inference.saved",
+    "load_fit": "._inference.loaded",
     "Prediction": "._inference.predict",
     "goodness_of_fit": "._inference.goodness",
     "GoodnessOfFit": "._inference.goodness",

@@ -1,4 +1,4 @@
-"""A fit on disk: `FitResult.save(path)` and `load_fit(path)`.
+"""A fit on disk: `FitResult.save(path)` writes it (`save_fit`); `loaded.load_fit` reads it.
 
 One JSON file (readable, diffable, and loaded without executing anything: no pickle):
 the model by its registered name and the arguments that rebuild it, the estimate, the
@@ -14,13 +14,12 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import os
 import pathlib
 
 import numpy as np
 
-from .._errors import DataError, ParameterError
+from .._errors import ParameterError
 
 FORMAT = "stickslip fit"
 VERSION = 1
@@ -30,7 +29,7 @@ _KEPT = ("n_sim", "dt", "t_max", "seed", "n_data", "zero_fraction", "bandwidth",
          "covariance", "hessian", "evaluations", "points", "seconds", "warnings",
          "optimizer", "design", "mc_noise", "dependence")  # fmt: skip
 # The SI mapping a fit was given (`scales=`), by its class.
-_UNITS = ("Slider", "Scales")
+UNITS = ("Slider", "Scales")
 
 
 def jsonable(value):
@@ -90,80 +89,6 @@ def save_fit(result, path) -> pathlib.Path:
     finally:
         part.unlink(missing_ok=True)
     return path
-
-
-def load_fit(path):
-    """The `FitResult` saved at `path` (`FitResult.save`).
-
-    **Raises:** `DataError` for a file that is not a saved fit (not JSON, another format,
-    a newer version, a field missing), naming the file and what is wrong; `PluginError`
-    where its model is not installed."""
-    from .._registry import get_model
-    from .goodness import GoodnessOfFit
-    from .measurement import Measurement
-    from .params import ToFit
-    from .result import FitResult
-
-    path = pathlib.Path(path)
-    try:
-        document = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
-        raise DataError(f"load_fit: {path} cannot be read as a saved fit: {err}") from None
-    if not isinstance(document, dict) or document.get("format") != FORMAT:
-        raise DataError(f"load_fit: {path} is not a saved stickslip fit (no '{FORMAT}' format)")
-    if document.get("version", math.inf) > VERSION:
-        raise DataError(
-            f"load_fit: {path} was saved in format version {document.get('version')} by "
-            f"stickslip {document.get('stickslip')}; this version reads up to {VERSION}"
-        )
-    need = ("model", "params", "estimate", "ci", "log_likelihood", "method", "data",
-            "measurement", "diagnostics", "goodness")  # fmt: skip
-    missing = [k for k in need if k not in document]
-    if missing:
-        raise DataError(f"load_fit: {path} lacks {', '.join(missing)}")
-    model = get_model(document["model"])(**document["params"])
-    data = {k: np.asarray(v, float) for k, v in document["data"].items()}
-    measurement = document["measurement"]
-    if measurement is not None:
-        if measurement.get("thresholds") is not None:
-            measurement["thresholds"] = dict(measurement["thresholds"])
-        for key in ("lines", "columns"):
-            measurement[key] = tuple(measurement[key])
-        measurement = Measurement(**measurement)
-    d = dict(document["diagnostics"])
-    d.update(measurement=measurement, observe=measurement, trace=measurement is not None,
-             sampling=None if measurement is None else measurement.sampling_interval,
-             to_fit=ToFit(d.get("scales", {})))  # fmt: skip
-    d["points"] = [(np.asarray(x, float), float(v)) for x, v in d.get("points", [])]
-    d["units"] = _units(document.get("units"), path)
-    goodness = document["goodness"]
-    if goodness is not None:
-        for key in ("replicates", "data", "reference"):
-            goodness[key] = {k: np.asarray(v, float) for k, v in goodness[key].items()}
-        goodness = GoodnessOfFit(**goodness)
-    return FitResult(
-        estimate={k: float(v) for k, v in document["estimate"].items()},
-        ci={k: (float(a), float(b)) for k, (a, b) in document["ci"].items()},
-        log_likelihood=float(document["log_likelihood"]), method=document["method"],
-        diagnostics=d, data=data, model=model, goodness=goodness,
-    )  # fmt: skip
-
-
-def _units(saved, path):
-    """The `Slider` or `Scales` a fit was given, from its saved fields (None if none)."""
-    from ..units import Scales, Slider
-
-    if saved is None:
-        return None
-    kind = saved.pop("kind", None)
-    if kind not in _UNITS:
-        raise DataError(f"load_fit: {path}: its units are of an unknown kind ({kind!r})")
-    if kind == "Scales":
-        return Scales(**saved)
-    if saved.get("threshold") is not None:
-        law, params = saved["threshold"]
-        saved["threshold"] = (law, dict(params))
-    return Slider(**saved)
 
 
 def _version() -> str:
