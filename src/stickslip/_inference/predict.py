@@ -23,15 +23,14 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import DataError, ParameterError, StickSlipError, check_int, check_positive
+from .._errors import ParameterError, StickSlipError, check_int, check_positive
 
 OWNER = "FitResult.predict"
 # The parameters `Slider.si_parameters` maps; the others of a model (`eta0`) are settings.
 _PHYSICAL = ("omega0", "zeta", "D", "tau", "v_b", "x0", "threshold", "threshold_params")
 # What a run's cycles are compared in: the force trace's columns, in SI.
 _OBSERVABLES = ("stick_time", "slip_time", "force_drop")
-# A prediction without a run: this many independent cycles, each followed up to this many
-# of the predicted slider's slow time scales.
+# A prediction without a run: at least this many independent cycles (`Slider.simulate`).
 _N_CYCLES = 4000
 _STUCK = 0.5  # a slider whose cycles stick again in at least this share: stick-slip
 
@@ -153,7 +152,7 @@ def _through(slider, run, n_sim, seed, how) -> Prediction:
     data = {k: np.asarray(run[k], float) for k in _OBSERVABLES}
     try:
         sim = measured_cycles(slider.model(), measurement, n_sim, seed)
-    except (DataError, StickSlipError) as err:
+    except StickSlipError as err:  # (a DataError: no cycles through the measurement)
         # no cycles through the run's measurement: the run's stick-slip is not predicted
         empty = {k: np.zeros(0) for k in _OBSERVABLES}
         method = f"{n_sim} model cycles of {how}, through the run's measurement"
