@@ -522,9 +522,11 @@ def test_force_batched_fit_matches_scipy():
 
         ref = least_squares(residual, p0, bounds=bounds, loss="soft_l1", f_scale=2 * sigma,
                             x_scale=np.array([1, 1, sigma, sigma, 0.1]))  # fmt: skip
-        # both at the same minimum: the release and the slip time to 0.05 samples (the
-        # fits' own sd is ~1 sample), the cost to a part in 1e4
-        assert abs(row[0] - ref.x[0]) < 0.05 and abs(row[1] - ref.x[1]) < 0.05
+        # both at the same minimum: the release and the slip time to 0.1 samples (the
+        # fits' own sd is ~1 sample; the fit stops once a step gains < 1e-3 in chi^2, a
+        # few hundredths of an sd from the optimum along a flat direction), the cost to a
+        # part in 1e4
+        assert abs(row[0] - ref.x[0]) < 0.1 and abs(row[1] - ref.x[1]) < 0.1
         ref_cost = np.sum(_force._soft_l1(residual(ref.x), sigma))
         assert row[11] <= ref_cost * (1 + 1e-4)
 

@@ -107,6 +107,12 @@ _WIDER, _MAX_WINDOW, _STICK_SHARE, _SCAN = 1.6, 301, 0.25, 3
 # a hundred sticks moves the slope by ~0.3 %), and chasing them widened the window to
 # its limit on the measured slider, finding 18 more slips than the 252 it had.
 _HIDDEN_SHARE = 0.2
+# A shape fit has converged when a step gains less than this in chi^2 (the soft-L1 cost in
+# units of the noise's variance; one standard error of a parameter is a gain of 1). The
+# fits that went on past it crawled along flat directions (the kappa of a short slip, the
+# empty half of a two-slip fit) for up to 100 steps: on the public runs the slips' times
+# moved by at most 0.2 of a sample, and a fit point costs 17 % less.
+_GAIN_TOL = 1e-3
 _BATCH = 2_000_000  # samples per batch of the fit (memory: ~20 arrays of this many floats)
 # A batch's windows are padded to its longest; a batch per 30 % of length (and 16 samples):
 # a few batches, each iteration's overhead ~0.1 ms a batch
@@ -849,9 +855,9 @@ def _lm(normal, x, yy, mask, p, lower, upper, sigma, max_iter=100):
         A_all[good], grad_all[good] = A_t[better], grad_t[better]
         lam[good] = np.maximum(lam[good] / 3.0, 1e-9)
         lam[act[~better]] *= 4.0
-        # converged: a step that gains less than 1e-8 of the cost (in chi^2: nothing), or
-        # no step at any damping gains at all
-        done[act] = (better & (gain <= 1e-8 * np.maximum(cost[act], 1.0))) | (lam[act] > 1e10)
+        # converged: a step that gains less than `_GAIN_TOL` in chi^2 (or 1e-8 of the
+        # cost), or no step at any damping gains at all
+        done[act] = (better & (gain <= np.maximum(1e-8 * cost[act], _GAIN_TOL))) | (lam[act] > 1e10)
     return p, done, cost, np.linalg.pinv(A_all) * sigma**2
 
 
