@@ -81,30 +81,10 @@ def truth_slider(rig):
     )  # fmt: skip
 
 
-def held_threshold():
-    """The `random-threshold` model whose stick, where it already passed the threshold
-    drawn for the next release, releases from where it is (the generator's rule, and the
-    force's: it cannot jump down to the threshold), where the registered model, with the
-    paper's sharp reset, starts that slip from the threshold drawn. Written as a user
-    writes a law with memory (`carries_state`, `release`: docs/extending.md)."""
-    import jax.numpy as jnp
-
-    import stickslip as ss
-
-    class HeldThreshold(ss.get_model("random-threshold")):
-        carries_state = True
-
-        def release(self, key, y_stick):
-            y_next = self.onset_state(key)
-            y_next = y_next.at[0].set(jnp.maximum(y_next[0], y_stick[0]))
-            return self.stick_duration(y_stick, y_next), y_next
-
-    return HeldThreshold
-
-
 def problem(case: str, release: str = "threshold"):
     """(model name, free boxes, fixed values, truth of the free parameters) in model units;
-    `release="stick"`: the random threshold fitted by `held_threshold()`."""
+    `release="stick"`: the random threshold fitted by `random-threshold-held` (a stick past
+    its next threshold releases from where it is, as the generator's does)."""
     rig = rig_of(case)
     dim = truth_slider(rig).dimensionless()
     known = dict(zeta=dim["zeta"], v_b=dim["v_b"], tau=dim["tau"])
@@ -115,7 +95,7 @@ def problem(case: str, release: str = "threshold"):
         truth = dict(omega0=dim["omega0"], D=dim["D"], **{
             "threshold_params.mean": dim["threshold_params"]["mean"],
             "threshold_params.sd": dim["threshold_params"]["sd"]})  # fmt: skip
-        model = held_threshold() if release == "stick" else "random-threshold"
+        model = "random-threshold-held" if release == "stick" else "random-threshold"
         return model, free, {**known, "threshold": "normal"}, truth
     free = {**shared, "x0": BOX["threshold"]}
     return "langevin", free, known, dict(omega0=dim["omega0"], D=dim["D"], x0=dim["x0"])
@@ -253,7 +233,8 @@ def main():
     parser.add_argument("--n-sim", type=int, default=None, help="fit's n_sim (its default)")
     parser.add_argument("--release", choices=("threshold", "stick"), default="threshold",
                         help="random case: a stick past its next threshold releases from the "
-                        "threshold drawn (the registered model) or from where it is")  # fmt: skip
+                        "threshold drawn (random-threshold, the paper's reset) or from where it "
+                        "is (random-threshold-held)")  # fmt: skip
     parser.add_argument("--log", default=None, help="JSON lines, one a set (appended)")
     parser.add_argument("--summary", nargs="+", default=None, help="summarise these logs")
     parser.add_argument("--out", default=None, help="write the summary table here")
