@@ -59,6 +59,11 @@ MAX_STEP = 1.0
 # of x0 = (F_s - F_k - c V)/k (an affine map keeps a normal normal and a uniform uniform;
 # a lognormal or Weibull F_s shifted by F_k + c V is neither).
 _THRESHOLD_LAWS = {"normal": ("mean", "sd"), "uniform": ("low", "high")}
+# The SI values `Slider.model_parameters` maps into a slider's model units (a joint fit's
+# parameter names)
+MODEL_SI_NAMES = ("mass", "damping", "noise", "noise_time", "static_friction",
+                  "kinetic_friction", "threshold.mean", "threshold.sd", "threshold.low",
+                  "threshold.high")  # fmt: skip
 
 # Plugin parameter -> the Slider's field it comes from (to name the SI field in errors).
 _SI_FIELD = {
@@ -468,6 +473,69 @@ class Slider:
                 raise ParameterError(
                     "Slider.si_parameters", "threshold", "must be 'normal' or 'uniform'", law
                 )
+        return out
+
+    def model_parameters(self, si: dict[str, Any] | None = None) -> dict[str, Any]:
+        r"""The model's parameters, in this slider's units, of a slider that differs from
+        this one by the SI values `si` (the inverse of `si_parameters`): this slider's
+        spring and speed with another mass, damping, noise or friction, as a model fitted
+        in this slider's units sees it (a joint fit of several runs maps one physical
+        parameter set to each run's units this way).
+
+        `si` may set `mass` (kg: `omega0` $= \sqrt{m/m'}$), `damping` (kg/s), `noise`
+        (N² s), `noise_time` (s), `static_friction`, `kinetic_friction` (N), and a
+        random threshold's `threshold.mean`, `threshold.sd` (a normal law) or
+        `threshold.low`, `threshold.high` (uniform) in N; what it leaves out is this
+        slider's. `model_parameters()` is `dimensionless()` to rounding. Unknown names
+        raise a `ParameterError`."""
+        owner = "Slider.model_parameters"
+        si = dict(si or {})
+        for key in si:
+            if key not in MODEL_SI_NAMES:
+                raise ParameterError(
+                    owner, key, "is not a slider parameter; one of " + ", ".join(MODEL_SI_NAMES)
+                )
+        s = self.scales
+        mass = check_positive(owner, "mass", si.get("mass", self.mass))
+        damping = si.get("damping", self.damping)
+        noise = si.get("noise", self.noise)
+        noise_time = si.get("noise_time", self.noise_time)
+        kinetic = si.get("kinetic_friction", self.kinetic_friction)
+        out: dict[str, Any] = {
+            "omega0": math.sqrt(self.mass / mass),
+            "zeta": damping / (mass * s.omega0),
+            "D": noise / (s.noise * (mass / self.mass) ** 2),
+            "v_b": self.v_b / s.velocity,
+            "tau": None if noise_time is None else noise_time / s.time,
+        }
+        offset = kinetic + damping * self.v_b
+        law_keys = [k for k in si if k.startswith("threshold.")]
+        if law_keys:
+            law = "normal" if {"threshold.mean", "threshold.sd"} & set(law_keys) else "uniform"
+            if self.threshold is not None and self.threshold[0] == law:
+                given = self.threshold[1]
+            else:  # a fixed static friction: the normal law's mean
+                given = {"mean": self.static_friction} if law == "normal" else {}
+            fields = _THRESHOLD_LAWS[law]
+            p = {f: si.get(f"threshold.{f}", given.get(f)) for f in fields}
+            missing = [f"threshold.{f}" for f, v in p.items() if v is None]
+            if missing:
+                raise ParameterError(owner, missing[0], f"is needed with the {law} law's others")
+        elif self.threshold is not None:
+            law, p = self.threshold
+        else:
+            law = None
+        if law is None:
+            static = si.get("static_friction", self.static_friction)
+            out["x0"] = (static - offset) / s.force
+        elif law == "normal":
+            out["threshold"] = law
+            out["threshold_params"] = {"mean": (p["mean"] - offset) / s.force,
+                                       "sd": p["sd"] / s.force}  # fmt: skip
+        else:
+            out["threshold"] = law
+            out["threshold_params"] = {"low": (p["low"] - offset) / s.force,
+                                       "high": (p["high"] - offset) / s.force}  # fmt: skip
         return out
 
     # -- a measured trace and a fit -------------------------------------------------------

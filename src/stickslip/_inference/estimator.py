@@ -63,20 +63,26 @@ MEASURED_DESIGN_STEP = 0.3
 
 def _estimate(
     model, data, free, fixed=None, *, seed=0, n_sim=None, dt=None, t_max=None, scales=None,
-    trace=None, sampling=None, progress=False, measurement=None,
+    trace=None, sampling=None, progress=False, measurement=None, runs=None,
 ) -> FitResult:  # fmt: skip
     """`fit` without its goodness-of-fit check: the arguments and result are `fit`'s.
     `measurement` (private: a bootstrap replicate's refit) fits a dict of cycles as if they
-    came with that measurement."""
+    came with that measurement. `runs` (a `joint.Runs`, with `data` None): one parameter
+    set fitted to several runs, each through its own measurement and units."""
     wall0 = time.perf_counter()
     owner = "fit"
     units = scales  # (a Slider or Scales; `scales` names the fit coordinates below)
     Model = _model_class(model)
-    data, measured = _measurement(data, trace, sampling, scales, owner)
-    if measurement is not None:
-        measured = measurement
-    fixed = _check_fixed(fixed, Model)
-    free = _check_free(free, fixed, Model)
+    if runs is None:
+        data, measured = _measurement(data, trace, sampling, scales, owner)
+        if measurement is not None:
+            measured = measurement
+        fixed = _check_fixed(fixed, Model)
+        free = _check_free(free, fixed, Model)
+    else:
+        fixed, free = runs.checked(fixed, free)
+        data, measured = runs.data, runs.measurements[0]
+        units = runs.sliders[0]  # (the estimate is in SI; `predict` reads it in these units)
     seed = check_int(owner, "seed", seed, minimum=0)
     if seed >= 2**64:
         raise ParameterError(owner, "seed", "must be < 2**64", seed)
@@ -98,15 +104,22 @@ def _estimate(
     def params(u):
         return {k: _from_fit(scales[k], float(x)) for k, x in zip(names, u, strict=True)}
 
-    # The model at the box's centre and at each end of each axis: a value the model refuses
-    # is the box's fault, said here in one line rather than as points that quietly fail.
-    centre = _check_box(Model, fixed, free, params(0.5 * (lo + hi)))
+    if runs is None:
+        # The model at the box's centre and at each end of each axis: a value the model
+        # refuses is the box's fault, said here in one line rather than as points that
+        # quietly fail.
+        centre = _check_box(Model, fixed, free, params(0.5 * (lo + hi)))
+    else:
+        centre = runs.check_box(free, params(0.5 * (lo + hi)))
     _check_memory(n_sim, centre)
-    given = data
-    data = _check_data(data, measured=measured is not None)
-    sampled = None if measured is not None else _looks_sampled(given, data)
-    if sampled is not None:  # said now: the fit may take minutes
-        warnings.warn(f"fit: {sampled}", stacklevel=STACKLEVEL)
+    if runs is None:
+        given = data
+        data = _check_data(data, measured=measured is not None)
+        sampled = None if measured is not None else _looks_sampled(given, data)
+        if sampled is not None:  # said now: the fit may take minutes
+            warnings.warn(f"fit: {sampled}", stacklevel=STACKLEVEL)
+    else:
+        sampled = None
     if measured is None:
         dt, t_max = _simulation_settings(centre, data, dt, t_max, owner)
     else:
@@ -117,7 +130,16 @@ def _estimate(
                 f"{', '.join(missing)}", sorted(data),
             )  # fmt: skip
     n_data = max(x.size for x in data.values())
-    bandwidth = {k: _bandwidth(_transform(k, data[k]), n_sim) for k in data}
+    if runs is None:
+        parts = [(data, measured, {k: _bandwidth(_transform(k, data[k]), n_sim) for k in data})]
+
+        def build(values):
+            return [Model(**_kwargs(fixed, values))]
+    else:
+        parts = [(d, m, {k: _bandwidth(_transform(k, d[k]), n_sim) for k in d})
+                 for d, m in zip(runs.columns, runs.measurements, strict=True)]  # fmt: skip
+        build = runs.build
+    bandwidth = parts[0][2] if runs is None else [b for _, _, b in parts]
     points: list = []
     # The best point so far is kept, not simulated again: Nelder-Mead starts at the best
     # grid point, the surface's design at Nelder-Mead's best point (the same simulation:
@@ -127,7 +149,7 @@ def _estimate(
     # The simulated cycles at the surface's design points, both seeds, kept for the model
     # comparison (`compare_fits` scores its bootstrap replicates against them) where they
     # fit in KEEP_SAMPLES_BYTES; `recording` holds them while the design is evaluated.
-    keep = _keeps_samples(n_sim, len(data), len(names))
+    keep = runs is None and _keeps_samples(n_sim, len(data), len(names))
     recording: dict | None = None
 
     def loglik(u, at_seed=seed):
@@ -148,15 +170,26 @@ def _estimate(
 
     def _loglik(u, at_seed):
         try:
-            m = Model(**_kwargs(fixed, params(u)))
+            models = build(params(u))
         except (ValueError, ArithmeticError):
-            m = None
-        try:
-            sim = None if m is None else _sample(m, n_sim, dt, t_max, at_seed, measured)
-        except ParameterError as err:  # simulate's names are fit's arguments
-            name = {"n_paths": "n_sim"}.get(err.parameter, err.parameter)
-            raise ParameterError(owner, name, err.reason, err.value) from None
-        terms = _scored(data, sim, bandwidth, measured)
+            models = [None] * len(parts)
+        per_run, sim = [], None
+        for m, (d, measure, h) in zip(models, parts, strict=True):
+            try:
+                sim = None if m is None else _sample(m, n_sim, dt, t_max, at_seed, measure)
+            except ParameterError as err:  # simulate's names are fit's arguments
+                name = {"n_paths": "n_sim"}.get(err.parameter, err.parameter)
+                raise ParameterError(owner, name, err.reason, err.value) from None
+            per_run.append(_scored(d, sim, h, measure))
+            if per_run[-1] is None:
+                break
+        # (several runs: each column's terms one run after the other, the rows of `data`)
+        if any(t is None for t in per_run):
+            terms = None
+        elif len(per_run) == 1:
+            terms = per_run[0]
+        else:
+            terms = {k: np.concatenate([t[k] for t in per_run]) for k in data}
         sim = None if sim is None or not keep else {k: np.asarray(sim[k], float) for k in data}
         value = -np.inf if terms is None else float(sum(np.sum(v) for v in terms.values()))
         if at_seed == seed:  # the surface's points (the second seed's are in mc_noise)
@@ -251,9 +284,12 @@ def _estimate(
         dependence=dependence,
         units=units,  # the SI mapping given (`FitResult.predict`)
     )  # fmt: skip
+    fitted = build(estimate)
+    if runs is not None:
+        diagnostics["runs"] = runs.describe(fitted)
     return FitResult(
         estimate=estimate, ci=ci, log_likelihood=ll_hat, method=method,
-        diagnostics=diagnostics, data=data, model=Model(**_kwargs(fixed, estimate)),
+        diagnostics=diagnostics, data=data, model=fitted[0],
     )  # fmt: skip
 
 

@@ -36,7 +36,7 @@ if TYPE_CHECKING:
 
 def fit(
     model,
-    data: dict | Cycles,
+    data: dict | Cycles | list,
     free: dict,
     fixed: dict | None = None,
     *,
@@ -77,6 +77,20 @@ def fit(
       column in the model's units (fit `slip_distance`); `peak_force`, the absolute force
       level, is not fitted. A fixed `v_b` more than 2 % off the sticks' loading speed in
       the data (`info["v_b_estimated"]`) gets a warning.
+
+      Or **several runs**, a list: each a stick-slip `Run` of `analyse_run(...,
+      mass=m)` or a pair `(Cycles, Slider)` of a force trace's cycles and its reference
+      slider (`Slider.from_cycles`). One set of physical parameters is fitted to all of
+      them, each run through its own measurement, spring and speed: `free` and `fixed`
+      then name the slider's SI values (`mass`, `damping`, `noise`, `noise_time`,
+      `static_friction`, `kinetic_friction`, `threshold.mean`, `threshold.sd`, ...),
+      mapped into each run's units by `Slider.model_parameters`; a value neither free nor
+      fixed is each run's own (its reference slider's). The model is `langevin` or a
+      threshold model (`random-threshold`, `random-threshold-held`); the estimate is in
+      SI; `diagnostics["runs"]` has each run's spring, speed, cycles, fitted model and,
+      with `check`, a KS p-value per observable against the fitted model's cycles through
+      its measurement (not corrected for the fit: a low one rejects). The cycles see
+      only the gap $F_s - F_k - cV$: fix `kinetic_friction` and fit `static_friction`.
 
       Data that cannot be fitted raise a `DataError` with the evidence: a `nan` or `inf`
       (the rows named: drop them yourself, knowing why they are there), columns of
@@ -124,6 +138,9 @@ def fit(
     wall0 = time.perf_counter()
     if not isinstance(check, (bool, np.bool_)):
         raise ParameterError("fit", "check", "must be True or False", check)
+    if isinstance(data, (list, tuple)):
+        return _joint(model, data, free, fixed, seed=seed, n_sim=n_sim, dt=dt, scales=scales,
+                      check=check, progress=progress, wall0=wall0)  # fmt: skip
     loading = _loading_speed_mismatch(data, fixed, scales)
     if loading is not None:  # said now: the fit may take minutes
         warnings.warn(f"fit: {loading}", stacklevel=2)
@@ -134,6 +151,33 @@ def fit(
     if loading is not None:
         result.diagnostics["warnings"].insert(0, loading)
     return _checked(result, seed, wall0) if check else result
+
+
+def _joint(model, data, free, fixed, *, seed, n_sim, dt, scales, check, progress, wall0):
+    """`fit` of one SI parameter set to several runs (`joint`)."""
+    from .joint import Runs
+    from .params import _model_class
+
+    if scales is not None:
+        raise ParameterError(
+            "fit", "scales", "applies to one run: with several, each run's reference Slider "
+            "sets its units (a Run's own, or the Slider of a (Cycles, Slider) pair)",
+        )  # fmt: skip
+    runs = Runs(_model_class(model), data)
+    result = _estimate(model, None, free, fixed, seed=seed, n_sim=n_sim, dt=dt,
+                       progress=progress, runs=runs)  # fmt: skip
+    if check:
+        d = result.diagnostics
+        runs.p_values(result, d["n_sim"], (seed + 1) % 2**64)
+        low = [f"{row['name']} {k} p = {p:.3g}" for row in d["runs"]
+               for k, p in row["p_values"].items() if p < ALPHA]  # fmt: skip
+        if low:
+            text = (f"the data reject the model: {', '.join(low)} < {ALPHA} (KS against the "
+                    "fitted model's cycles through that run's measurement)")  # fmt: skip
+            d["warnings"].append(text)
+            warnings.warn(f"fit: {text}", stacklevel=3)
+    result.diagnostics["seconds"] = time.perf_counter() - wall0
+    return result
 
 
 # A model driven this far from the data's loading speed loads its sticks visibly faster or

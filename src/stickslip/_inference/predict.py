@@ -125,7 +125,7 @@ def predict(result, run=None, *, stiffness=None, v_b=None, n_sim=None, seed=None
            "stiffness and speed, seed {seed}")  # fmt: skip
     if run is None:
         return _per_cycle(predicted, n_sim, seed, how.format(seed=seed))
-    return _through(predicted, run, n_sim, seed, how.format(seed=seed))
+    return _through(type(result.model), predicted, run, n_sim, seed, how.format(seed=seed))
 
 
 def _per_cycle(slider, n_sim, seed, how) -> Prediction:
@@ -141,8 +141,10 @@ def _per_cycle(slider, n_sim, seed, how) -> Prediction:
                       f"{n} independent cycles of {how}")  # fmt: skip
 
 
-def _through(slider, run, n_sim, seed, how) -> Prediction:
-    """The slider's cycles through `run`'s measurement, in SI, against the run's."""
+def _through(Model, slider, run, n_sim, seed, how) -> Prediction:
+    """The slider's cycles through `run`'s measurement, in SI, against the run's: the
+    fitted model's class (`random-threshold-held` releases as it does) with the slider's
+    parameters."""
     from scipy import stats
 
     from .measurement import Measurement, measured_cycles
@@ -151,7 +153,7 @@ def _through(slider, run, n_sim, seed, how) -> Prediction:
     s = slider.scales
     data = {k: np.asarray(run[k], float) for k in _OBSERVABLES}
     try:
-        sim = measured_cycles(slider.model(), measurement, n_sim, seed)
+        sim = measured_cycles(Model(**slider.dimensionless()), measurement, n_sim, seed)
     except StickSlipError as err:  # (a DataError: no cycles through the measurement)
         # no cycles through the run's measurement: the run's stick-slip is not predicted
         empty = {k: np.zeros(0) for k in _OBSERVABLES}

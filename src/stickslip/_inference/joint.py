@@ -1,0 +1,199 @@
+"""One parameter set fitted to several runs (`fit(model, [run, run, ...])`).
+
+A campaign sweeps the spring and the driving speed; what a friction law claims is that one
+set of physical parameters (an effective mass, a damping, a friction noise, a static and
+a kinetic friction) makes every run. Each run keeps its own spring $k$, speed $V$,
+measurement and units (its reference `Slider`); the free and fixed parameters are the
+slider's SI values (`units.MODEL_SI_NAMES`), mapped into each run's model units by
+`Slider.model_parameters`. A value neither free nor fixed stays each run's own (its
+reference slider's: the kinetic friction from its median drop, say): a parameter per run
+where the physics says it may differ.
+
+The log-likelihood is the sum of the runs' (independent runs); its per-cycle terms are the
+runs' rows one after the other, so that the sandwich, the second seed's noise check and
+the intervals are `fit`'s own.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from .._errors import ParameterError
+
+OWNER = "fit"
+
+
+def _reference(run, i: int):
+    """`(cycles, slider, label)` of one entry of the runs: a stick-slip `Run` made with
+    its mass, or a `(Cycles, Slider)` pair."""
+    from .._extract import Cycles
+    from .._extract._regime import Run
+    from ..units import Slider
+
+    where = f"data[{i}]"
+    if isinstance(run, Run):
+        label = run.settings.get("name") or f"run {i}"
+        if run.regime != "stick-slip":
+            raise ParameterError(
+                OWNER, where, f"({label}) is {run.regime}, not stick-slip: it has no cycles "
+                f"to fit ({run.evidence})",
+            )  # fmt: skip
+        mass = run.settings.get("mass")
+        if not mass:
+            raise ParameterError(
+                OWNER, where, f"({label}) was read without its mass: analyse_run(..., mass=m) "
+                "sets the units its cycles are fitted in",
+            )  # fmt: skip
+        slider = Slider.from_cycles(run.cycles, mass=mass)
+        return run.cycles, slider, label
+    if isinstance(run, tuple) and len(run) == 2:
+        cycles, slider = run
+        if isinstance(cycles, Cycles) and isinstance(slider, Slider):
+            info = cycles.info
+            name = info.get("name") or f"run {i}"
+            return cycles, slider, name
+    raise ParameterError(
+        OWNER, where, "must be a stick-slip Run (analyse_run(..., mass=m)) or a pair "
+        "(Cycles, Slider) of a force trace's cycles and its reference slider", type(run).__name__,
+    )  # fmt: skip
+
+
+class Runs:
+    """The runs of a joint fit: their data in their own units, their measurements, and
+    the map from a point of SI values to each run's model."""
+
+    def __init__(self, Model, runs):
+        from ..units import MODEL_SI_NAMES
+        from .data import _check_data, _measurement
+
+        self.Model = Model
+        known = Model.parameters()
+        self.law = "threshold" in known
+        if not {"omega0", "zeta", "D", "v_b"} <= set(known) or not (self.law or "x0" in known):
+            raise ParameterError(
+                OWNER, "model", f"{Model.__name__} does not take a slider's parameters "
+                "(omega0, zeta, D, v_b and x0 or a threshold law): a fit of several runs maps "
+                "one set of SI values into each run's units through its Slider",
+            )  # fmt: skip
+        if not isinstance(runs, (list, tuple)) or len(runs) < 1:
+            raise ParameterError(OWNER, "data", "must be a non-empty list of runs", runs)
+        self.names = MODEL_SI_NAMES
+        self.labels, self.sliders, self.cycles = [], [], []
+        self.columns, self.measurements = [], []
+        for i, run in enumerate(runs):
+            cycles, slider, label = _reference(run, i)
+            d, measured = _measurement(cycles, None, None, slider, OWNER)
+            if measured is None:
+                raise ParameterError(OWNER, f"data[{i}]", "must be the cycles of a force trace")
+            self.labels.append(label)
+            self.sliders.append(slider)
+            self.cycles.append(cycles)
+            self.columns.append(_check_data(d, measured=True))
+            self.measurements.append(measured)
+        first = list(self.columns[0])
+        for i, d in enumerate(self.columns):
+            if list(d) != first:
+                raise ParameterError(
+                    OWNER, f"data[{i}]", f"has the columns {', '.join(d)}, the first run "
+                    f"{', '.join(first)}: fit the same observables of every run",
+                )  # fmt: skip
+        # every run's rows, one run after the other
+        self.data = {k: np.concatenate([d[k] for d in self.columns]) for k in first}
+        self.fixed: dict[str, Any] = {}
+
+    def checked(self, fixed, free) -> tuple[dict, dict]:
+        """`(fixed, free)`: SI names of a slider, finite boxes with low < high, none both."""
+        fixed = {} if fixed is None else fixed
+        if not hasattr(fixed, "items"):
+            raise ParameterError(OWNER, "fixed", "must be a dict {name: value}", fixed)
+        if not hasattr(free, "items") or not free:
+            raise ParameterError(OWNER, "free", "must be a non-empty dict {name: (low, high)}")
+        for where, names in (("fixed", fixed), ("free", free)):
+            for k in names:
+                if k not in self.names:
+                    raise ParameterError(
+                        OWNER, f"{where}['{k}']", "is not a slider parameter of a fit of several "
+                        f"runs (SI values: {', '.join(self.names)})",
+                    )  # fmt: skip
+        out = {}
+        for k, box in free.items():
+            try:
+                low, high = (float(b) for b in box)
+            except (TypeError, ValueError):
+                raise ParameterError(OWNER, f"free['{k}']", "must be a pair (low, high)") from None
+            if not (math.isfinite(low) and math.isfinite(high) and low < high):
+                raise ParameterError(OWNER, f"free['{k}']", "must be finite with low < high", box)
+            if k in fixed:
+                raise ParameterError(OWNER, f"free['{k}']", "is also fixed")
+            out[k] = (low, high)
+        self.fixed = dict(fixed)
+        return self.fixed, out
+
+    def build(self, values: dict) -> list:
+        """Each run's model at the SI `values` (with the fixed ones)."""
+        si = {**self.fixed, **values}
+        models = []
+        for slider in self.sliders:
+            p = slider.model_parameters(si)
+            if "threshold" in p and not self.law:
+                raise ParameterError(
+                    OWNER, "model", f"{self.Model.__name__} has a fixed threshold; the runs' "
+                    "sliders (or threshold.* values) give a random one",
+                )  # fmt: skip
+            if self.law and "x0" in p:  # a fixed static friction: a law of no spread
+                p["threshold"] = "normal"
+                p["threshold_params"] = {"mean": p.pop("x0"), "sd": 0.0}
+            models.append(self.Model(**p))
+        return models
+
+    def check_box(self, free: dict, centre: dict):
+        """The first run's model at the box's centre, after building every run's there and
+        at both ends of each axis: a value a run's model refuses is a `ParameterError`
+        naming the box and the run."""
+        trials = [(None, centre)] + [(k, {**centre, k: b}) for k in free for b in free[k]]
+        built = None
+        for name, values in trials:
+            try:
+                models = self.build(values)
+            except (ValueError, ArithmeticError) as err:
+                reason = str(err).splitlines()[0] if str(err) else type(err).__name__
+                where = f"free['{name}']" if name else "fixed"
+                raise ParameterError(
+                    OWNER, where, f"gives a model a run refuses ({reason}): narrow the box",
+                ) from None  # fmt: skip
+            if name is None:
+                built = models[0]
+        return built
+
+    def describe(self, models) -> list[dict[str, Any]]:
+        """Per run: its label, spring, speed, cycles and the fitted model's parameters."""
+        out = []
+        for label, slider, d, m in zip(self.labels, self.sliders, self.columns, models,
+                                       strict=True):  # fmt: skip
+            out.append(dict(
+                name=label, stiffness=slider.stiffness, v_b=slider.v_b,
+                cycles=int(max(np.size(v) for v in d.values())),
+                model={k: v for k, v in m.params().items()
+                       if isinstance(v, (int, float, str, dict)) or v is None},
+            ))  # fmt: skip
+        return out
+
+    def p_values(self, result, n_sim: int, seed: int) -> None:
+        """Per run and observable, the KS p-value of its cycles against the fitted models'
+        simulated ones through its measurement (another seed than the fit's), into
+        `result.diagnostics["runs"]`. Not corrected for the fit (the estimate was tuned on
+        these data): high p-values are optimistic, a low one is a rejection."""
+        from scipy import stats
+
+        from .forward import _simulate
+
+        models = self.build(result.estimate)
+        for row, m, d, measured in zip(result.diagnostics["runs"], models, self.columns,
+                                       self.measurements, strict=True):  # fmt: skip
+            sim = _simulate(m, n_sim, None, None, seed, measured)
+            row["p_values"] = {
+                k: float(stats.ks_2samp(d[k], np.asarray(sim[k], float)).pvalue) for k in d
+            }
