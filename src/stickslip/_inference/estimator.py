@@ -206,6 +206,11 @@ def _estimate(
     _check_informative(points, names, data, centre, n_sim, dt, t_max, seed, measured)
     # 2. a polynomial around it: the vertex and the Hessian
     step = DESIGN_STEP if measured is None else MEASURED_DESIGN_STEP
+    if runs is not None:
+        # SI boxes can be narrow in fit coordinates (a static friction of 93-99 mN is 0.06
+        # in log): the design's +-2 steps kept within an eighth of the box each, where a
+        # step of 0.3 put the design past both ends (a one-sided fit at the box)
+        step = np.minimum(step, (hi - lo) / 8)
     recording = {} if keep else None
     surface = _local_surface(loglik, u_best, lo, hi, data, names, step)
     caught += surface.warnings

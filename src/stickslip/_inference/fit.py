@@ -79,9 +79,11 @@ def fit(
       the data (`info["v_b_estimated"]`) gets a warning.
 
       Or **several runs**, a list: each a stick-slip `Run` of `analyse_run(...,
-      mass=m)` or a pair `(Cycles, Slider)` of a force trace's cycles and its reference
-      slider (`Slider.from_cycles`). One set of physical parameters is fitted to all of
-      them, each run through its own measurement, spring and speed: `free` and `fixed`
+      mass=m)` (its `slip_time`, `stick_time` and `slip_distance` fitted, in the units of
+      `Slider.from_cycles(run.cycles, mass=m)`) or a pair `(Cycles, Slider)` of a force
+      trace's cycles (their columns fitted) and its reference slider. One set of
+      physical parameters is fitted to all of them, each run through its own
+      measurement, spring and speed: `free` and `fixed`
       then name the slider's SI values (`mass`, `damping`, `noise`, `noise_time`,
       `static_friction`, `kinetic_friction`, `threshold.mean`, `threshold.sd`, ...),
       mapped into each run's units by `Slider.model_parameters`; a value neither free nor

@@ -24,6 +24,8 @@ import numpy as np
 from .._errors import ParameterError
 
 OWNER = "fit"
+# What a `Run`'s cycles are fitted in
+RUN_COLUMNS = ("slip_time", "stick_time", "slip_distance")
 
 
 def _reference(run, i: int):
@@ -48,7 +50,10 @@ def _reference(run, i: int):
                 "sets the units its cycles are fitted in",
             )  # fmt: skip
         slider = Slider.from_cycles(run.cycles, mass=mass)
-        return run.cycles, slider, label
+        # the independent columns of a row (a period is slip plus stick, a force drop the
+        # slip distance times k, a peak force the absolute level the cycles do not fix)
+        cycles = Cycles({k: run.cycles[k] for k in RUN_COLUMNS}, run.cycles.info)
+        return cycles, slider, label
     if isinstance(run, tuple) and len(run) == 2:
         cycles, slider = run
         if isinstance(cycles, Cycles) and isinstance(slider, Slider):

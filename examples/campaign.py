@@ -1,0 +1,197 @@
+"""The public paper-on-paper grid end to end: every run read in its regime, friction laws
+fitted jointly to the stick-slip runs, and each stick-slip run predicted from a fit to the
+others.
+
+    python examples/campaign.py --out campaign-out [--n-sim 1000]
+
+The six runs (N. Pustelnik and V. Vidal, CeCILL-B: credit and licence in
+data/slider_paper_on_paper/README.md) span springs of 168, 1002 and 2254 N/m and driving
+speeds of 42, 1100 and 4300 um/s. What it does:
+
+1. `Campaign.from_yaml(campaigns/public_grid.yaml)`: each run's regime, the table of runs
+   and the regime map (`DIR/campaign/`);
+2. two laws fitted to the three stick-slip runs at once (`fit(model, [run, ...])`), one
+   set of SI parameters for all three, each run through its own measurement, spring and
+   speed: a fixed static threshold (`langevin`) and a normal random threshold whose
+   stick, past the next threshold, releases from where it is (`random-threshold-held`);
+   free: the effective mass, the friction-noise intensity and the static threshold
+   (its mean and sd); fixed: the kinetic friction (the cycles see only the gap above it),
+   a negligible damping and the noise's correlation time;
+3. the law with the higher AIC (log-likelihood less the free parameters) chosen, saved
+   as `DIR/campaign_fit.json` (`stickslip.load_fit`);
+4. leave one out: each stick-slip run predicted (`FitResult.predict(run)`, through the
+   run's own measurement) from the chosen law fitted to the two others: medians of stick
+   time, slip time and force drop against the run's, KS p-values;
+5. the regime the chosen fit predicts for each oscillating run (`predict(stiffness=,
+   v_b=)`).
+
+Writes `DIR/fits.md`, `DIR/leave_one_out.csv` and `.md`, and `DIR/summary.md`; prints
+the summary. About 20-40 minutes on 2 cores at `--n-sim 1000` (the fits are most of it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import pathlib
+import time
+import warnings
+
+HERE = pathlib.Path(__file__).resolve().parent
+GRID = HERE / "campaigns" / "public_grid.yaml"
+ZETA = 1e-3  # the damping c / (m omega0) at the first run's spring: negligible
+TAU = 0.1  # the noise's correlation time in units of the first run's 1/omega0 (1.35 ms)
+OBSERVABLES = ("stick_time", "slip_time", "force_drop")
+
+
+def candidates(reference):
+    """{law: (model, free, fixed)} in SI, about the first run's reference slider."""
+    kinetic = reference.kinetic_friction
+    omega0 = reference.scales.omega0
+    fixed = dict(kinetic_friction=kinetic, damping=ZETA * reference.mass * omega0,
+                 noise_time=TAU / omega0)  # fmt: skip
+    shared = {"mass": (0.003, 0.1), "noise": (1e-10, 1e-6)}
+    gap = (kinetic + 1e-3, kinetic + 0.03)  # F_s - F_k from 1 to 30 mN
+    return {
+        "fixed threshold": ("langevin", {**shared, "static_friction": gap}, fixed),
+        "random threshold": ("random-threshold-held", {
+            **shared, "threshold.mean": gap, "threshold.sd": (1e-4, 0.02)}, fixed),
+    }  # fmt: skip
+
+
+def joint_fit(law, runs, n_sim, seed):
+    import stickslip as ss
+
+    model, free, fixed = law
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        r = ss.fit(model, runs, free, fixed, n_sim=n_sim, seed=seed)
+    said = [str(w.message) for w in caught if str(w.message).startswith("fit:")]
+    return r, said
+
+
+def _g(x, digits=4):
+    return f"{x:.{digits}g}" if x is not None and math.isfinite(x) else "-"
+
+
+def fits_markdown(fits) -> str:
+    lines = ["| law | parameter | estimate | 95 % interval |", "|---|---|---|---|"]
+    for name, (r, _) in fits.items():
+        for k, v in r.estimate.items():
+            lo, hi = r.ci[k]
+            lines.append(f"| {name} | {k} | {_g(v)} | [{_g(lo)}, {_g(hi)}] |")
+    lines += ["", "| law | log-likelihood | free | AIC/2 (log L - free) | per run: KS p "
+              "(slip time, stick time, slip distance) |", "|---|---|---|---|---|"]  # fmt: skip
+    for name, (r, _) in fits.items():
+        runs = "; ".join(
+            f"{row['name']}: " + ", ".join(_g(p, 2) for p in row["p_values"].values())
+            for row in r.diagnostics["runs"]
+        )
+        lines.append(f"| {name} | {r.log_likelihood:.1f} | {len(r.estimate)} | "
+                     f"{r.log_likelihood - len(r.estimate):.1f} | {runs} |")  # fmt: skip
+    return "\n".join(lines)
+
+
+def leave_one_out(law, stick, n_sim, seed):
+    """Each stick-slip run predicted from `law` fitted to the others: one row each."""
+    rows = []
+    for i, run in enumerate(stick):
+        others = [r for j, r in enumerate(stick) if j != i]
+        r, said = joint_fit(law, others, n_sim, seed)
+        p = r.predict(run.cycles)
+        row = dict(run=run.settings["name"], stiffness=run.settings["stiffness"],
+                   v_b=run.settings["v_b"], fitted_to=" + ".join(
+                       o.settings["name"] for o in others), regime=p.regime)  # fmt: skip
+        for k, (model, data) in p.medians().items():
+            row[f"{k}_predicted"] = model
+            row[f"{k}_run"] = data
+            row[f"{k}_ratio"] = data / model if model and data else math.nan
+            row[f"{k}_p"] = p.p_values[k]
+        row["warnings"] = len(said)
+        rows.append(row)
+    return rows
+
+
+def loo_markdown(rows) -> str:
+    lines = [
+        "| run | fitted to | regime | stick time: predicted, run (s) | slip time (ms) "
+        "| force drop (mN) | KS p (stick, slip, drop) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['run']} | {r['fitted_to']} | {r['regime']} | "
+            f"{_g(r['stick_time_predicted'], 3)}, {_g(r['stick_time_run'], 3)} | "
+            f"{_g(1e3 * r['slip_time_predicted'], 3)}, {_g(1e3 * r['slip_time_run'], 3)} | "
+            f"{_g(1e3 * r['force_drop_predicted'], 3)}, {_g(1e3 * r['force_drop_run'], 3)} | "
+            + ", ".join(_g(r[f"{k}_p"], 2) for k in OBSERVABLES) + " |"
+        )  # fmt: skip
+    return "\n".join(lines)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", required=True, help="results folder (made; must not hold "
+                        "other files)")  # fmt: skip
+    parser.add_argument("--n-sim", type=int, default=1000, help="model cycles a point a run")
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--force", action="store_true", help="replace an earlier result")
+    args = parser.parse_args(argv)
+
+    import stickslip as ss
+
+    t0 = time.perf_counter()
+    out = pathlib.Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    campaign = ss.Campaign.from_yaml(GRID)
+    campaign.write(out / "campaign", force=args.force)
+    stick = [r for r in campaign.runs if r.regime == "stick-slip"]
+    moving = [r for r in campaign.runs if r.regime != "stick-slip"]
+    print(f"{len(campaign.runs)} runs read in {time.perf_counter() - t0:.1f} s:")
+    for run in campaign.runs:
+        print(f"  {run!r}: {run.evidence}")
+
+    reference = ss.Slider.from_cycles(stick[0].cycles, mass=stick[0].settings["mass"])
+    laws = candidates(reference)
+    fits = {}
+    for name, law in laws.items():
+        t1 = time.perf_counter()
+        fits[name] = joint_fit(law, stick, args.n_sim, args.seed)
+        print(f"{name}: fitted to {len(stick)} runs in {time.perf_counter() - t1:.0f} s")
+        print("  " + fits[name][0].summary().replace("\n", "\n  "))
+    chosen = max(fits, key=lambda k: fits[k][0].log_likelihood - len(fits[k][0].estimate))
+    best = fits[chosen][0]
+    best.save(out / "campaign_fit.json")
+
+    t1 = time.perf_counter()
+    loo = leave_one_out(laws[chosen], stick, args.n_sim, args.seed)
+    print(f"leave one out: {time.perf_counter() - t1:.0f} s")
+    with open(out / "leave_one_out.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(loo[0]))
+        writer.writeheader()
+        writer.writerows(loo)
+    regimes = []
+    for run in moving:
+        s = run.settings
+        p = best.predict(stiffness=s["stiffness"], v_b=s["v_b"], seed=args.seed + 7)
+        regimes.append(f"| {s['name']} | {run.regime} | {p.regime} ({p.evidence}) |")
+
+    fits_md = fits_markdown(fits)
+    loo_md = loo_markdown(loo)
+    (out / "fits.md").write_text(fits_md + "\n")
+    (out / "leave_one_out.md").write_text(loo_md + "\n")
+    summary = "\n".join([
+        f"# The public grid, {len(stick)} stick-slip runs fitted jointly",
+        "", f"Chosen: **{chosen}** (`{laws[chosen][0]}`), saved as campaign_fit.json.", "",
+        fits_md, "", "## Each stick-slip run from a fit to the others", "", loo_md, "",
+        "## The other runs: measured regime, predicted regime", "",
+        "| run | measured | predicted |", "|---|---|---|", *regimes, "",
+        f"{time.perf_counter() - t0:.0f} s in all, n_sim {args.n_sim}.",
+    ])  # fmt: skip
+    (out / "summary.md").write_text(summary + "\n")
+    print(summary)
+
+
+if __name__ == "__main__":
+    main()
