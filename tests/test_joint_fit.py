@@ -145,3 +145,16 @@ def test_a_joint_fit_finds_the_slider_behind_two_springs():
         assert abs(f(r.estimate[k]) - f(v)) < 3.3 * se, (k, r.estimate[k], v, (lo, hi))
     assert [row["stiffness"] for row in r.diagnostics["runs"]] == [168.0, 400.0]
     assert set(r.diagnostics["runs"][0]["p_values"]) == set(runs[0][0].table)
+
+
+def test_one_run_checks_refuse_a_joint_fit():
+    from stickslip._inference.result import FitResult
+
+    joint = FitResult(
+        estimate={"mass": 0.02}, ci={"mass": (0.01, 0.03)}, log_likelihood=-10.0, method="",
+        diagnostics={"runs": [{"name": "a"}, {"name": "b"}]}, data={}, model=None,
+    )  # fmt: skip
+    with pytest.raises(ParameterError, match="several runs"):
+        ss.goodness_of_fit(joint)
+    with pytest.raises(ParameterError, match="several runs"):
+        ss.compare_fits({"a": joint, "b": dataclasses.replace(joint, log_likelihood=-9.0)})

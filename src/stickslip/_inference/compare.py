@@ -187,6 +187,13 @@ def compare_fits(
     if seed >= 2**63:
         raise ParameterError(owner, "seed", "must be < 2**63", seed)
     names = list(named)
+    joint = [k for k, r in named.items() if getattr(r, "diagnostics", {}).get("runs")]
+    if joint:
+        raise ParameterError(
+            owner, "fits", f"{joint[0]} is a fit of several runs: compare_fits calibrates one "
+            "run's statistic; compare joint fits by their log-likelihoods (and each run's "
+            "KS p-values, diagnostics['runs'])",
+        )  # fmt: skip
     _check_same_data(named)
     cands = {k: _Candidate.of(k, r) for k, r in named.items()}
     order = sorted(names, key=lambda k: (cands[k].n_free, -cands[k].log_likelihood))

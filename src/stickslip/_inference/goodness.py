@@ -200,6 +200,11 @@ def goodness_of_fit(
     if not isinstance(refit, (bool, np.bool_)):
         raise ParameterError(owner, "refit", "must be True or False", refit)
     d = result.diagnostics
+    if d.get("runs"):
+        raise ParameterError(
+            owner, "result", "is a fit of several runs: its check is each run's KS p-values "
+            "(fit(..., check=True): diagnostics['runs'])",
+        )  # fmt: skip
     data = {k: np.asarray(v, float) for k, v in result.data.items()}
     kinds = list(data)
     n = next(iter(data.values())).size
