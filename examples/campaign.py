@@ -137,6 +137,8 @@ def main(argv=None):
     parser.add_argument("--n-sim", type=int, default=1000, help="model cycles a point a run")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--force", action="store_true", help="replace an earlier result")
+    parser.add_argument("--check-only", action="store_true", help="read the runs and check "
+                        "each law's box on them, fit nothing (seconds)")  # fmt: skip
     args = parser.parse_args(argv)
 
     import stickslip as ss
@@ -154,6 +156,16 @@ def main(argv=None):
 
     reference = ss.Slider.from_cycles(stick[0].cycles, mass=stick[0].settings["mass"])
     laws = candidates(reference)
+    if args.check_only:  # each law's model on each run at its box's centre and corners
+        for name, (model, free, fixed) in laws.items():
+            for run in stick:
+                slider = ss.Slider.from_cycles(run.cycles, mass=run.settings["mass"])
+                for corner in (0, 1, None):
+                    at = {k: (lo * hi) ** 0.5 if corner is None else (lo, hi)[corner]
+                          for k, (lo, hi) in free.items()}  # fmt: skip
+                    ss.get_model(model)(**slider.model_parameters({**fixed, **at}))
+            print(f"{name}: {model}, {', '.join(free)} free: every run's model builds")
+        return
     fits = {}
     for name, law in laws.items():
         t1 = time.perf_counter()

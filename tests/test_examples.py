@@ -163,3 +163,14 @@ def test_fit_trace_example(tmp_path):
     for name in ("trace.csv", "cycles.csv", "fit_study.yaml", "fit/fit.json", "fit/fit.png"):
         assert (tmp_path / name).stat().st_size > 0, name
     assert "95 % interval" in run.stdout and "truth tau = 0.1" in run.stdout
+
+
+@pytest.mark.slow
+def test_campaign_example_reads_the_grid_and_checks_its_laws(tmp_path):
+    """The reduced form: the six runs read, the campaign written, each law's box built on
+    every stick-slip run (the fits themselves take 20-40 minutes)."""
+    run = run_script(ROOT / "examples" / "campaign.py", "--out", tmp_path, "--check-only")
+    assert run.returncode == 0, run.stderr
+    assert "3 runs" not in run.stdout and "6 runs read" in run.stdout
+    assert run.stdout.count("every run's model builds") == 2
+    assert (tmp_path / "campaign" / "runs.csv").stat().st_size > 0
