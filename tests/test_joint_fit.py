@@ -158,3 +158,23 @@ def test_one_run_checks_refuse_a_joint_fit():
         ss.goodness_of_fit(joint)
     with pytest.raises(ParameterError, match="several runs"):
         ss.compare_fits({"a": joint, "b": dataclasses.replace(joint, log_likelihood=-9.0)})
+
+
+def test_a_value_of_one_run_overrides_the_shared_one(run):
+    """`NAME[i]`: run i's own value; the others keep the shared one."""
+    from stickslip._inference.joint import Runs
+
+    runs = Runs(ss.get_model("langevin"), [run, run, run])
+    fixed, free = runs.checked(
+        {"static_friction": 0.0990, "static_friction[1]": 0.0980, "kinetic_friction": 0.0911},
+        {"mass": (0.01, 0.05)},
+    )
+    models = runs.build({"mass": 0.02})
+    ref = runs.sliders[0]
+    x0 = [m.params()["x0"] for m in models]
+    offset = 0.0911 + ref.damping * ref.v_b
+    assert x0[0] == pytest.approx((0.0990 - offset) / ref.scales.force, rel=1e-12)
+    assert x0[1] == pytest.approx((0.0980 - offset) / ref.scales.force, rel=1e-12)
+    assert x0[2] == x0[0]
+    with pytest.raises(ParameterError, match=r"names run 3: there are 3 runs"):
+        runs.checked({}, {"mass[3]": (0.01, 0.05)})

@@ -87,7 +87,8 @@ def fit(
       then name the slider's SI values (`mass`, `damping`, `noise`, `noise_time`,
       `static_friction`, `kinetic_friction`, `threshold.mean`, `threshold.sd`, ...),
       mapped into each run's units by `Slider.model_parameters`; a value neither free nor
-      fixed is each run's own (its reference slider's). The model is `langevin` or a
+      fixed is each run's own (its reference slider's), and `NAME[i]` run i's own value
+      of NAME over the shared one. The model is `langevin` or a
       threshold model (`random-threshold`, `random-threshold-held`); the estimate is in
       SI; `diagnostics["runs"]` has each run's spring, speed, cycles, fitted model and,
       with `check`, a KS p-value per observable against the fitted model's cycles through

@@ -7,7 +7,9 @@ measurement and units (its reference `Slider`); the free and fixed parameters ar
 slider's SI values (`units.MODEL_SI_NAMES`), mapped into each run's model units by
 `Slider.model_parameters`. A value neither free nor fixed stays each run's own (its
 reference slider's: the kinetic friction from its median drop, say): a parameter per run
-where the physics says it may differ.
+where the physics says it may differ. `NAME[i]` (free or fixed) is run i's own value of
+NAME, over the shared one: `"static_friction[2]"` frees the third run's static friction
+alone.
 
 The log-likelihood is the sum of the runs' (independent runs); its per-cycle terms are the
 runs' rows one after the other, so that the sandwich, the second seed's noise check and
@@ -66,6 +68,14 @@ def _reference(run, i: int):
     )  # fmt: skip
 
 
+def _split(name: str) -> tuple[str, int | None]:
+    """`"static_friction[2]"` -> `("static_friction", 2)`; a shared name -> `(name, None)`."""
+    head, bracket, rest = str(name).partition("[")
+    if not bracket or not rest.endswith("]") or not rest[:-1].isdigit():
+        return str(name), None
+    return head, int(rest[:-1])
+
+
 class Runs:
     """The runs of a joint fit: their data in their own units, their measurements, and
     the map from a point of SI values to each run's model."""
@@ -118,10 +128,16 @@ class Runs:
             raise ParameterError(OWNER, "free", "must be a non-empty dict {name: (low, high)}")
         for where, names in (("fixed", fixed), ("free", free)):
             for k in names:
-                if k not in self.names:
+                name, run = _split(k)
+                if name not in self.names:
                     raise ParameterError(
                         OWNER, f"{where}['{k}']", "is not a slider parameter of a fit of several "
-                        f"runs (SI values: {', '.join(self.names)})",
+                        f"runs (SI values: {', '.join(self.names)}; NAME[i] for run i's own)",
+                    )  # fmt: skip
+                if run is not None and not 0 <= run < len(self.sliders):
+                    raise ParameterError(
+                        OWNER, f"{where}['{k}']", f"names run {run}: there are "
+                        f"{len(self.sliders)} runs, 0 to {len(self.sliders) - 1}",
                     )  # fmt: skip
         out = {}
         for k, box in free.items():
@@ -138,11 +154,14 @@ class Runs:
         return self.fixed, out
 
     def build(self, values: dict) -> list:
-        """Each run's model at the SI `values` (with the fixed ones)."""
-        si = {**self.fixed, **values}
+        """Each run's model at the SI `values` (with the fixed ones): a name `NAME[i]`
+        is run i's own value of NAME, over the shared one."""
+        given = {**self.fixed, **values}
+        shared = {k: v for k, v in given.items() if _split(k)[1] is None}
         models = []
-        for slider in self.sliders:
-            p = slider.model_parameters(si)
+        for i, slider in enumerate(self.sliders):
+            own = {_split(k)[0]: v for k, v in given.items() if _split(k)[1] == i}
+            p = slider.model_parameters({**shared, **own})
             if "threshold" in p and not self.law:
                 raise ParameterError(
                     OWNER, "model", f"{self.Model.__name__} has a fixed threshold; the runs' "
