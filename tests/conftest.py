@@ -214,3 +214,19 @@ def without_zero_pile(counts, edges):
     k = int(np.searchsorted(edges, 0.0, side="right")) - 1
     counts[k - 1] += counts[k]
     return np.delete(counts, k)
+
+
+def benchmark_module(name: str):
+    """A module of `benchmarks/` (e.g. the independent generator `independent_slider`),
+    loaded once by its path (the folder is not a package)."""
+    import importlib.util
+    import sys
+
+    if name in sys.modules:
+        return sys.modules[name]
+    path = pathlib.Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module

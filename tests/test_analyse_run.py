@@ -9,13 +9,12 @@ not the Welch spectrum the code uses). The 1100 um/s run against independent pea
 the independent generator's stick-slip, a sinusoid in noise, noise alone.
 """
 
-import importlib.util
 import pathlib
-import sys
 import warnings
 
 import numpy as np
 import pytest
+from conftest import benchmark_module
 
 import stickslip as ss
 
@@ -89,13 +88,7 @@ def test_the_slow_runs_are_stick_slip(name):
 
 
 def _generator():
-    spec = importlib.util.spec_from_file_location(
-        "independent_slider", ROOT / "benchmarks" / "independent_slider.py"
-    )
-    module = importlib.util.module_from_spec(spec)
-    sys.modules.setdefault(spec.name, module)
-    spec.loader.exec_module(module)
-    return module
+    return benchmark_module("independent_slider")
 
 
 def test_synthetic_runs_of_each_regime():

@@ -11,12 +11,11 @@ slip from the threshold drawn.
   after them (slow).
 """
 
-import importlib.util
 import pathlib
-import sys
 
 import numpy as np
 import pytest
+from conftest import benchmark_module
 from scipy import stats
 
 import stickslip as ss
@@ -68,13 +67,7 @@ def test_the_held_model_is_the_reset_one_without_overshoot():
 
 
 def _generator():
-    spec = importlib.util.spec_from_file_location(
-        "independent_slider", ROOT / "benchmarks" / "independent_slider.py"
-    )
-    gen = importlib.util.module_from_spec(spec)
-    sys.modules.setdefault(spec.name, gen)
-    spec.loader.exec_module(gen)
-    return gen
+    return benchmark_module("independent_slider")
 
 
 def _generated(gen, rig, seeds, duration):
@@ -110,9 +103,7 @@ def _modelled(name, slider, n_paths, t_max, seed):
 
 @pytest.mark.slow
 def test_the_held_model_matches_an_independent_generator():
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    from fit_independent import truth_slider
-
+    truth_slider = benchmark_module("fit_independent").truth_slider
     gen = _generator()
     rig = gen.Rig(gap_sd=2.8e-3)
     slider = truth_slider(rig)

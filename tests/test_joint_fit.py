@@ -9,13 +9,12 @@
 """
 
 import dataclasses
-import importlib.util
 import pathlib
-import sys
 import warnings
 
 import numpy as np
 import pytest
+from conftest import benchmark_module
 
 import stickslip as ss
 from stickslip import ParameterError
@@ -103,13 +102,7 @@ def test_a_run_without_its_mass_or_its_cycles_is_named(run):
 
 
 def _generator():
-    spec = importlib.util.spec_from_file_location(
-        "independent_slider", ROOT / "benchmarks" / "independent_slider.py"
-    )
-    gen = importlib.util.module_from_spec(spec)
-    sys.modules.setdefault(spec.name, gen)
-    spec.loader.exec_module(gen)
-    return gen
+    return benchmark_module("independent_slider")
 
 
 @pytest.mark.slow
