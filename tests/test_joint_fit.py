@@ -106,13 +106,13 @@ def _generator():
 
 
 @pytest.mark.slow
-def test_a_joint_fit_finds_the_slider_behind_two_springs():
+def test_a_joint_fit_finds_the_slider_behind_two_springs(tmp_path):
     """Two traces of one slider (mass 17.8 g, noise 2.44e-8 N^2 s, a fixed threshold) on
     springs of 168 and 400 N/m, from a generator that shares no code with the library;
     the boxes are not centred on the truth, the reference mass (30 g) is not it either.
     Each estimate within 3.3 standard errors of the truth (a 1e-3 chance each)."""
     gen = _generator()
-    runs, truth = [], None
+    runs, full, truth = [], [], None
     for i, k in enumerate((168.0, 400.0)):
         rig = dataclasses.replace(gen.Rig(gap_sd=0.0, hum=1.5e-4), stiffness=k)
         t, force, _ = gen.make_trace(500 + i, 200.0, rig)
@@ -120,6 +120,7 @@ def test_a_joint_fit_finds_the_slider_behind_two_springs():
             warnings.simplefilter("ignore")
             cycles = ss.extract_cycles(t, force=force, stiffness=k, v_b=rig.v_b)
         ref = Slider.from_cycles(cycles, mass=0.03)
+        full.append(cycles)
         columns = ("slip_time", "stick_time", "slip_distance")
         runs.append((ss.Cycles({c: cycles[c] for c in columns}, cycles.info), ref))
         truth = {"mass": rig.mass, "noise": rig.noise_intensity,
@@ -138,6 +139,13 @@ def test_a_joint_fit_finds_the_slider_behind_two_springs():
         assert abs(f(r.estimate[k]) - f(v)) < 3.3 * se, (k, r.estimate[k], v, (lo, hi))
     assert [row["stiffness"] for row in r.diagnostics["runs"]] == [168.0, 400.0]
     assert set(r.diagnostics["runs"][0]["p_values"]) == set(runs[0][0].table)
+    # kept and carried: the saved fit loads with its runs; it predicts the second run
+    r.save(tmp_path / "joint.json")
+    back = ss.load_fit(tmp_path / "joint.json")
+    assert back.estimate == r.estimate
+    assert [row["name"] for row in back.diagnostics["runs"]] == ["run 0", "run 1"]
+    p = r.predict(full[1])
+    assert p.regime == "stick-slip" and set(p.p_values) == {"stick_time", "slip_time", "force_drop"}
 
 
 def test_one_run_checks_refuse_a_joint_fit():
