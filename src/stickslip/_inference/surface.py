@@ -201,9 +201,16 @@ def _design(lo, hi):
     if p <= 2:
         axes = [np.linspace(a, b, GRID_POINTS + 2)[1:-1] for a, b in zip(lo, hi, strict=True)]
         return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, p)
+    import warnings
+
     from scipy.stats import qmc
 
-    return qmc.scale(qmc.Sobol(p, seed=0).random(8 * p), lo, hi)
+    with warnings.catch_warnings():
+        # (scipy says a Sobol' sample's balance needs 2^m points: a coarse grid that only
+        # spreads its points over the box does not; the user saw the warning at every fit
+        # of three free parameters)
+        warnings.simplefilter("ignore", UserWarning)
+        return qmc.scale(qmc.Sobol(p, seed=0).random(8 * p), lo, hi)
 
 
 def _quadratic_design(u, steps):
