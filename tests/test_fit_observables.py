@@ -440,24 +440,14 @@ def test_stick_time_intervals_cover_the_truth_over_20_sets():
     assert abs(ratio - 1.0) < 3.0 / math.sqrt(2 * (n_sets - 1)), ratio
 
 
-def test_a_second_seed_without_a_maximum_means_more_cycles_then_no_interval(small, monkeypatch):
+def test_a_second_seed_without_a_maximum_means_no_interval(small, monkeypatch):
     """Where the second seed's design has no vertex (forced here: its polynomial says none),
-    the design is evaluated again at 4x n_sim, and with none there either the fit gives no
-    interval rather than the first seed's curvature alone, each said in one line."""
+    the first seed's curvature is the simulation's noise: no interval, said in one line."""
     from stickslip._inference import estimator
 
-    calls = []
-
-    def no_vertex(du, values, steps):
-        calls.append(len(values))
-        return None, None
-
-    monkeypatch.setattr(estimator, "_polynomial_vertex", no_vertex)
+    monkeypatch.setattr(estimator, "_polynomial_vertex", lambda du, values, steps: (None, None))
     with warnings.catch_warnings(record=True) as record:
         warnings.simplefilter("always")
         r = ss.fit("langevin", small, {"D": (0.1, 3.0)}, FIXED, seed=11, n_sim=2000, check=False)
-    assert len(calls) == 2  # the design at n_sim 2000, then at 8000
-    assert r.diagnostics["n_sim"] == 8000 and "the search at 2000" in r.method
-    assert all(math.isnan(x) for x in r.ci["D"])
-    assert warned(record, "the design was evaluated again at n_sim 8000")
-    assert warned(record, "no interval; take n_sim >= 32000")
+    assert all(math.isnan(x) for x in r.ci["D"]) and math.isfinite(r.estimate["D"])
+    assert warned(record, "so there is no interval; take n_sim >= 8000")

@@ -233,7 +233,8 @@ def _mc_noise(names, shift, shift2, se, n_sim) -> dict[str, Any]:
     if shift2 is None:
         out["warning"] = (
             "with a second seed the surface has no maximum near the estimate: the simulation "
-            f"noise is comparable with the likelihood's curvature; take n_sim >= {4 * n_sim}"
+            "noise hides the likelihood's curvature, so there is no interval; take n_sim >= "
+            f"{4 * n_sim}"
         )
         return out
     sd = 0.5 * np.abs(shift - shift2)
