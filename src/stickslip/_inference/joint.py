@@ -59,9 +59,7 @@ def _reference(run, i: int):
     if isinstance(run, tuple) and len(run) == 2:
         cycles, slider = run
         if isinstance(cycles, Cycles) and isinstance(slider, Slider):
-            info = cycles.info
-            name = info.get("name") or f"run {i}"
-            return cycles, slider, name
+            return cycles, slider, cycles.info.get("name") or f"run {i}"
     raise ParameterError(
         OWNER, where, "must be a stick-slip Run (analyse_run(..., mass=m)) or a pair "
         "(Cycles, Slider) of a force trace's cycles and its reference slider", type(run).__name__,
@@ -96,7 +94,7 @@ class Runs:
         if not isinstance(runs, (list, tuple)) or len(runs) < 1:
             raise ParameterError(OWNER, "data", "must be a non-empty list of runs", runs)
         self.names = MODEL_SI_NAMES
-        self.labels, self.sliders, self.cycles = [], [], []
+        self.labels, self.sliders = [], []
         self.columns, self.measurements = [], []
         for i, run in enumerate(runs):
             cycles, slider, label = _reference(run, i)
@@ -105,7 +103,6 @@ class Runs:
                 raise ParameterError(OWNER, f"data[{i}]", "must be the cycles of a force trace")
             self.labels.append(label)
             self.sliders.append(slider)
-            self.cycles.append(cycles)
             self.columns.append(_check_data(d, measured=True))
             self.measurements.append(measured)
         first = list(self.columns[0])
