@@ -26,7 +26,9 @@ speeds of 42, 1100 and 4300 um/s. What it does:
    v_b=)`).
 
 Writes `DIR/fits.md`, `DIR/leave_one_out.csv` and `.md`, and `DIR/summary.md`; prints
-the summary. About 20-40 minutes on 2 cores at `--n-sim 1000` (the fits are most of it).
+the summary. Slow: on 2 cores at `--n-sim 1000`, beside other work, the two joint fits
+took 7 and 26 minutes and the three leave-one-out fits of the random threshold over 35
+more (docs/runs.md).
 """
 
 from __future__ import annotations
