@@ -11,16 +11,12 @@ slip from the threshold drawn.
   after them (slow).
 """
 
-import pathlib
-
 import numpy as np
 import pytest
 from conftest import benchmark_module
 from scipy import stats
 
 import stickslip as ss
-
-ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
 def _chain(name, n_paths=4, t_max=1000.0, seed=3, **kw):

@@ -9,7 +9,6 @@
 """
 
 import dataclasses
-import pathlib
 import warnings
 
 import numpy as np
@@ -20,7 +19,6 @@ import stickslip as ss
 from stickslip import ParameterError
 from stickslip.units import Slider
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
 REF = dict(mass=0.03, stiffness=168.0, v_b=42e-6, static_friction=0.0964,
            kinetic_friction=0.0911, damping=4e-3)  # fmt: skip
 
