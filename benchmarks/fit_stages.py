@@ -12,7 +12,7 @@ from a temporary git worktree); its cumulative times are read per stage:
 - synthesis: the rest of `measured_trace` (the sampling grid, the noise and spikes, the
   interpolation; the cut trace's notch);
 - extraction: `extract_cycles` / the cut trace's `extract_slips`, of which the slips'
-  shape fits (`_lm`) apart;
+  shape fits (`_lm`, batched; now the compiled `_shape_fit.fit_windows`) apart;
 - density and likelihood: the rest of each point's log-likelihood;
 - the rest of the fit (search, design, intervals).
 
@@ -42,7 +42,7 @@ STAGES = {  # stage: (file suffix, function) whose cumulative time it is
     "measured_trace": [("_inference/measurement.py", "measured_trace")],
     "extraction": [("_extract/_extract.py", "extract_cycles"),
                    ("_extract/_force.py", "extract_slips")],
-    "shape fits": [("_extract/_force.py", "_lm")],
+    "shape fits": [("_extract/_force.py", "_lm"), ("_extract/_shape_fit.py", "fit_windows")],
     "measured_cycles": [("_inference/measurement.py", "measured_cycles")],
     "loglik": [("_inference/estimator.py", "_loglik")],
     "fit": [("_inference/fit.py", "fit")],

@@ -23,8 +23,9 @@ trace itself, and recorded in `Cycles.info`.
    both ends, as when the slider leaves and rejoins the loading line, and the slip ends
    when the velocity first returns, half a damped period after the release. Its
    parameters give the release $t_0$, the slip time $T_{sl}$ and the drop; their standard
-   errors (from the fit's Jacobian and $\sigma$) say how well they are timed. All slips are
-   fitted at once (a batched Levenberg-Marquardt, the soft-L1 loss by reweighting).
+   errors (from the fit's Jacobian and $\sigma$) say how well they are timed. Each slip is
+   fitted by a compiled Levenberg-Marquardt, the soft-L1 loss by reweighting
+   (`_shape_fit`).
 5. Re-slips: a fit far longer than the median slip is tried as two slips (the second
    starting at or after the first's stick); kept if chi^2 falls by more than `split`
    times the noise's variance inflation at the rate's scale (1 for white noise) and
@@ -113,10 +114,6 @@ _HIDDEN_SHARE = 0.2
 # empty half of a two-slip fit) for up to 100 steps: on the public runs the slips' times
 # moved by at most 0.2 of a sample, and a fit point costs 17 % less.
 _GAIN_TOL = 1e-3
-_BATCH = 2_000_000  # samples per batch of the fit (memory: ~20 arrays of this many floats)
-# A batch's windows are padded to its longest; a batch per 30 % of length (and 16 samples):
-# a few batches, each iteration's overhead ~0.1 ms a batch
-_WIDEN, _PAD = 1.3, 16
 
 
 def check_thresholds(thresholds) -> dict[str, float]:
@@ -369,7 +366,7 @@ def extract_slips(t, f, h, k, v_b, window, thr, lines, cut: Cut | None = None):
         drop_noise_sd=float(drop_sd * s_f),
         drop_threshold=float(thr["drop"] * drop_sd * s_f),
         split_chi2=float(split_gain),
-        timing="fit of a damped half-oscillation to each slip (batched Levenberg-Marquardt, "
+        timing="fit of a damped half-oscillation to each slip (Levenberg-Marquardt, "
         "soft-L1 loss at 2 noise sd)",
         release_sd_median=float(np.median(fits[:, 5]) * h),
         stick_sd_median=float(np.median(fits[:, 6]) * h),
@@ -705,57 +702,8 @@ def _slip_stretches(s, window, sigma, thr, far=None, weight=1.0):
     return rate, g, (first[has_core], last[has_core]), rate_sd, white_sd
 
 
-def _shape(phi, kappa):
-    """The normalised drop 0 -> 1 of a damped half-oscillation (see the module doc)."""
-    return _shape_jac(phi, kappa)[0]
-
-
-def _shape_jac(phi, kappa):
-    """`_shape` and its derivatives in phi (0 outside [0, 1]) and in kappa.
-
-    Computed where phi > 0 only (before the slip all three are 0), the cosine and sine
-    where phi < 1 only (past the slip they are those of pi): a fit's window is mostly
-    stick, and the trigonometry was half of an extraction's fitting time. The same numbers
-    as the formulas over the whole window (`phi` clipped into [0, 1])."""
-    phi, kappa = np.broadcast_arrays(phi, kappa)
-    started = ~(phi <= 0.0)  # (a nan phi is carried through the formulas)
-    S, d_phi, d_kappa = (np.zeros(phi.shape) for _ in range(3))
-    p, k = np.minimum(phi[started], 1.0), kappa[started]
-    slipping = ~(p >= 1.0)
-    cos, sin = np.full(p.shape, _COS_PI), np.full(p.shape, _SIN_PI)
-    angle = np.pi * p[slipping]
-    cos[slipping], sin[slipping] = np.cos(angle), np.sin(angle)
-    decay = np.exp(-k * p)
-    tail = np.exp(-k)
-    full = 1.0 + tail
-    num = 1.0 - decay * (cos + k / np.pi * sin)
-    d_p = np.where(p < 1.0, decay * sin * (np.pi + k**2 / np.pi), 0.0) / full
-    d_num_kappa = decay * (p * (cos + k / np.pi * sin) - sin / np.pi)
-    S[started] = num / full
-    d_phi[started] = d_p
-    d_kappa[started] = d_num_kappa / full + num * tail / full**2
-    return S, d_phi, d_kappa
-
-
-def _shape_inside(phi, kappa):
-    """`_shape_jac` for 0 < phi < 1 (inside the slip), without its masks."""
-    angle = np.pi * phi
-    cos, sin = np.cos(angle), np.sin(angle)
-    decay = np.exp(-kappa * phi)
-    tail = np.exp(-kappa)
-    full = 1.0 + tail
-    inner = cos + kappa / np.pi * sin
-    num = 1.0 - decay * inner
-    d_phi = decay * sin * (np.pi + kappa**2 / np.pi) / full
-    d_kappa = decay * (phi * inner - sin / np.pi) / full + num * tail / full**2
-    return num / full, d_phi, d_kappa
-
-
-_COS_PI, _SIN_PI = float(np.cos(np.array([np.pi]))[0]), float(np.sin(np.array([np.pi]))[0])
-
-
 def _fit_slips(y, a, b, lo_lim, hi_lim, window, drop, sigma) -> np.ndarray:
-    """Fit each slip on samples around its stretch a..b (all at once); rows of (i0, T, y0,
+    """Fit each slip on samples around its stretch a..b; rows of (i0, T, y0,
     D, kappa, sd(i0), sd(i0 + T), ok, seen, lo, hi, cost) in samples and scaled force."""
     span = b - a + 1
     margin = np.maximum(span, window)
@@ -771,199 +719,27 @@ def _fit_slips(y, a, b, lo_lim, hi_lim, window, drop, sigma) -> np.ndarray:
     upper = np.column_stack([hi - lo, hi - lo + span, np.full(a.size, np.inf),
                              np.full(a.size, np.inf), np.full(a.size, 8.0)])  # fmt: skip
     p0 = np.clip(p0, lower + 1e-9, upper - 1e-9)
-    out = np.empty((a.size, 12))
-    length = hi - lo + 1
-    for sel in _batches(length):
-        x, yy, mask = _windows(y, lo[sel], length[sel])
-        p, ok, cost, cov = _lm(_normal_single, x, yy, mask, p0[sel], lower[sel], upper[sel],
-                               sigma)  # fmt: skip
-        sd0 = np.sqrt(np.maximum(cov[:, 0, 0], 0.0))
-        sd1 = np.sqrt(np.maximum(cov[:, 0, 0] + cov[:, 1, 1] + 2 * cov[:, 0, 1], 0.0))
-        i0_fit = p[:, 0] + lo[sel]
-        seen = ((p[:, 0] >= 1.0) & (lo[sel] > 0)) | (i0_fit >= window)
-        out[sel] = np.column_stack([i0_fit, p[:, 1:], sd0, sd1, ok, seen, lo[sel], hi[sel],
-                                    cost])  # fmt: skip
-    return out
+    p, ok, cost, cov = _fit_windows(False, y, lo, hi - lo + 1, p0, lower, upper, sigma)
+    sd0 = np.sqrt(np.maximum(cov[:, 0, 0], 0.0))
+    sd1 = np.sqrt(np.maximum(cov[:, 0, 0] + cov[:, 1, 1] + 2 * cov[:, 0, 1], 0.0))
+    i0_fit = p[:, 0] + lo
+    seen = ((p[:, 0] >= 1.0) & (lo > 0)) | (i0_fit >= window)
+    return np.column_stack([i0_fit, p[:, 1:], sd0, sd1, ok, seen, lo, hi, cost])
 
 
-def _single(x, p):
-    """One slip on local sample indices x (broadcast): the model and its Jacobian (..., 5)
-    in (i0, T, y0, D, kappa)."""
-    i0, T, y0, D, kappa = (p[..., j, None] for j in range(5))
-    phi = (x - i0) / T
-    S, S_phi, S_kappa = _shape_jac(phi, kappa)
-    jac = np.empty(S.shape + (5,))  # (written column by column: no stacked copies)
-    jac[..., 0] = D * S_phi / T
-    jac[..., 1] = D * S_phi * phi / T
-    jac[..., 2] = 1.0
-    np.negative(S, out=jac[..., 3])
-    jac[..., 4] = -D * S_kappa
-    return y0 - D * S, jac
+def _fit_windows(double, y, lo, length, p0, lower, upper, sigma):
+    """`_shape_fit.fit_windows` (compiled) of the single slip's or two slips' model."""
+    from ._shape_fit import fit_windows
 
-
-def _double(x, p):
-    """Two slips, the second `gap` after the first's stick: the model and its Jacobian
-    (..., 9) in (i0a, Ta, Da, kappa_a, gap, Tb, Db, kappa_b, y0)."""
-    i0a, ta, da, ka, gap, tb, db, kb, base = (p[..., j, None] for j in range(9))
-    pa, pb = (x - i0a) / ta, (x - i0a - ta - gap) / tb
-    sa, sa_phi, sa_k = _shape_jac(pa, ka)
-    sb, sb_phi, sb_k = _shape_jac(pb, kb)
-    ja, jb = da * sa_phi / ta, db * sb_phi / tb  # d model / d (start of a, of b)
-    jac = np.stack([ja + jb, ja * pa + jb, -sa, -da * sa_k, jb, jb * pb, -sb, -db * sb_k,
-                    np.ones_like(sa)], axis=-1)  # fmt: skip
-    return base - da * sa - db * sb, jac
-
-
-def _lm(normal, x, yy, mask, p, lower, upper, sigma, max_iter=100):
-    """Levenberg-Marquardt on a batch of fits (rows of p), the soft-L1 loss at f_scale
-    2 sigma by iteratively reweighted least squares, a parameter on its bound held there
-    while the gradient pushes it out, steps clipped into the bounds. `normal(x, yy, mask,
-    p, sigma)` gives the residuals and the reweighted normal equations (`_normal_single`,
-    `_normal`). Returns the parameters, whether each converged, its final cost
-    (`_soft_l1` units) and the covariance (J^T W J)^-1 sigma^2 (the robust loss's weights
-    W: spikes the despiking missed do not narrow the errors)."""
-    n, k = p.shape
-    p = p.copy()
-    r, A_all, grad_all = normal(x, yy, mask, p, sigma)
-    cost = np.sum(_soft_l1(r, sigma), axis=1)
-    lam = np.full(n, 1e-3)
-    done = np.zeros(n, bool)
-    eye = np.eye(k)
-    for _ in range(max_iter):
-        act = np.flatnonzero(~done)
-        if act.size == 0:
-            break
-        A, grad = A_all[act], grad_all[act]
-        pa = p[act]
-        fixed = ((pa <= lower[act]) & (grad > 0)) | ((pa >= upper[act]) & (grad < 0))
-        free = (~fixed).astype(float)
-        A = A * free[:, :, None] * free[:, None, :] + fixed[:, :, None] * eye
-        grad = grad * free
-        diag = np.maximum(np.einsum("nii->ni", A), 1e-12 * np.max(np.abs(A), axis=(1, 2))[:, None])
-        A_damped = A + lam[act, None, None] * diag[:, :, None] * eye
-        try:
-            step = -np.linalg.solve(A_damped, grad[..., None])[..., 0]
-        except np.linalg.LinAlgError:
-            step = -np.einsum("nij,nj->ni", np.linalg.pinv(A_damped), grad)
-        trial = np.clip(pa + step, lower[act], upper[act])
-        r_t, A_t, grad_t = normal(x, yy[act], mask[act], trial, sigma)
-        cost_t = np.sum(_soft_l1(r_t, sigma), axis=1)
-        better = np.isfinite(cost_t) & (cost_t < cost[act])
-        gain = np.where(better, cost[act] - cost_t, 0.0)
-        good = act[better]
-        p[good], r[good], cost[good] = trial[better], r_t[better], cost_t[better]
-        A_all[good], grad_all[good] = A_t[better], grad_t[better]
-        lam[good] = np.maximum(lam[good] / 3.0, 1e-9)
-        lam[act[~better]] *= 4.0
-        # converged: a step that gains less than `_GAIN_TOL` in chi^2 (or 1e-8 of the
-        # cost), or no step at any damping gains at all
-        done[act] = (better & (gain <= np.maximum(1e-8 * cost[act], _GAIN_TOL))) | (lam[act] > 1e10)
-    return p, done, cost, np.linalg.pinv(A_all) * sigma**2
-
-
-def _weights(r, mask, sigma):
-    """The soft-L1 loss's IRLS weights at f_scale 2 sigma (0 off the mask)."""
-    return mask / np.sqrt(1.0 + (r / (2.0 * sigma)) ** 2)
-
-
-def _normal(model):
-    """The normal equations of a `model(x, p) -> (values, Jacobian)` (`_double`): the
-    residuals, J^T W J and J^T W r."""
-
-    def normal(x, yy, mask, p, sigma):
-        m, jac = model(x, p)
-        r = np.where(mask, m - yy, 0.0)
-        # batched BLAS products (np.einsum over the batch is ~10x slower here)
-        JwT = (jac * _weights(r, mask, sigma)[..., None]).transpose(0, 2, 1)
-        return r, JwT @ jac, (JwT @ r[..., None])[..., 0]
-
-    return normal
-
-
-def _normal_single(x, yy, mask, p, sigma):
-    """`_normal(_single)` computed where the slip moves the model only: before its release
-    the model is y0 (the Jacobian's only non-zero column that of y0), after its stick y0 - D
-    (those of y0 and D), so the flat samples enter J^T W J and J^T W r through four sums
-    of their weights and weighted residuals, and the shape and its derivatives are
-    evaluated on the samples strictly inside the slip (a fit's window is mostly stick: 3-4
-    times fewer samples, the same numbers to rounding)."""
-    i0, T, y0, D, kappa = p.T
-    n, width = yy.shape
-    end = i0 + T
-    after = x[None, :] >= end[:, None]
-    m = y0[:, None] - D[:, None] * after
-    # the samples inside: x = floor(i0) + 1, ... while x < i0 + T
-    first = np.floor(i0).astype(np.int64) + 1
-    count = np.maximum(np.ceil(end).astype(np.int64) - first, 0)
-    span = int(min(count.max(initial=0), width))
-    j = np.arange(span)
-    xs = first[:, None] + j[None, :]
-    inside = (j[None, :] < count[:, None]) & (xs >= 0) & (xs < width)
-    xs = np.clip(xs, 0, width - 1)
-    phi = np.where(inside, (xs - i0[:, None]) / T[:, None], 0.5)
-    S, S_phi, S_kappa = _shape_inside(phi, kappa[:, None])
-    # (a sample outside the slip is written over with its own flat value)
-    np.put_along_axis(m, xs, np.where(inside, y0[:, None] - D[:, None] * S,
-                                      np.take_along_axis(m, xs, axis=1)), axis=1)  # fmt: skip
-    r = np.where(mask, m - yy, 0.0)
-    w = _weights(r, mask, sigma)
-    wr = w * r
-    flat = ~(x[None, :] > i0[:, None]) | after  # (the samples inside are counted below)
-    flat_w, flat_wr = np.sum(w * flat, axis=1), np.sum(wr * flat, axis=1)
-    after_w, after_wr = np.sum(w * after, axis=1), np.sum(wr * after, axis=1)
-    jac = np.empty(S.shape + (5,))
-    jac[..., 0] = D[:, None] * S_phi / T[:, None]
-    jac[..., 1] = jac[..., 0] * phi
-    jac[..., 2] = 1.0
-    np.negative(S, out=jac[..., 3])
-    jac[..., 4] = -D[:, None] * S_kappa
-    ws = np.where(inside, np.take_along_axis(w, xs, axis=1), 0.0)
-    JwT = (jac * ws[..., None]).transpose(0, 2, 1)
-    A = JwT @ jac
-    grad = (JwT @ np.take_along_axis(r, xs, axis=1)[..., None])[..., 0]
-    A[:, 2, 2] += flat_w
-    A[:, 2, 3] -= after_w
-    A[:, 3, 2] -= after_w
-    A[:, 3, 3] += after_w
-    grad[:, 2] += flat_wr
-    grad[:, 3] -= after_wr
-    return r, A, grad
-
-
-def _batches(length):
-    """Index arrays of fits of similar length, each batch within `_BATCH` samples and its
-    longest window within `_WIDEN` times its shortest (every fit is padded to the longest:
-    one batch of all the slips of a simulated trace padded them to 3x their median)."""
-    order = np.argsort(length, kind="stable")
-    start = 0
-    while start < order.size:
-        stop = start + 1
-        widest = _WIDEN * length[order[start]] + _PAD
-        while (stop < order.size and (stop - start + 1) * length[order[stop]] <= _BATCH
-               and length[order[stop]] <= widest):  # fmt: skip
-            stop += 1
-        yield order[start:stop]
-        start = stop
-
-
-def _windows(y, lo, length):
-    """Local sample indices, the samples of y from each lo (padded) and the mask."""
-    width = int(length.max())
-    x = np.arange(width, dtype=float)
-    mask = x[None, :] < length[:, None]
-    take = np.minimum(lo[:, None] + np.arange(width)[None, :], y.size - 1)
-    return x, np.where(mask, y[take], 0.0), mask
-
-
-def _soft_l1(r, sigma):
-    """least_squares' soft_l1 loss at f_scale 2 sigma, in units of sigma^2 (chi^2-like)."""
-    z = (r / (2.0 * sigma)) ** 2
-    return 4.0 * 2.0 * (np.sqrt(1.0 + z) - 1.0)
+    as_int = lambda a: np.ascontiguousarray(a, dtype=np.int64)  # noqa: E731
+    as_float = lambda a: np.ascontiguousarray(a, dtype=float)  # noqa: E731
+    return fit_windows(double, as_float(y), as_int(lo), as_int(length), as_float(p0),
+                       as_float(lower), as_float(upper), float(sigma), _GAIN_TOL)  # fmt: skip
 
 
 def _fit_doubles(y, fits, sigma, min_gain, min_drop):
     """Each fit (a row of `_fit_slips`) as two slips, the second starting at or after the
-    first's stick, all at once; a list with, per fit, its two rows or None unless two
+    first's stick; a list with, per fit, its two rows or None unless two
     lower chi^2 by more than `min_gain` and each part drops by more than `min_drop` (the
     drop a slip found on its own needs)."""
     i0, T, y0, D, kappa = fits[:, :5].T
@@ -977,22 +753,18 @@ def _fit_doubles(y, fits, sigma, min_gain, min_drop):
     upper = np.column_stack([span, span + T, np.full(n, np.inf), 8.0 * ones, span, span + T,
                              np.full(n, np.inf), 8.0 * ones, np.full(n, np.inf)])  # fmt: skip
     p0 = np.clip(p0, lower + 1e-9, upper - 1e-9)
-    length = hi - lo + 1
+    p, ok, cost2, cov = _fit_windows(True, y, lo, hi - lo + 1, p0, lower, upper, sigma)
+    sd = np.sqrt(np.maximum(np.einsum("nii->ni", cov), 0.0))
     result = [None] * n
-    for sel in _batches(length):
-        x, yy, mask = _windows(y, lo[sel], length[sel])
-        p, ok, cost2, cov = _lm(_normal(_double), x, yy, mask, p0[sel], lower[sel], upper[sel],
-                                sigma)  # fmt: skip
-        sd = np.sqrt(np.maximum(np.einsum("nii->ni", cov), 0.0))
-        for row, j in enumerate(sel.tolist()):
-            i0a, ta, da, ka, gap, tb, db, kb, base = p[row]
-            if not ok[row] or cost[j] - cost2[row] <= min_gain or min(da, db) <= min_drop:
-                continue
-            e = sd[row]
-            rest = (lo[j], hi[j], cost2[row])
-            first = (i0a + lo[j], ta, base, da, ka, e[0], np.hypot(e[0], e[1]), True,
-                     fits[j, 8], *rest)  # fmt: skip
-            second = (i0a + ta + gap + lo[j], tb, base - da, db, kb, np.hypot(e[0], e[4]),
-                      np.hypot(e[4], e[5]), True, True, *rest)  # fmt: skip
-            result[j] = [first, second]
+    for j in range(n):
+        i0a, ta, da, ka, gap, tb, db, kb, base = p[j]
+        if not ok[j] or cost[j] - cost2[j] <= min_gain or min(da, db) <= min_drop:
+            continue
+        e = sd[j]
+        rest = (lo[j], hi[j], cost2[j])
+        first = (i0a + lo[j], ta, base, da, ka, e[0], np.hypot(e[0], e[1]), True, fits[j, 8],
+                 *rest)  # fmt: skip
+        second = (i0a + ta + gap + lo[j], tb, base - da, db, kb, np.hypot(e[0], e[4]),
+                  np.hypot(e[4], e[5]), True, True, *rest)  # fmt: skip
+        result[j] = [first, second]
     return result

@@ -489,12 +489,15 @@ def _gapped_filtfilt(b, a, values, starts, gaps):
     over which the input stays at the value next to it (the last of the stretch before;
     for a leading gap the first of stretch 0); the filter starts and ends in its steady
     state. The stretches are filtered sample by sample (`lfilter` with the state carried
-    in), the gaps in closed form in the eigenbasis of the filter's state-space matrix M:
+    in, compiled: `_gapped`), the gaps in closed form in the eigenbasis of the filter's
+    state-space matrix M:
     forwards the state's distance from the steady state decays as M^G; backwards the input
     is the forward pass's free ringing, e0 M^n d, whose effect on the state is
     sum_n M^n B e0 M^n d, a geometric sum per pair of eigenvalues. The same numbers as
     filtfilt of the whole trace to rounding (tests/test_cut_measurement.py)."""
-    from scipy.signal import lfilter, lfilter_zi
+    from scipy.signal import lfilter_zi
+
+    from ._gapped import passes
 
     b, a = np.asarray(b, float) / a[0], np.asarray(a, float) / a[0]
     order = a.size - 1
@@ -506,32 +509,7 @@ def _gapped_filtfilt(b, a, values, starts, gaps):
     lam, V = np.linalg.eig(M)
     Vi = np.linalg.inv(V)
     K = Vi @ np.outer(B, np.eye(order)[0]) @ V
-    pair = lam[:, None] * lam[None, :]
-    bounds = np.r_[starts, values.size]
-
-    def free(G, d):  # M^G d
-        return (V @ (lam**G * (Vi @ d))).real
-
-    y = np.empty(values.size)
-    z = unit * values[0]
-    entering = []  # each gap's level and the forward state's distance from its steady state
-    for p in range(len(starts)):
-        lo, hi = bounds[p], bounds[p + 1]
-        c = values[bounds[p] - 1] if p else values[0]
-        entering.append((c, z - unit * c))
-        z = unit * c + free(gaps[p], entering[-1][1])
-        y[lo:hi], z = lfilter(b, a, values[lo:hi], zi=z)
-    out = np.empty(values.size)
-    z = unit * y[-1]
-    for p in range(len(starts) - 1, -1, -1):
-        lo, hi = bounds[p], bounds[p + 1]
-        piece, z = lfilter(b, a, y[lo:hi][::-1], zi=z)
-        out[lo:hi] = piece[::-1]
-        c, d = entering[p]
-        G = gaps[p]
-        ring = np.where(np.abs(1 - pair) > 0, (1 - pair**G) / np.where(pair != 1, 1 - pair, 1), G)
-        z = unit * c + free(G, z - unit * c) + (V @ ((K * (Vi @ d)[None, :]) * ring).sum(1)).real
-    return out
+    return passes(b, a, values, starts, gaps, unit, lam, V, Vi, K)
 
 
 def _keyed_samples(release, slip, stick, n, h, seed, path, normals, spikes, at=None):

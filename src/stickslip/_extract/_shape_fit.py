@@ -1,0 +1,259 @@
+r"""The slips' shape fits, compiled: a Levenberg-Marquardt per fit, the soft-L1 loss at
+f_scale $2\sigma$ by iteratively reweighted least squares, over one slip
+($y_0 - D\,S(\varphi, \kappa)$, five parameters) or two ($y_0 - D_a S_a - D_b S_b$, the
+second `gap` after the first's stick, nine).
+
+Each fit walks the samples of its own window once per evaluation (no padding to a
+batch's longest window, no temporaries): the single slip's flat samples enter the normal
+equations through four sums (before its release the model is $y_0$; after its stick
+$y_0 - D$), its shape evaluated on the samples strictly inside the slip only. The rules
+(damping, bounds, the stop) are those described in `_force`'s module documentation;
+compiled by Numba on first use (some seconds) and cached on disk (`_jit`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from ._jit import call
+
+_COS_PI, _SIN_PI = math.cos(math.pi), math.sin(math.pi)
+_JIT = {"nogil": True, "error_model": "numpy"}  # (the callees: compiled into fit_windows)
+
+
+@numba.njit(**_JIT)
+def shape_point(phi, kappa):
+    """The normalised drop S(phi, kappa) 0 -> 1 and its derivatives in phi and kappa at
+    one phi (0 before the slip; past it those at phi = 1, d/dphi 0; a nan carried)."""
+    if phi <= 0.0:
+        return 0.0, 0.0, 0.0
+    if phi >= 1.0:
+        p, cos, sin = 1.0, _COS_PI, _SIN_PI
+    else:
+        p = phi
+        cos, sin = math.cos(math.pi * p), math.sin(math.pi * p)
+    decay = math.exp(-kappa * p)
+    tail = math.exp(-kappa)
+    full = 1.0 + tail
+    inner = cos + kappa / math.pi * sin
+    num = 1.0 - decay * inner
+    d_phi = decay * sin * (math.pi + kappa * kappa / math.pi) / full if p < 1.0 else 0.0
+    d_kappa = decay * (p * inner - sin / math.pi) / full + num * tail / (full * full)
+    return num / full, d_phi, d_kappa
+
+
+@numba.njit(**_JIT)
+def _soft_l1(r, sigma):
+    z = r / (2.0 * sigma)
+    return 8.0 * (math.sqrt(1.0 + z * z) - 1.0)
+
+
+@numba.njit(**_JIT)
+def _weight(r, sigma):
+    z = r / (2.0 * sigma)
+    return 1.0 / math.sqrt(1.0 + z * z)
+
+
+@numba.njit(**_JIT)
+def _zero(A, grad):
+    for i in range(grad.size):
+        grad[i] = 0.0
+        for j in range(grad.size):
+            A[i, j] = 0.0
+
+
+@numba.njit(**_JIT)
+def _normal_single(y, lo, hi, p, sigma, A, grad):
+    """Fill A = J^T W J and grad = J^T W r of one slip at p on the window y[lo:hi] (local
+    sample indices x = 0, 1, ...); its cost."""
+    i0, T, y0, D, kappa = p[0], p[1], p[2], p[3], p[4]
+    end = i0 + T
+    _zero(A, grad)
+    cost = 0.0
+    jac = np.empty(5)
+    for x in range(hi - lo):
+        if x <= i0 or x >= end:  # flat: the Jacobian's columns of y0 (and of D after)
+            after = x >= end
+            r = (y0 - D if after else y0) - y[lo + x]
+            w = _weight(r, sigma)
+            cost += _soft_l1(r, sigma)
+            A[2, 2] += w
+            grad[2] += w * r
+            if after:
+                A[2, 3] -= w
+                A[3, 2] -= w
+                A[3, 3] += w
+                grad[3] -= w * r
+            continue
+        phi = (x - i0) / T
+        S, S_phi, S_kappa = shape_point(phi, kappa)
+        r = y0 - D * S - y[lo + x]
+        w = _weight(r, sigma)
+        cost += _soft_l1(r, sigma)
+        jac[0] = D * S_phi / T
+        jac[1] = jac[0] * phi
+        jac[2] = 1.0
+        jac[3] = -S
+        jac[4] = -D * S_kappa
+        for a in range(5):
+            wa = w * jac[a]
+            grad[a] += wa * r
+            for b in range(5):
+                A[a, b] += wa * jac[b]
+    return cost
+
+
+@numba.njit(**_JIT)
+def _normal_double(y, lo, hi, p, sigma, A, grad):
+    """As `_normal_single` for two slips, parameters (i0a, Ta, Da, kappa_a, gap, Tb, Db,
+    kappa_b, y0)."""
+    i0a, ta, da, ka, gap, tb, db, kb, base = p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8]
+    _zero(A, grad)
+    cost = 0.0
+    jac = np.empty(9)
+    for x in range(hi - lo):
+        pa = (x - i0a) / ta
+        pb = (x - i0a - ta - gap) / tb
+        sa, sa_phi, sa_k = shape_point(pa, ka)
+        sb, sb_phi, sb_k = shape_point(pb, kb)
+        r = base - da * sa - db * sb - y[lo + x]
+        w = _weight(r, sigma)
+        cost += _soft_l1(r, sigma)
+        ja, jb = da * sa_phi / ta, db * sb_phi / tb
+        jac[0] = ja + jb
+        jac[1] = ja * pa + jb
+        jac[2] = -sa
+        jac[3] = -da * sa_k
+        jac[4] = jb
+        jac[5] = jb * pb
+        jac[6] = -sb
+        jac[7] = -db * sb_k
+        jac[8] = 1.0
+        for a in range(9):
+            wa = w * jac[a]
+            grad[a] += wa * r
+            for b in range(9):
+                A[a, b] += wa * jac[b]
+    return cost
+
+
+@numba.njit(**_JIT)
+def _normal(double, y, lo, hi, p, sigma, A, grad):
+    if double:
+        return _normal_double(y, lo, hi, p, sigma, A, grad)
+    return _normal_single(y, lo, hi, p, sigma, A, grad)
+
+
+@numba.njit(**_JIT)
+def _solve(M, g, out):
+    """out = M^-1 g by Gaussian elimination with partial pivoting (M and g overwritten);
+    0 where M is singular (LAPACK's solve raises there, and the pseudo-inverse of the only
+    singular damped matrix, all zeros but the held parameters' ones, gives 0 for them)."""
+    k = g.size
+    for c in range(k):
+        pivot = c
+        for i in range(c + 1, k):
+            if abs(M[i, c]) > abs(M[pivot, c]):
+                pivot = i
+        if M[pivot, c] == 0.0:
+            for i in range(k):
+                out[i] = 0.0
+            return
+        if pivot != c:
+            for j in range(k):
+                M[c, j], M[pivot, j] = M[pivot, j], M[c, j]
+            g[c], g[pivot] = g[pivot], g[c]
+        for i in range(c + 1, k):
+            f = M[i, c] / M[c, c]
+            for j in range(c, k):
+                M[i, j] -= f * M[c, j]
+            g[i] -= f * g[c]
+    for i in range(k - 1, -1, -1):
+        total = g[i]
+        for j in range(i + 1, k):
+            total -= M[i, j] * out[j]
+        out[i] = total / M[i, i]
+
+
+@numba.njit(**_JIT)
+def _lm_one(double, y, lo, hi, p, lower, upper, sigma, gain_tol, max_iter, A):
+    """One fit on y[lo:hi] from p (overwritten with the estimate; A with J^T W J there):
+    whether it converged and its cost."""
+    k = p.size
+    grad = np.empty(k)
+    A_t, grad_t = np.empty((k, k)), np.empty(k)
+    M, g = np.empty((k, k)), np.empty(k)
+    trial = np.empty(k)
+    held = np.zeros(k, np.bool_)
+    step = np.empty(k)
+    cost = _normal(double, y, lo, hi, p, sigma, A, grad)
+    lam = 1e-3
+    done = False
+    for _ in range(max_iter):
+        # a parameter on its bound is held there while the gradient pushes it out
+        for i in range(k):
+            held[i] = (p[i] <= lower[i] and grad[i] > 0) or (p[i] >= upper[i] and grad[i] < 0)
+        scale = 0.0
+        for i in range(k):
+            g[i] = 0.0 if held[i] else grad[i]
+            for j in range(k):
+                M[i, j] = 0.0 if (held[i] or held[j]) else A[i, j]
+            if held[i]:
+                M[i, i] = 1.0
+            for j in range(k):
+                scale = max(scale, abs(M[i, j]))
+        for i in range(k):
+            M[i, i] += lam * max(M[i, i], 1e-12 * scale)
+        _solve(M, g, step)
+        for i in range(k):
+            trial[i] = min(max(p[i] - step[i], lower[i]), upper[i])
+        cost_t = _normal(double, y, lo, hi, trial, sigma, A_t, grad_t)
+        better = math.isfinite(cost_t) and cost_t < cost
+        if better:
+            gain = cost - cost_t
+            for i in range(k):
+                p[i] = trial[i]
+                grad[i] = grad_t[i]
+                for j in range(k):
+                    A[i, j] = A_t[i, j]
+            cost = cost_t
+            lam = max(lam / 3.0, 1e-9)
+            if gain <= max(1e-8 * cost, gain_tol):
+                done = True
+        else:
+            lam *= 4.0
+        if lam > 1e10:
+            done = True
+        if done:
+            break
+    return done, cost
+
+
+@numba.njit(cache=True, **_JIT)
+def _fit_windows(double, y, lo, length, p0, lower, upper, sigma, gain_tol, max_iter):
+    """Fit each row of p0 on y[lo : lo + length] (local sample indices 0, 1, ...): the
+    estimates, whether each converged, its cost (`_soft_l1` units) and the covariance
+    pinv(J^T W J) sigma^2."""
+    n, k = p0.shape
+    p = p0.copy()
+    ok = np.zeros(n, np.bool_)
+    cost = np.empty(n)
+    normal = np.empty((n, k, k))
+    for i in range(n):
+        hi = min(lo[i] + length[i], y.size)
+        ok[i], cost[i] = _lm_one(double, y, lo[i], hi, p[i], lower[i], upper[i], sigma,
+                                 gain_tol, max_iter, normal[i])  # fmt: skip
+    return p, ok, cost, normal
+
+
+def fit_windows(double, y, lo, length, p0, lower, upper, sigma, gain_tol, max_iter=100):
+    """Fit each row of p0 (the single slip's five parameters, or with `double` the two
+    slips' nine) on y[lo : lo + length], in local sample indices 0, 1, ... of its window,
+    within [lower, upper]: the estimates, whether each converged, its cost (the soft-L1
+    loss in units of sigma^2) and the covariance pinv(J^T W J) sigma^2."""
+    args = (double, y, lo, length, p0, lower, upper, sigma, gain_tol, max_iter)
+    p, ok, cost, normal = call(_fit_windows, *args)
+    return p, ok, cost, np.linalg.pinv(normal) * sigma**2
