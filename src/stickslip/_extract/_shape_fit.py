@@ -46,15 +46,31 @@ def shape_point(phi, kappa):
 
 
 @numba.njit(**_JIT)
-def _soft_l1(r, sigma):
+def _loss(r, sigma):
+    """The soft-L1 loss at f_scale 2 sigma (scipy's least_squares' `soft_l1`, in units of
+    sigma^2: chi^2-like) of residual r, and its IRLS weight."""
     z = r / (2.0 * sigma)
-    return 8.0 * (math.sqrt(1.0 + z * z) - 1.0)
+    q = math.sqrt(1.0 + z * z)
+    return 1.0 / q, 8.0 * (q - 1.0)
 
 
 @numba.njit(**_JIT)
-def _weight(r, sigma):
-    z = r / (2.0 * sigma)
-    return 1.0 / math.sqrt(1.0 + z * z)
+def _accumulate(A, grad, jac, w, r):
+    """A += w jac jac^T (its upper triangle), grad += w r jac."""
+    k = jac.size
+    for a in range(k):
+        wa = w * jac[a]
+        grad[a] += wa * r
+        for b in range(a, k):
+            A[a, b] += wa * jac[b]
+
+
+@numba.njit(**_JIT)
+def _mirror(A):
+    """A's lower triangle from its upper one."""
+    for a in range(A.shape[0]):
+        for b in range(a):
+            A[a, b] = A[b, a]
 
 
 @numba.njit(**_JIT)
@@ -78,31 +94,27 @@ def _normal_single(y, lo, hi, p, sigma, A, grad):
         if x <= i0 or x >= end:  # flat: the Jacobian's columns of y0 (and of D after)
             after = x >= end
             r = (y0 - D if after else y0) - y[lo + x]
-            w = _weight(r, sigma)
-            cost += _soft_l1(r, sigma)
+            w, loss = _loss(r, sigma)
+            cost += loss
             A[2, 2] += w
             grad[2] += w * r
             if after:
                 A[2, 3] -= w
-                A[3, 2] -= w
                 A[3, 3] += w
                 grad[3] -= w * r
             continue
         phi = (x - i0) / T
         S, S_phi, S_kappa = shape_point(phi, kappa)
         r = y0 - D * S - y[lo + x]
-        w = _weight(r, sigma)
-        cost += _soft_l1(r, sigma)
+        w, loss = _loss(r, sigma)
+        cost += loss
         jac[0] = D * S_phi / T
         jac[1] = jac[0] * phi
         jac[2] = 1.0
         jac[3] = -S
         jac[4] = -D * S_kappa
-        for a in range(5):
-            wa = w * jac[a]
-            grad[a] += wa * r
-            for b in range(5):
-                A[a, b] += wa * jac[b]
+        _accumulate(A, grad, jac, w, r)
+    _mirror(A)
     return cost
 
 
@@ -114,14 +126,15 @@ def _normal_double(y, lo, hi, p, sigma, A, grad):
     _zero(A, grad)
     cost = 0.0
     jac = np.empty(9)
+    past_a, past_b = shape_point(1.0, ka), shape_point(1.0, kb)  # (the same past each slip)
     for x in range(hi - lo):
         pa = (x - i0a) / ta
         pb = (x - i0a - ta - gap) / tb
-        sa, sa_phi, sa_k = shape_point(pa, ka)
-        sb, sb_phi, sb_k = shape_point(pb, kb)
+        sa, sa_phi, sa_k = past_a if pa >= 1.0 else shape_point(pa, ka)
+        sb, sb_phi, sb_k = past_b if pb >= 1.0 else shape_point(pb, kb)
         r = base - da * sa - db * sb - y[lo + x]
-        w = _weight(r, sigma)
-        cost += _soft_l1(r, sigma)
+        w, loss = _loss(r, sigma)
+        cost += loss
         ja, jb = da * sa_phi / ta, db * sb_phi / tb
         jac[0] = ja + jb
         jac[1] = ja * pa + jb
@@ -132,11 +145,8 @@ def _normal_double(y, lo, hi, p, sigma, A, grad):
         jac[6] = -sb
         jac[7] = -db * sb_k
         jac[8] = 1.0
-        for a in range(9):
-            wa = w * jac[a]
-            grad[a] += wa * r
-            for b in range(9):
-                A[a, b] += wa * jac[b]
+        _accumulate(A, grad, jac, w, r)
+    _mirror(A)
     return cost
 
 
@@ -235,7 +245,7 @@ def _lm_one(double, y, lo, hi, p, lower, upper, sigma, gain_tol, max_iter, A):
 @numba.njit(cache=True, **_JIT)
 def _fit_windows(double, y, lo, length, p0, lower, upper, sigma, gain_tol, max_iter):
     """Fit each row of p0 on y[lo : lo + length] (local sample indices 0, 1, ...): the
-    estimates, whether each converged, its cost (`_soft_l1` units) and the covariance
+    estimates, whether each converged, its cost (`_loss` units) and the covariance
     pinv(J^T W J) sigma^2."""
     n, k = p0.shape
     p = p0.copy()
