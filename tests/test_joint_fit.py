@@ -5,7 +5,9 @@
   slider's closed-form cycle (`Slider.deterministic`) in SI; it inverts `si_parameters`.
 - Bad runs and names are one clear line each.
 - Two runs of an independent generator (other springs, the same slider): the joint fit
-  finds the slider's mass and noise within their intervals' reach (slow).
+  finds the slider's mass and noise within their intervals' reach, and `compare_fits`
+  keeps its fixed threshold against a random one fitted to the same runs (slow).
+- `compare_fits` refuses a loaded joint fit, and joint fits of other runs.
 """
 
 import dataclasses
@@ -144,19 +146,47 @@ def test_a_joint_fit_finds_the_slider_behind_two_springs(tmp_path):
     assert [row["name"] for row in back.diagnostics["runs"]] == ["run 0", "run 1"]
     p = r.predict(full[1])
     assert p.regime == "stick-slip" and set(p.p_values) == {"stick_time", "slip_time", "force_drop"}
+    # the fixed threshold is true: compare_fits keeps it against a random one fitted to
+    # the same runs (a calibrated test rejects a true law in 1 % of data sets)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        random = ss.fit("random-threshold-held", runs,
+                        {"mass": free["mass"], "noise": free["noise"],
+                         "threshold.mean": free["static_friction"], "threshold.sd": (1e-4, 0.01)},
+                        fixed, n_sim=1000, seed=7)  # fmt: skip
+        c = ss.compare_fits({"fixed": r, "random": random}, seed=11)
+    assert c.chosen is r, c.summary()
+
+
+def _joint_result(names, log_likelihood=-10.0, joint=True):
+    from stickslip._inference.result import FitResult
+
+    return FitResult(
+        estimate={"mass": 0.02}, ci={"mass": (0.01, 0.03)}, log_likelihood=log_likelihood,
+        method="", data={"slip_time": np.arange(4.0)}, model=None,
+        diagnostics={"runs": [{"name": n} for n in names], **({"joint": object()} if joint
+                                                             else {})},
+    )  # fmt: skip
 
 
 def test_one_run_checks_refuse_a_joint_fit():
-    from stickslip._inference.result import FitResult
+    """goodness_of_fit calibrates one run's statistics: a joint fit is refused by name."""
+    with pytest.raises(ParameterError, match="several runs"):
+        ss.goodness_of_fit(_joint_result(["a", "b"], joint=False))
 
-    joint = FitResult(
-        estimate={"mass": 0.02}, ci={"mass": (0.01, 0.03)}, log_likelihood=-10.0, method="",
-        diagnostics={"runs": [{"name": "a"}, {"name": "b"}]}, data={}, model=None,
-    )  # fmt: skip
-    with pytest.raises(ParameterError, match="several runs"):
-        ss.goodness_of_fit(joint)
-    with pytest.raises(ParameterError, match="several runs"):
-        ss.compare_fits({"a": joint, "b": dataclasses.replace(joint, log_likelihood=-9.0)})
+
+def test_compare_fits_refuses_joint_fits_it_cannot_compare():
+    """A loaded joint fit (its map to each run's model is not saved), and joint fits of
+    other runs, or a joint fit against a fit of one data set, are one line each."""
+    from stickslip import DataError
+
+    with pytest.raises(ParameterError, match="loaded fit of several runs"):
+        ss.compare_fits({"a": _joint_result(["a", "b"], joint=False),
+                         "b": _joint_result(["a", "b"], -9.0, joint=False)})  # fmt: skip
+    with pytest.raises(DataError, match="y was fitted to the runs a, c and x to the runs a, b"):
+        ss.compare_fits({"x": _joint_result(["a", "b"]), "y": _joint_result(["a", "c"], -9.0)})
+    with pytest.raises(DataError, match="one data set"):
+        ss.compare_fits({"x": _joint_result(["a", "b"]), "y": _joint_result([], -9.0)})
 
 
 def test_a_value_of_one_run_overrides_the_shared_one(run):

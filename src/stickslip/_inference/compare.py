@@ -59,6 +59,13 @@ falls by at most `surface.MAX_STEP_DROP`): the replicates' maxima, within a few 
 errors of the estimate, lie inside its $\pm 2$ steps. A refit of every replicate would
 cost `2 n_boot` fits.
 
+Several runs (fits of one slider to several runs, `joint`): the log-likelihood is the sum
+of the runs', so is $T$; a replicate is a set of runs, each drawn from the null's fitted
+slider on that run's spring and speed, through that run's measurement, at its number of
+cycles (run 0 from the test's stream, the others from streams of their own); each run's
+design cycles are simulated again. $T$ is not clipped at 0 there (nesting is not checked
+in SI values).
+
 What it assumes: the replicates' cycles are dependent as the data's are (through a
 measurement a replicate is a stretch of the model's own successive cycles: a random
 threshold couples neighbouring rows in both; per-cycle values given as a dict are
@@ -81,10 +88,11 @@ from typing import Any
 import numpy as np
 
 from .._errors import DataError, ParameterError, check_int
+from .forward import _simulate
 from .goodness import ALPHA as GOODNESS_ALPHA
 from .goodness import _replicates, _Setting
 from .likelihood import _sample, _scored
-from .params import model_kwargs
+from .params import _from_fit, model_kwargs
 from .surface import _polynomial_terms
 
 # The level of each choice: a simpler model is kept unless p < ALPHA. The issue asks that a
@@ -158,8 +166,10 @@ def compare_fits(
 
     **Arguments:**
 
-    - `fits`: two or more `FitResult`s (from `fit`) of one data set, as a list (each named
-      by its model and free parameters) or a dict `{name: FitResult}`. Candidates for a
+    - `fits`: two or more `FitResult`s (from `fit`) of one data set, or of the same runs
+      (`fit(model, [run, ...])`: a replicate is then a set of runs, each through its own
+      measurement), as a list (each named by its model and free parameters) or a dict
+      `{name: FitResult}`. Candidates for a
       slider: a fixed against a random static threshold (`langevin` with `x0` free against
       `random-threshold` with `"threshold_params.sd"` free), white against
       Ornstein-Uhlenbeck noise, with or without a velocity-dependent kinetic friction.
@@ -187,13 +197,13 @@ def compare_fits(
     if seed >= 2**63:
         raise ParameterError(owner, "seed", "must be < 2**63", seed)
     names = list(named)
-    joint = [k for k, r in named.items() if getattr(r, "diagnostics", {}).get("runs")]
-    if joint:
-        raise ParameterError(
-            owner, "fits", f"{joint[0]} is a fit of several runs: compare_fits calibrates one "
-            "run's statistic; compare joint fits by their log-likelihoods (and each run's "
-            "KS p-values, diagnostics['runs'])",
-        )  # fmt: skip
+    for k, r in named.items():
+        if r.diagnostics.get("runs") and r.diagnostics.get("joint") is None:
+            raise ParameterError(
+                owner, "fits", f"holds {k}, a loaded fit of several runs: the map from its SI "
+                "values to each run's model is not saved; compare fits made by fit(model, "
+                "[run, ...]) in this session",
+            )  # fmt: skip
     _check_same_data(named)
     cands = {k: _Candidate.of(k, r) for k, r in named.items()}
     order = sorted(names, key=lambda k: (cands[k].n_free, -cands[k].log_likelihood))
@@ -210,7 +220,6 @@ def compare_fits(
             f"{math.ceil(rivals_max / alpha)}",
             n_boot,
         )  # fmt: skip
-    data = next(iter(named.values())).data
     tests: dict[tuple[str, str], dict] = {}
     designs: dict[str, tuple] = {}
     said: list[str] = []
@@ -220,8 +229,8 @@ def compare_fits(
     for i, a in enumerate(order):
         rivals = [b for b in order[i + 1 :] if cands[b].n_free > cands[a].n_free]
         for b in rivals:
-            tests[a, b] = _test(cands[a], cands[b], data, n_boot,
-                                _stream(seed, names.index(a)), designs)  # fmt: skip
+            tests[a, b] = _test(cands[a], cands[b], n_boot, _stream(seed, names.index(a)),
+                                designs)  # fmt: skip
         p = [tests[a, b]["p_value"] for b in rivals]
         p_adj = min(1.0, len(rivals) * min(p)) if rivals else 1.0
         if p_adj >= alpha:
@@ -275,7 +284,9 @@ def compare_fits(
 @dataclasses.dataclass(frozen=True)
 class _Candidate:
     """One fit, as the tests need it: the model at fit coordinates, the fit's own design
-    of points around its estimate, its two simulation seeds."""
+    of points around its estimate, its two simulation seeds; for a fit of several runs,
+    each run's model, data, measurement and bandwidths (`parts`, `columns`: one entry per
+    run; a fit of one data set has one)."""
 
     name: str
     result: Any
@@ -283,6 +294,8 @@ class _Candidate:
     n_free: int
     log_likelihood: float
     seeds: tuple[int, int]
+    parts: tuple = ()  # per run: the model at u, its simulation and observation rule
+    columns: tuple = ()  # per run: its data
 
     @classmethod
     def of(cls, name, result) -> _Candidate:
@@ -294,19 +307,25 @@ class _Candidate:
                 "(from another version of stickslip): fit it again",
             )  # fmt: skip
         first, second = (int(x) for x in design["seeds"])
+        runs = result.diagnostics.get("joint")
+        if runs is None:
+            parts, columns = (setting,), (result.data,)
+        else:
+            parts = tuple(_RunSetting.of(setting, runs, i) for i in range(len(runs.columns)))
+            columns = tuple(runs.columns)
         return cls(
             name=name, result=result, setting=setting, n_free=len(result.estimate),
-            log_likelihood=float(result.log_likelihood), seeds=(first, second),
+            log_likelihood=float(result.log_likelihood), seeds=(first, second), parts=parts,
+            columns=columns,
         )  # fmt: skip
 
     def design(self) -> tuple[list, np.ndarray, list]:
         """The fit's own design (`surface._local_surface`: the centre, +-1 and +-2 steps
         along each axis, +-1 step along each pair's diagonals, clipped at the box) less
         the points where the fit's log-likelihood is not finite at either seed: the models
-        there, their offsets from the centre in steps, and, per seed, the cycles the fit
-        simulated there (`None` where the fit did not keep them: simulated again, the same
-        cycles)."""
-        s = self.setting
+        there (one per run), their offsets from the centre in steps, and, per seed, the
+        cycles the fit simulated there (`None` where the fit did not keep them: simulated
+        again, the same cycles)."""
         d = self.result.diagnostics["design"]
         centre, steps = np.asarray(d["centre"], float), np.asarray(d["steps"], float)
         points = np.atleast_2d(np.asarray(d["points"], float))
@@ -314,13 +333,13 @@ class _Candidate:
         kept = d.get("samples")
         models, offsets, samples = [], [], ([], [])
         for i, u in enumerate(points):
-            m = _built(s, u) if finite[i] else None
-            if m is None:
+            m = [_built(s, u) for s in self.parts] if finite[i] else [None]
+            if any(x is None for x in m):
                 continue
             models.append(m)
             offsets.append((u - centre) / steps)
             for j in range(2):
-                samples[j].append(None if kept is None else kept[j][i])
+                samples[j].append([None] * len(m) if kept is None else [kept[j][i]])
         if not models:
             raise ParameterError(
                 "compare_fits", "fits", f"holds {self.name}, whose fit has no design point "
@@ -329,26 +348,64 @@ class _Candidate:
         return models, np.array(offsets), list(samples)
 
     def best(self, design, pooled, n_sets: int, which: int) -> np.ndarray:
-        """$\\tilde\\ell$ of each of the `n_sets` data sets stacked in `pooled`: the fit's
-        smoothed log-likelihood (its bandwidths, observation rule and simulation settings,
-        seed number `which`) at each design point, the fit's polynomial fitted through
-        them, and its largest value over the design's region (`_polynomial_max`)."""
-        s = self.setting
+        """$\\tilde\\ell$ of each of the `n_sets` data sets stacked in `pooled` (one dict
+        per run): the fit's smoothed log-likelihood (its bandwidths, observation rule and
+        simulation settings, seed number `which`; the sum of the runs') at each design
+        point, the fit's polynomial fitted through them, and its largest value over the
+        design's region (`_polynomial_max`)."""
         models, offsets, samples = design
         seed = self.seeds[which]
-        values = np.empty((len(models), n_sets))
-        for i, m in enumerate(models):
-            sim = samples[which][i]
-            if sim is None:
-                sim = _sample(m, s.n_sim, s.dt, s.t_max, seed, s.observe)
-            terms = _scored(pooled, sim, s.bandwidth, s.observe)
-            if terms is None:  # (the fit found cycles there: the same simulation)
-                values[i] = -np.inf
-                continue
-            per_row = np.sum([terms[k] for k in pooled], axis=0)
-            values[i] = per_row.reshape(n_sets, -1).sum(axis=1)
+        values = np.zeros((len(models), n_sets))
+        for i, per_run in enumerate(models):
+            for r, (s, m, data) in enumerate(zip(self.parts, per_run, pooled, strict=True)):
+                sim = samples[which][i][r]
+                if sim is None:
+                    sim = _sample(m, s.n_sim, s.dt, s.t_max, seed, s.observe)
+                terms = _scored(data, sim, s.bandwidth, s.observe)
+                if terms is None:  # (the fit found cycles there: the same simulation)
+                    values[i] = -np.inf
+                    break
+                per_row = np.sum([terms[k] for k in data], axis=0)
+                values[i] += per_row.reshape(n_sets, -1).sum(axis=1)
         ok = np.all(np.isfinite(values), axis=1)
         return _polynomial_max(offsets[ok], values[ok])
+
+
+@dataclasses.dataclass(frozen=True)
+class _RunSetting:
+    """What `_replicates` and a design need of run `index` of a fit of several runs: its
+    model at fit coordinates `u` (the SI values mapped into its units: `joint.Runs`), its
+    measurement and bandwidths; `goodness._Setting`'s names."""
+
+    runs: Any  # joint.Runs
+    index: int
+    names: list
+    scales: dict
+    u_hat: np.ndarray
+    n_sim: int
+    observe: Any
+    bandwidth: dict
+    kinds: list
+    dt: None = None  # (a measurement sets its own step)
+    t_max: None = None
+
+    @classmethod
+    def of(cls, setting, runs, index: int) -> _RunSetting:
+        return cls(
+            runs=runs, index=index, names=setting.names, scales=setting.scales,
+            u_hat=setting.u_hat, n_sim=setting.n_sim, observe=runs.measurements[index],
+            bandwidth=dict(setting.diagnostics["bandwidth"][index]),
+            kinds=list(runs.columns[index]),
+        )  # fmt: skip
+
+    def model(self, u):
+        values = {k: _from_fit(self.scales[k], float(x)) for k, x in zip(self.names, u,
+                                                                         strict=True)}  # fmt: skip
+        return self.runs.build(values)[self.index]
+
+    def simulate(self, u, n, seed) -> dict[str, np.ndarray]:
+        sim = _simulate(self.model(u), n, None, None, seed, self.observe)
+        return {k: np.asarray(sim[k], float) for k in self.kinds}
 
 
 def _built(setting, u):
@@ -406,13 +463,16 @@ def _region(offsets: np.ndarray) -> np.ndarray:
     return np.vstack([inside, offsets])
 
 
-def _test(a: _Candidate, b: _Candidate, data: dict, n_boot: int, seed: int, designs) -> dict:
+def _test(a: _Candidate, b: _Candidate, n_boot: int, seed: int, designs) -> dict:
     """The parametric-bootstrap likelihood-ratio test of `a` (null) against `b`, with each
     fit's two simulation seeds (the same replicates for both); `designs` caches each
-    candidate's design (the fit's: it does not depend on the null)."""
-    n = next(iter(data.values())).size
-    reps = _replicates(a.setting, n, n_boot, seed)
-    pooled = {k: np.concatenate([data[k]] + [r[k] for r in reps]) for k in data}
+    candidate's design (the fit's: it does not depend on the null). Of several runs, each
+    run's replicates are drawn through its own measurement (its own stream of `seed`)."""
+    pooled = []
+    for r, (setting, data) in enumerate(zip(a.parts, a.columns, strict=True)):
+        n = next(iter(data.values())).size
+        reps = _replicates(setting, n, n_boot, seed if r == 0 else _stream(seed, 1000 + r))
+        pooled.append({k: np.concatenate([data[k]] + [x[k] for x in reps]) for k in data})
     for c in (a, b):
         if c.name not in designs:
             designs[c.name] = c.design()
@@ -444,6 +504,8 @@ def _nested(a: _Candidate, b: _Candidate) -> bool:
     box = b.result.diagnostics.get("box")
     if box is None:  # a fit from an earlier version: its box is not known
         return False
+    if b.result.diagnostics.get("joint") is not None:  # (SI boxes: not checked; the test is
+        return False  # valid unclipped, as for a pair that is not nested)
     Mb = type(b.result.model)
     if isinstance(a.result.model, Mb):
         target = model_kwargs(a.result.model)
@@ -595,6 +657,12 @@ def _check_same_data(named: dict) -> None:
                     f"({k}: {how}): likelihoods compare models on one data set"
                 )
         d = r.diagnostics
+        runs = [[x["name"] for x in f.diagnostics.get("runs") or []] for f in (r, ref)]
+        if runs[0] != runs[1]:
+            raise DataError(
+                f"compare_fits: {name} was fitted to {_runs_text(runs[0])} and {ref_name} to "
+                f"{_runs_text(runs[1])}: likelihoods compare models on one data set"
+            )
         for key in ("trace", "sampling", "observe"):
             if _plain(d.get(key)) != _plain(d0.get(key)):
                 raise DataError(
@@ -602,6 +670,10 @@ def _check_same_data(named: dict) -> None:
                     f"differently ({key}: {d.get(key)!r} against {d0.get(key)!r}): fit both "
                     "to the same data, Cycles or trace settings"
                 )
+
+
+def _runs_text(names: list) -> str:
+    return f"the runs {', '.join(names)}" if names else "one data set"
 
 
 def _plain(value):

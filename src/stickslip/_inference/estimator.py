@@ -302,6 +302,7 @@ def _estimate(
     fitted = build(estimate)
     if runs is not None:
         diagnostics["runs"] = runs.describe(fitted)
+        diagnostics["joint"] = runs  # the map to each run's model (`compare_fits`)
     return FitResult(
         estimate=estimate, ci=ci, log_likelihood=ll_hat, method=method,
         diagnostics=diagnostics, data=data, model=fitted[0],

@@ -324,7 +324,7 @@ class _Setting:
     dt: float | None
     t_max: float | None
     observe: Any  # the data's `Measurement` (None: per-cycle values)
-    bandwidth: dict
+    bandwidth: Any  # per column (a list of those, per run, for a joint fit)
     kinds: list
     fit_seed: int
     diagnostics: dict
@@ -341,7 +341,7 @@ class _Setting:
             covariance=np.atleast_2d(np.asarray(d["covariance"], float)), n_sim=int(d["n_sim"]),
             n_data=next(iter(result.data.values())).size, dt=_float(d["dt"]),
             t_max=_float(d["t_max"]), observe=d.get("measurement"),
-            bandwidth=dict(d["bandwidth"]),
+            bandwidth=_bandwidths(d["bandwidth"]),
             kinds=list(result.data), fit_seed=int(d["seed"]), diagnostics=d,
         )  # fmt: skip
 
@@ -531,6 +531,11 @@ def _replicates(setting: _Setting, n: int, n_rep: int, seed: int) -> list[dict]:
         batch += 1
     cols = {k: np.concatenate(v)[:need] for k, v in got.items()}
     return [{k: v[r * n : (r + 1) * n] for k, v in cols.items()} for r in range(n_rep)]
+
+
+def _bandwidths(given):
+    """A fit's bandwidths per column (a list of them, one per run, for a joint fit)."""
+    return dict(given) if hasattr(given, "items") else [dict(b) for b in given]
 
 
 def _float(x) -> float | None:

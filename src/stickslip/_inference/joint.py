@@ -116,6 +116,9 @@ class Runs:
         self.data = {k: np.concatenate([d[k] for d in self.columns]) for k in first}
         self.fixed: dict[str, Any] = {}
 
+    def __repr__(self) -> str:
+        return f"<{len(self.labels)} runs: {', '.join(self.labels)}>"
+
     def checked(self, fixed, free) -> tuple[dict, dict]:
         """`(fixed, free)`: SI names of a slider, finite boxes with low < high, none both."""
         fixed = {} if fixed is None else fixed
