@@ -207,3 +207,35 @@ def test_a_value_of_one_run_overrides_the_shared_one(run):
     assert x0[2] == x0[0]
     with pytest.raises(ParameterError, match=r"names run 3: there are 3 runs"):
         runs.checked({}, {"mass[3]": (0.01, 0.05)})
+
+
+def test_a_run_the_fitted_slider_shows_no_cycles_on_is_rejected_not_a_crash(run, monkeypatch):
+    """The per-run check after a joint fit: a run on which the fitted slider's simulated
+    trace shows no cycles through its measurement gets p-values of 0 and the reason; the
+    other runs are checked as usual."""
+    from stickslip import DataError
+    from stickslip._inference import forward
+    from stickslip._inference.joint import Runs
+    from stickslip._inference.result import FitResult
+
+    runs = Runs(ss.get_model("langevin"), [run, run])
+    runs.checked({"static_friction": 0.0990, "kinetic_friction": 0.0911}, {"mass": (0.01, 0.05)})
+    result = FitResult(
+        estimate={"mass": 0.02}, ci={"mass": (0.01, 0.03)}, log_likelihood=-1.0, method="",
+        data=runs.data, model=None,
+        diagnostics={"runs": runs.describe(runs.build({"mass": 0.02})), "warnings": []},
+    )  # fmt: skip
+    real = forward._simulate
+
+    def second_shows_nothing(model, n, dt, t_max, seed, measurement=None):
+        if measurement is runs.measurements[1]:
+            raise DataError("measured_cycles: the simulated trace shows no cycles")
+        return real(model, n, dt, t_max, seed, measurement)
+
+    monkeypatch.setattr(forward, "_simulate", second_shows_nothing)
+    runs.p_values(result, 200, 3)
+    first, second = result.diagnostics["runs"]
+    assert set(first["p_values"]) == set(runs.columns[0]) and "unresolved" not in first
+    assert all(0.0 <= p <= 1.0 for p in first["p_values"].values())
+    assert set(second["p_values"].values()) == {0.0} and "no cycles" in second["unresolved"]
+    assert "no cycles" in result.summary()

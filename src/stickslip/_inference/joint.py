@@ -209,15 +209,23 @@ class Runs:
         """Per run and observable, the KS p-value of its cycles against the fitted models'
         simulated ones through its measurement (another seed than the fit's), into
         `result.diagnostics["runs"]`. Not corrected for the fit (the estimate was tuned on
-        these data): high p-values are optimistic, a low one is a rejection."""
+        these data): high p-values are optimistic, a low one is a rejection. A run on
+        which the fitted slider's trace shows no cycles through its measurement gets
+        p-values of 0 and the reason (`"unresolved"`)."""
         from scipy import stats
 
+        from .._errors import DataError
         from .forward import _simulate
 
         models = self.build(result.estimate)
         for row, m, d, measured in zip(result.diagnostics["runs"], models, self.columns,
                                        self.measurements, strict=True):  # fmt: skip
-            sim = _simulate(m, n_sim, None, None, seed, measured)
+            try:
+                sim = _simulate(m, n_sim, None, None, seed, measured)
+            except DataError as err:  # the fitted slider shows no cycles on this run
+                row["p_values"] = dict.fromkeys(d, 0.0)
+                row["unresolved"] = str(err).splitlines()[0]
+                continue
             row["p_values"] = {
                 k: float(stats.ks_2samp(d[k], np.asarray(sim[k], float)).pvalue) for k in d
             }

@@ -67,9 +67,10 @@ class FitResult:
             lines.append(f"goodness of fit ({self.goodness.n_rep} replicates): {shown}")
         for run in self.diagnostics.get("runs") or ():
             shown = ", ".join(f"{k} p = {p:.3g}" for k, p in run.get("p_values", {}).items())
+            why = f" ({run['unresolved']})" if run.get("unresolved") else ""
             lines.append(f"  {run['name']}: k = {run['stiffness']:.6g} N/m, V = "
                          f"{run['v_b']:.4g} m/s, {run['cycles']} cycles"
-                         + (f"; KS {shown}" if shown else ""))  # fmt: skip
+                         + (f"; KS {shown}{why}" if shown else ""))  # fmt: skip
         lines += [f"warning: {w}" for w in self.diagnostics.get("warnings", ())]
         return "\n".join(lines)
 
