@@ -7,8 +7,8 @@ Each fit walks the samples of its own window once per evaluation (no padding to 
 batch's longest window, no temporaries): the single slip's flat samples enter the normal
 equations through four sums (before its release the model is $y_0$; after its stick
 $y_0 - D$), its shape evaluated on the samples strictly inside the slip only. The rules
-(damping, bounds, the stop) are those described in `_force`'s module documentation;
-compiled by Numba on first use (some seconds) and cached on disk (`_jit`).
+(damping, bounds, the stop) are `_lm_one`'s. Compiled by Numba on first use (some
+seconds) and cached on disk (`_jit`).
 """
 
 from __future__ import annotations
@@ -47,8 +47,8 @@ def shape_point(phi, kappa):
 
 @numba.njit(**_JIT)
 def _loss(r, sigma):
-    """The soft-L1 loss at f_scale 2 sigma (scipy's least_squares' `soft_l1`, in units of
-    sigma^2: chi^2-like) of residual r, and its IRLS weight."""
+    """The IRLS weight of residual r and its soft-L1 loss at f_scale 2 sigma (scipy's
+    least_squares' `soft_l1`, in units of sigma^2: chi^2-like)."""
     z = r / (2.0 * sigma)
     q = math.sqrt(1.0 + z * z)
     return 1.0 / q, 8.0 * (q - 1.0)
@@ -191,7 +191,15 @@ def _solve(M, g, out):
 @numba.njit(**_JIT)
 def _lm_one(double, y, lo, hi, p, lower, upper, sigma, gain_tol, max_iter, A):
     """One fit on y[lo:hi] from p (overwritten with the estimate; A with J^T W J there):
-    whether it converged and its cost."""
+    whether it converged and its cost.
+
+    Levenberg-Marquardt on the reweighted normal equations: the step solves
+    (J^T W J + lam diag) step = -J^T W r, diag the matrix's own diagonal (at least 1e-12
+    of its largest entry); lam starts at 1e-3, is divided by 3 after a step that lowers
+    the cost and multiplied by 4 after one that does not (the step is then not taken);
+    a parameter on its bound is held there while the gradient pushes it out, and steps
+    are clipped into the bounds. Converged: a step that gains less than `gain_tol` in
+    chi^2 (or 1e-8 of the cost), or lam past 1e10 (no step at any damping gains)."""
     k = p.size
     grad = np.empty(k)
     A_t, grad_t = np.empty((k, k)), np.empty(k)
@@ -245,8 +253,7 @@ def _lm_one(double, y, lo, hi, p, lower, upper, sigma, gain_tol, max_iter, A):
 @numba.njit(cache=True, **_JIT)
 def _fit_windows(double, y, lo, length, p0, lower, upper, sigma, gain_tol, max_iter):
     """Fit each row of p0 on y[lo : lo + length] (local sample indices 0, 1, ...): the
-    estimates, whether each converged, its cost (`_loss` units) and the covariance
-    pinv(J^T W J) sigma^2."""
+    estimates, whether each converged, its cost (`_loss` units) and J^T W J there."""
     n, k = p0.shape
     p = p0.copy()
     ok = np.zeros(n, np.bool_)
