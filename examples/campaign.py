@@ -27,9 +27,8 @@ speeds of 42, 1100 and 4300 um/s. What it does:
    v_b=)`).
 
 Writes `DIR/fits.md`, `DIR/leave_one_out.csv` and `.md`, and `DIR/summary.md`; prints
-the summary. Slow: on 2 cores at `--n-sim 1000`, beside other work, the two joint fits
-took 7 and 26 minutes and the three leave-one-out fits of the random threshold over 35
-more (docs/runs.md).
+the summary. Slow: 37 minutes on 2 quiet cores at `--n-sim 1000` (the two joint fits 4
+and 9 minutes, the comparison 3.5, the three leave-one-out fits 21; docs/runs.md).
 """
 
 from __future__ import annotations
