@@ -122,6 +122,7 @@ def test_a_nested_pair_never_scores_below_zero(monkeypatch):
     def cand(name, model, box, shift):
         c = _candidate(name, model, box, len(box))
         c.setting = None
+        c.parts, c.columns = (None,), ({"slip_time": np.ones(n)},)  # one data set
         c.design = lambda: ([], np.zeros((0, 1)), [[], []])
         c.best = lambda design, pooled, n_sets, which: low + shift
         return c
@@ -131,11 +132,11 @@ def test_a_nested_pair_never_scores_below_zero(monkeypatch):
                             "threshold_params.sd": (0.0, 1.0)}, -15.0)  # fmt: skip
     reps = [{"slip_time": np.ones(n)} for _ in range(n_boot)]
     monkeypatch.setattr(compare, "_replicates", lambda *args: reps)
-    t = compare._test(a, b, {"slip_time": np.ones(n)}, n_boot, 0, {})
+    t = compare._test(a, b, n_boot, 0, {})
     assert t["nested"] and t["raw_statistic"] == [-30.0, -30.0]
     assert t["statistic"] == [0.0, 0.0] and t["p_value"] == 1.0
     # not nested (the box of sd away from 0): the statistic as it came
     b_far = cand("random", rt, {"threshold_params.mean": (0.5, 2.0),
                                 "threshold_params.sd": (0.05, 1.0)}, -15.0)  # fmt: skip
-    t = compare._test(a, b_far, {"slip_time": np.ones(n)}, n_boot, 0, {})
+    t = compare._test(a, b_far, n_boot, 0, {})
     assert not t["nested"] and t["statistic"] == pytest.approx([-30.0, -30.0])
