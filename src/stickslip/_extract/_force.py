@@ -719,22 +719,14 @@ def _fit_slips(y, a, b, lo_lim, hi_lim, window, drop, sigma) -> np.ndarray:
     upper = np.column_stack([hi - lo, hi - lo + span, np.full(a.size, np.inf),
                              np.full(a.size, np.inf), np.full(a.size, 8.0)])  # fmt: skip
     p0 = np.clip(p0, lower + 1e-9, upper - 1e-9)
-    p, ok, cost, cov = _fit_windows(False, y, lo, hi - lo + 1, p0, lower, upper, sigma)
+    from ._shape_fit import fit_windows  # (Numba imported on first use)
+
+    p, ok, cost, cov = fit_windows(False, y, lo, hi - lo + 1, p0, lower, upper, sigma, _GAIN_TOL)
     sd0 = np.sqrt(np.maximum(cov[:, 0, 0], 0.0))
     sd1 = np.sqrt(np.maximum(cov[:, 0, 0] + cov[:, 1, 1] + 2 * cov[:, 0, 1], 0.0))
     i0_fit = p[:, 0] + lo
     seen = ((p[:, 0] >= 1.0) & (lo > 0)) | (i0_fit >= window)
     return np.column_stack([i0_fit, p[:, 1:], sd0, sd1, ok, seen, lo, hi, cost])
-
-
-def _fit_windows(double, y, lo, length, p0, lower, upper, sigma):
-    """`_shape_fit.fit_windows` (compiled) of the single slip's or two slips' model."""
-    from ._shape_fit import fit_windows
-
-    as_int = lambda a: np.ascontiguousarray(a, dtype=np.int64)  # noqa: E731
-    as_float = lambda a: np.ascontiguousarray(a, dtype=float)  # noqa: E731
-    return fit_windows(double, as_float(y), as_int(lo), as_int(length), as_float(p0),
-                       as_float(lower), as_float(upper), float(sigma), _GAIN_TOL)  # fmt: skip
 
 
 def _fit_doubles(y, fits, sigma, min_gain, min_drop):
@@ -753,7 +745,9 @@ def _fit_doubles(y, fits, sigma, min_gain, min_drop):
     upper = np.column_stack([span, span + T, np.full(n, np.inf), 8.0 * ones, span, span + T,
                              np.full(n, np.inf), 8.0 * ones, np.full(n, np.inf)])  # fmt: skip
     p0 = np.clip(p0, lower + 1e-9, upper - 1e-9)
-    p, ok, cost2, cov = _fit_windows(True, y, lo, hi - lo + 1, p0, lower, upper, sigma)
+    from ._shape_fit import fit_windows  # (Numba imported on first use)
+
+    p, ok, cost2, cov = fit_windows(True, y, lo, hi - lo + 1, p0, lower, upper, sigma, _GAIN_TOL)
     sd = np.sqrt(np.maximum(np.einsum("nii->ni", cov), 0.0))
     result = [None] * n
     for j in range(n):

@@ -271,6 +271,9 @@ def fit_windows(double, y, lo, length, p0, lower, upper, sigma, gain_tol, max_it
     slips' nine) on y[lo : lo + length], in local sample indices 0, 1, ... of its window,
     within [lower, upper]: the estimates, whether each converged, its cost (the soft-L1
     loss in units of sigma^2) and the covariance pinv(J^T W J) sigma^2."""
-    args = (double, y, lo, length, p0, lower, upper, sigma, gain_tol, max_iter)
+    ints = [np.ascontiguousarray(a, dtype=np.int64) for a in (lo, length)]
+    floats = [np.ascontiguousarray(a, dtype=float) for a in (y, p0, lower, upper)]
+    args = (bool(double), floats[0], *ints, *floats[1:], float(sigma), float(gain_tol),
+            int(max_iter))  # fmt: skip
     p, ok, cost, normal = call(_fit_windows, *args)
     return p, ok, cost, np.linalg.pinv(normal) * sigma**2
