@@ -101,7 +101,7 @@ def _passes(b, a, values, starts, gaps, unit, lam, V, Vi, K):
 
 def passes(b, a, values, starts, gaps, unit, lam, V, Vi, K):
     """The gapped forward-backward filter's output (see `measurement._gapped_filtfilt`)."""
-    f, c = (lambda x: np.ascontiguousarray(x, float)), (lambda x: np.ascontiguousarray(x, complex))  # noqa: E731
-    i = lambda x: np.ascontiguousarray(x, np.int64)  # noqa: E731
-    return call(_passes, f(b), f(a), f(values), i(starts), i(gaps), f(unit), c(lam), c(V),
-                c(Vi), c(K))  # fmt: skip
+    real = [np.ascontiguousarray(x, float) for x in (b, a, values)]
+    index = [np.ascontiguousarray(x, np.int64) for x in (starts, gaps)]
+    basis = [np.ascontiguousarray(x, complex) for x in (lam, V, Vi, K)]
+    return call(_passes, *real, *index, np.ascontiguousarray(unit, float), *basis)
