@@ -7,8 +7,8 @@ n_sim 1000).
 Each tree's fit runs once warm under cProfile (in a process of its own; the earlier tree
 from a temporary git worktree); its cumulative times are read per stage:
 
-- simulation: `simulate_cycles` (the successive cycles, their recorded slips) and the
-  pilot `simulate` that sets the paths' duration;
+- simulation: `simulate_cycles` / `counted_cycles` (the successive cycles, their recorded
+  slips) and, in earlier trees, the pilot `simulate` that set the paths' duration;
 - synthesis: the rest of `measured_trace` (the sampling grid, the noise and spikes, the
   interpolation; the cut trace's notch);
 - extraction: `extract_cycles` / the cut trace's `extract_slips`, of which the slips'
@@ -37,7 +37,8 @@ import warnings
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 BASE = "6c2a2da"  # the tree before the cut forward measurement
 STAGES = {  # stage: (file suffix, function) whose cumulative time it is
-    "simulate_cycles": [("_simulate/cycles.py", "simulate_cycles")],
+    "simulate_cycles": [("_simulate/cycles.py", "simulate_cycles"),
+                        ("_simulate/cycles.py", "counted_cycles")],
     "pilot": [("_simulate/driver.py", "simulate"), ("_simulate/__init__.py", "simulate")],
     "measured_trace": [("_inference/measurement.py", "measured_trace")],
     "extraction": [("_extract/_extract.py", "extract_cycles"),

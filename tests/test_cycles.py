@@ -124,3 +124,29 @@ def test_bad_arguments(Langevin):
         ss.simulate_cycles(m, 1, 0.01, 1.0, max_cycles=0)
     with pytest.raises(IndexError):
         ss.simulate_cycles(m, 1, 0.01, 5.0).trajectory(3)
+
+
+def test_counted_cycles_are_the_series_first_cycles(series, Langevin):
+    """`counted_cycles` (a number of cycles a path, in one round for a memoryless model)
+    runs the same slots with the same keys as `simulate_cycles`' rounds: the fixture's
+    cycles, but its last, are its first cycles, to the bit, their recorded slips too; a
+    cycle's slip followed up to the horizon only (t_max bounds a slip, not the series)."""
+    from stickslip._simulate.cycles import counted_cycles
+
+    c = series.cycles
+    count = int(np.min(np.bincount(c["path"]))) - 1
+    seen = []
+    counted = counted_cycles(Langevin(**PUBLIC), 3, 0.005, 30.0, 4, count,
+                             check=lambda table: seen.append(table["period"].size))  # fmt: skip
+    assert seen == [3 * count]  # (checked before the slips are recorded)
+    k = counted.cycles
+    np.testing.assert_array_equal(np.bincount(k["path"]), [count] * 3)
+    for p in range(3):
+        rows, mine = c["path"] == p, k["path"] == p
+        for name in ("release_time", "slip_time", "stick_time", "slip_distance"):
+            np.testing.assert_array_equal(k[name][mine], c[name][rows][:count], err_msg=name)
+        t, X, slipping = series.trajectory(p)
+        t2, X2, slipping2 = counted.trajectory(p)
+        np.testing.assert_array_equal(t2, t[: t2.size])
+        np.testing.assert_array_equal(X2, X[: t2.size])
+        assert np.sum(~slipping2) == count

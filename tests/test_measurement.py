@@ -199,11 +199,24 @@ def test_bad_arguments_are_one_line():
 
 
 def test_a_trace_past_the_memory_limit_is_refused(monkeypatch):
-    """A 1e-6 interval over 10^5 cycles of mean period ~4.7: 4.7e11 samples."""
+    """A 1e-7 interval over 10^4 cycles of mean period ~4.7: 4.7e11 samples, said once the
+    cycles are simulated (their table, a few MB), before their slips are recorded."""
     monkeypatch.setenv("STICKSLIP_MEMORY_LIMIT", "1e9")
-    meas = Measurement(sampling_interval=1e-6, signal="x")
+    meas = Measurement(sampling_interval=1e-7, signal="x")
     with pytest.raises(ss.ResourceError, match="measured_cycles: a trace of 4.*e\\+11 samples"):
-        measured_cycles(langevin(PUBLIC), meas, 100_000, seed=0)
+        measured_cycles(langevin(PUBLIC), meas, 10_000, seed=0)
+
+
+def test_slips_that_do_not_stick_within_the_horizon_are_a_data_error(monkeypatch):
+    """Slips followed for 1e-3 of the slow time scale (the public set's last ~2.5): none
+    sticks, and the trace is refused in one line that says so."""
+    from stickslip._inference import measurement as meas
+
+    monkeypatch.setattr(meas, "_PILOT_HORIZON", 1e-3)
+    m = Measurement(sampling_interval=0.05, signal="x")
+    with pytest.raises(ss.DataError, match="sticks again within 0.001 slow time scales in 0 "
+                       "of 200 successive cycles"):  # fmt: skip
+        measured_cycles(langevin(PUBLIC), m, 200, seed=0, dt=1e-5)
 
 
 def test_a_measurement_too_coarse_for_the_model_is_a_data_error():

@@ -388,10 +388,20 @@ def _shift(cut, i) -> np.ndarray | float:
 def _skewness(rate, far=None, weight=1.0) -> float:
     """The third standardised moment of the force rate (0 for a constant rate); with `far`,
     those samples count `weight` times (`Cut`)."""
-    w = None if far is None else np.where(far, weight, 1.0)
-    u = rate - np.average(rate, weights=w)
-    sd = float(np.sqrt(np.average(u * u, weights=w)))
-    return float(np.average(u**3, weights=w) / sd**3) if sd > 0 else 0.0
+    # (dot products: np.average's temporaries and u**3's power took 13 ms on a fit's
+    # 10^6-sample traces, a tenth of its extraction)
+    if far is None:
+        u = rate - rate.mean()
+        u2 = u * u
+        var, third = u2.mean(), np.dot(u2, u) / u.size
+    else:
+        w = np.where(far, weight, 1.0)
+        total = w.sum()
+        u = rate - np.dot(w, rate) / total
+        u2 = u * u
+        var, third = np.dot(w, u2) / total, np.dot(w * u2, u) / total
+    sd = float(np.sqrt(var))
+    return float(third / sd**3) if sd > 0 else 0.0
 
 
 def read_regime(t, f) -> dict:

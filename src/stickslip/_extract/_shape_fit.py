@@ -60,6 +60,8 @@ def _accumulate(A, grad, jac, w, r):
     k = jac.size
     for a in range(k):
         wa = w * jac[a]
+        if wa == 0.0:  # (most of a two-slip window's rows: flat beside one slip or both)
+            continue
         grad[a] += wa * r
         for b in range(a, k):
             A[a, b] += wa * jac[b]
@@ -81,30 +83,76 @@ def _zero(A, grad):
             A[i, j] = 0.0
 
 
+# Along a slip the phase grows by 1/T a sample: cos(pi phi), sin(pi phi) and exp(-kappa
+# phi) follow by rotation and by a constant factor (`_Walk`), not by three transcendental
+# calls a sample (those were half a fit's time); they are evaluated afresh every this many
+# samples, which bounds the recurrences' rounding (~1e-16 a step) far below the noise.
+_RESYNC = 64
+
+
+@numba.njit(**_JIT)
+def _walk_start(phi, kappa, T):
+    """The walk's state at `phi` (cos, sin, decay) and its per-sample factors."""
+    return (math.cos(math.pi * phi), math.sin(math.pi * phi), math.exp(-kappa * phi),
+            math.cos(math.pi / T), math.sin(math.pi / T), math.exp(-kappa / T))  # fmt: skip
+
+
+@numba.njit(**_JIT)
+def _shape_at(cos, sin, decay, phi, kappa, tail, full):
+    """`shape_point`'s values at 0 < phi < 1 from cos(pi phi), sin(pi phi), exp(-kappa phi),
+    exp(-kappa) (`tail`) and 1 + tail (`full`)."""
+    inner = cos + kappa / math.pi * sin
+    num = 1.0 - decay * inner
+    d_phi = decay * sin * (math.pi + kappa * kappa / math.pi) / full
+    d_kappa = decay * (phi * inner - sin / math.pi) / full + num * tail / (full * full)
+    return num / full, d_phi, d_kappa
+
+
+@numba.njit(**_JIT)
+def _flat(y, lo, x0, x1, level, sigma, A, grad, after):
+    """The samples x0 <= x < x1 where the model is the constant `level` (before the slip:
+    the Jacobian's y0 column only; `after` it also D's): their sums into A and grad, and
+    their cost."""
+    cost = 0.0
+    for x in range(x0, x1):
+        r = level - y[lo + x]
+        w, loss = _loss(r, sigma)
+        cost += loss
+        A[2, 2] += w
+        grad[2] += w * r
+        if after:
+            A[2, 3] -= w
+            A[3, 3] += w
+            grad[3] -= w * r
+    return cost
+
+
 @numba.njit(**_JIT)
 def _normal_single(y, lo, hi, p, sigma, A, grad):
     """Fill A = J^T W J and grad = J^T W r of one slip at p on the window y[lo:hi] (local
     sample indices x = 0, 1, ...); its cost."""
     i0, T, y0, D, kappa = p[0], p[1], p[2], p[3], p[4]
     end = i0 + T
+    n = hi - lo
     _zero(A, grad)
-    cost = 0.0
+    if not (math.isfinite(i0) and math.isfinite(end)):
+        return math.nan  # (no step is taken to such a point)
     jac = np.empty(5)
-    for x in range(hi - lo):
-        if x <= i0 or x >= end:  # flat: the Jacobian's columns of y0 (and of D after)
-            after = x >= end
-            r = (y0 - D if after else y0) - y[lo + x]
-            w, loss = _loss(r, sigma)
-            cost += loss
-            A[2, 2] += w
-            grad[2] += w * r
-            if after:
-                A[2, 3] -= w
-                A[3, 3] += w
-                grad[3] -= w * r
-            continue
+    # flat at x <= i0 and at x >= end, the shape strictly between
+    a = min(max(math.floor(i0) + 1, 0), n)
+    b = min(max(math.ceil(end), a), n)
+    cost = _flat(y, lo, 0, a, y0, sigma, A, grad, False)
+    tail = math.exp(-kappa)
+    full = 1.0 + tail
+    cos = sin = decay = c1 = s1 = d1 = 0.0
+    for x in range(a, b):
         phi = (x - i0) / T
-        S, S_phi, S_kappa = shape_point(phi, kappa)
+        if (x - a) % _RESYNC == 0:
+            cos, sin, decay, c1, s1, d1 = _walk_start(phi, kappa, T)
+        else:
+            cos, sin = cos * c1 - sin * s1, sin * c1 + cos * s1
+            decay *= d1
+        S, S_phi, S_kappa = _shape_at(cos, sin, decay, phi, kappa, tail, full)
         r = y0 - D * S - y[lo + x]
         w, loss = _loss(r, sigma)
         cost += loss
@@ -114,6 +162,7 @@ def _normal_single(y, lo, hi, p, sigma, A, grad):
         jac[3] = -S
         jac[4] = -D * S_kappa
         _accumulate(A, grad, jac, w, r)
+    cost += _flat(y, lo, b, n, y0 - D, sigma, A, grad, True)
     _mirror(A)
     return cost
 
@@ -127,11 +176,39 @@ def _normal_double(y, lo, hi, p, sigma, A, grad):
     cost = 0.0
     jac = np.empty(9)
     past_a, past_b = shape_point(1.0, ka), shape_point(1.0, kb)  # (the same past each slip)
+    tail_a, tail_b = math.exp(-ka), math.exp(-kb)
+    full_a, full_b = 1.0 + tail_a, 1.0 + tail_b
+    # each slip's walk (`_normal_single`): its samples inside it are consecutive
+    ca = sa_ = da_ = ca1 = sa1 = da1 = 0.0
+    cb = sb_ = db_ = cb1 = sb1 = db1 = 0.0
+    na = nb = 0  # samples walked inside each slip
     for x in range(hi - lo):
         pa = (x - i0a) / ta
         pb = (x - i0a - ta - gap) / tb
-        sa, sa_phi, sa_k = past_a if pa >= 1.0 else shape_point(pa, ka)
-        sb, sb_phi, sb_k = past_b if pb >= 1.0 else shape_point(pb, kb)
+        if pa >= 1.0:
+            sa, sa_phi, sa_k = past_a
+        elif pa <= 0.0 or not math.isfinite(pa):
+            sa, sa_phi, sa_k = shape_point(pa, ka)
+        else:
+            if na % _RESYNC == 0:
+                ca, sa_, da_, ca1, sa1, da1 = _walk_start(pa, ka, ta)
+            else:
+                ca, sa_ = ca * ca1 - sa_ * sa1, sa_ * ca1 + ca * sa1
+                da_ *= da1
+            na += 1
+            sa, sa_phi, sa_k = _shape_at(ca, sa_, da_, pa, ka, tail_a, full_a)
+        if pb >= 1.0:
+            sb, sb_phi, sb_k = past_b
+        elif pb <= 0.0 or not math.isfinite(pb):
+            sb, sb_phi, sb_k = shape_point(pb, kb)
+        else:
+            if nb % _RESYNC == 0:
+                cb, sb_, db_, cb1, sb1, db1 = _walk_start(pb, kb, tb)
+            else:
+                cb, sb_ = cb * cb1 - sb_ * sb1, sb_ * cb1 + cb * sb1
+                db_ *= db1
+            nb += 1
+            sb, sb_phi, sb_k = _shape_at(cb, sb_, db_, pb, kb, tail_b, full_b)
         r = base - da * sa - db * sb - y[lo + x]
         w, loss = _loss(r, sigma)
         cost += loss

@@ -1,4 +1,4 @@
-r"""The measurement inside the forward model (issue 40, item 1).
+r"""The measurement inside the forward model.
 
 Cycles extracted from a sampled trace are not the model's per-cycle values: the sampling
 joins what it cannot resolve (a stick shorter than a few samples, zero-length ones among
@@ -68,13 +68,14 @@ _REPHASE_INTERVALS = 10
 # offset plus the sample's index from its release (a cycle spans some 50 samples: two
 # cycles of ~10^4 share a stretch of the pool, identical noise, rarely).
 _NOISE_POOL = 2**20
-# The mean period that sets each path's duration is measured on this many independent
-# cycles (`simulate`): its relative error, cv / 32 (cv ~ 1), moves the number of simulated
-# cycles by ~3 %, which only sets the Monte Carlo sample size.
+# A creeping slider's paths (one integrated motion, not counted cycles) last their share of
+# the cycles times the mean period of this many independent pilot cycles (`simulate`): its
+# relative error, cv / 32 (cv ~ 1), moves the number of simulated cycles by ~3 %, which
+# only sets the Monte Carlo sample size.
 _PILOT_PATHS = 1024
-# Longest slip followed by the pilot, in slow time scales (fit's default is 50): a slip cut
-# there is left out of the pilot's mean, which then errs low by its share (< 0.5 % on the
-# public set's tail).
+# Longest slip followed, in slow time scales (fit's default is 50; the slider's slips last
+# 3-7 of them, its sticks some 100): a slip still going there ends its path's trace (and
+# the trace is refused where fewer than half the cycles stick), as it ended the pilot's.
 _PILOT_HORIZON = 200.0
 # Successive cycles run as several paths (vectorised over paths): 1000 cycles a path lose
 # 0.2 % of them to the cut ends of each path's trace, 64 paths bound the padding.
@@ -323,7 +324,7 @@ def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
     trace's `cut` saying which samples of the whole trace were kept."""
     from .._model import CreepingSlider, FrictionModel, time_scales
     from .._simulate import simulate, simulate_cycles
-    from .._simulate.driver import check_memory
+    from .._simulate.cycles import counted_cycles
 
     owner = "measured_cycles"
     if not isinstance(model, FrictionModel):
@@ -348,25 +349,41 @@ def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
     if dt is None:
         dt = min(max(h, _FINEST * fast), fast) / _STEPS_PER_SAMPLE
     dt = check_positive(owner, "dt", dt)
-    # each path's duration: its share of the cycles times the mean period
-    pilot = simulate(model, _PILOT_PATHS, dt, max(_PILOT_HORIZON * slow, 2 * dt), seed)
-    period = np.asarray(pilot.period, float)
-    period = period[np.isfinite(period)]
-    if period.size < _PILOT_PATHS // 2 or not np.mean(period) > 0:
-        raise DataError(
-            f"{owner}: the model sticks again within {_PILOT_HORIZON:g} slow time scales in "
-            f"{period.size} of {_PILOT_PATHS} cycles: no stick-slip trace to measure"
-        )
     short = model.carries_state and not isinstance(model, CreepingSlider)
     per_path = _CYCLES_PER_PATH_MEMORY if short else _CYCLES_PER_PATH
     n_paths = int(min(_MAX_PATHS, max(1, round(n_cycles / per_path))))
-    t_max = math.ceil(n_cycles / n_paths) * float(np.mean(period))
-    check_memory(
-        owner, f"a trace of {n_paths * t_max / h:.3g} samples ({n_cycles} cycles of mean period "
-        f"{np.mean(period):.3g} at an interval of {h:.3g})", _TRACE_BYTES * n_paths * t_max / h,
-        "take fewer cycles",
-    )  # fmt: skip
-    series = simulate_cycles(model, n_paths, dt, t_max, seed, record=True)
+    horizon = max(_PILOT_HORIZON * slow, 2 * dt)
+    if isinstance(model, CreepingSlider):
+        # one integrated motion: each path's duration, its share of the cycles times the
+        # mean period of pilot cycles
+        pilot = simulate(model, _PILOT_PATHS, dt, horizon, seed)
+        period = np.asarray(pilot.period, float)
+        period = period[np.isfinite(period)]
+        if period.size < _PILOT_PATHS // 2 or not np.mean(period) > 0:
+            raise DataError(
+                f"{owner}: the model sticks again within {_PILOT_HORIZON:g} slow time scales "
+                f"in {period.size} of {_PILOT_PATHS} cycles: no stick-slip trace to measure"
+            )  # fmt: skip
+        t_max = math.ceil(n_cycles / n_paths) * float(np.mean(period))
+        _check_trace(owner, n_paths * t_max, n_cycles, h)
+        series = simulate_cycles(model, n_paths, dt, t_max, seed, record=True)
+    else:
+        # each path's share of the cycles, counted (`counted_cycles`), their trace's size
+        # checked before their slips are recorded
+        count = math.ceil(n_cycles / n_paths)
+
+        def check(cycles):
+            stuck = int(np.sum(np.isfinite(cycles["period"])))
+            if stuck < n_paths * count // 2:
+                raise DataError(
+                    f"{owner}: the model sticks again within {_PILOT_HORIZON:g} slow time "
+                    f"scales in {stuck} of {n_paths * count} successive cycles: no stick-slip "
+                    "trace to measure"
+                )  # fmt: skip
+            period = cycles["period"]
+            _check_trace(owner, float(np.sum(period[np.isfinite(period)])), n_cycles, h)
+
+        series = counted_cycles(model, n_paths, dt, horizon, seed, count, check=check)
     ix, iv = names.index("x"), names.index("v")
     traces = []
     table = series.cycles
@@ -410,6 +427,16 @@ def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
             signals["cut"] = kept
         traces.append(signals)
     return MeasuredTrace(tuple(traces), dict(series.cycles), measurement, dt)
+
+
+def _check_trace(owner: str, duration: float, n_cycles: int, h: float) -> None:
+    """The memory check of a trace of this total `duration`, sampled every `h`."""
+    from .._simulate.driver import check_memory
+
+    check_memory(
+        owner, f"a trace of {duration / h:.3g} samples ({n_cycles} cycles at an interval of "
+        f"{h:.3g})", _TRACE_BYTES * duration / h, "take fewer cycles",
+    )  # fmt: skip
 
 
 def _keyed_grid(release, slip, stick, end, h, seed, path):
@@ -647,10 +674,11 @@ def measured_cycles(model, measurement: Measurement, n_cycles: int, seed: int, *
 
     - `model`: a single-block model instance (states `x` and `v`);
     - `measurement`: a `Measurement` (`Measurement.from_cycles(data)`);
-    - `n_cycles`: about how many model cycles to simulate ($\ge 10$): the paths' duration
-      is their share of them times the mean period of 1024 pilot cycles. The measured
-      cycles are fewer where the measurement joins cycles (a zero-length stick, a stick
-      shorter than `min_stick` samples) or drops a path's cut ends;
+    - `n_cycles`: how many model cycles to simulate ($\ge 10$), shared among a few paths
+      (a creeping slider's paths last their share times the mean period of 1024 pilot
+      cycles: about as many). The measured cycles are fewer where the measurement joins
+      cycles (a zero-length stick, a stick shorter than `min_stick` samples) or drops a
+      path's cut ends;
     - `seed`: the simulation's seed, and the noise's (its own stream): the same seed gives
       the same cycles, and the same noise draws at every parameter value;
     - `dt`: the simulator's step (default: half the sampling interval, within an eighth
@@ -665,7 +693,8 @@ def measured_cycles(model, measurement: Measurement, n_cycles: int, seed: int, *
     units of $k x_0$), the cycles of all paths concatenated.
 
     **Raises:** `ParameterError` for bad arguments, `ResourceError` for a trace past the
-    memory limit (said before it is simulated), `DataError` where the simulated trace
+    memory limit (said once its cycles are known, before their slips are recorded and the
+    trace is sampled), `DataError` where the simulated trace
     shows no cycles through this measurement (e.g. sampling too coarse for this model, or
     no stick-slip), with `extract_cycles`' reason.
     """

@@ -26,7 +26,7 @@ _CYCLE_BITS = 20  # a slot's counter is path * 2**20 + cycle
 _MAX_RECORD_FLOATS = 2**25  # memory bound of one recording solve (about 256 MB)
 # Steps of one recording solve (`_record`): one compiled program for every slip length and
 # step (a longer slip takes several solves), which `prefetch_cycles` can compile ahead.
-_RECORD_STEPS = 1024
+_RECORD_STEPS = 128
 _FIRST_BATCH = 16  # cycles of each path in the first round (then twice as many each round)
 
 
@@ -158,7 +158,8 @@ def simulate_cycles(
             "take a larger dt, a shorter t_max or fewer paths, or record=False",
         )
     wall0 = time.perf_counter()
-    opts = dict(solver=solver, monitor=monitor, record=record, max_cycles=max_cycles)
+    opts = dict(solver=solver, monitor=monitor, record=record, max_cycles=max_cycles,
+                count=None)  # fmt: skip
     if client is None:
         parts = [_cycles_block(model, dt, t_max, seed, opts, 0, n_paths)]
     else:
@@ -169,6 +170,32 @@ def simulate_cycles(
             parts = _distributed.run_blocks(
                 client, _cycles_block, blocks, model, dt, t_max, seed, opts, label="path"
             )
+    return _series(model, parts, n_paths, dt, t_max, max_cycles, record, wall0)
+
+
+def counted_cycles(model: FrictionModel, n_paths: int, dt: float, horizon: float,
+                   seed: int, count: int, check=None) -> CycleSeries:  # fmt: skip
+    """`simulate_cycles` (recorded) of `count` successive cycles a path, each slip followed
+    up to `horizon` (a slip still going then ends its path's series there, as one past
+    `t_max` does in `simulate_cycles`): for a caller that wants a number of cycles, not a
+    duration, without a pilot run to learn the mean period. A memoryless model's cycles
+    run in one round (every path's `count` cycles at once: they are independent given
+    their keys), a model with memory one cycle a round. Not for a `CreepingSlider`.
+    `check(table)`, where given, sees the cycles' table before their slips are recorded
+    (a caller's refusal, e.g. of a trace past the memory limit, raised from it)."""
+    n_paths, dt, horizon, seed, _ = _validate(
+        "simulate_cycles", model, n_paths, dt, horizon, seed, "auto", "continuous", 1
+    )
+    wall0 = time.perf_counter()
+    opts = dict(solver="auto", monitor="continuous", record=True, max_cycles=count,
+                count=count, check=check)  # fmt: skip
+    parts = [_cycles_block(model, dt, horizon, seed, opts, 0, n_paths)]
+    return _series(model, parts, n_paths, dt, horizon, count, True, wall0)
+
+
+def _series(model, parts, n_paths, dt, t_max, max_cycles, record, wall0) -> CycleSeries:
+    """The `CycleSeries` of the blocks' results `parts` (`_cycles_block`), their warnings
+    said."""
     table = {
         k: np.concatenate([p["cycles"][k] for p in parts], axis=-1) for k in parts[0]["cycles"]
     }
@@ -250,6 +277,8 @@ def _cycles_block(model, dt, t_max, seed, opts, start, stop) -> dict:
     root = _rng.stream_key(_rng.seed_key(seed), _rng.SERIES)
     run = _Run("simulate_cycles", model, opts["solver"], opts["monitor"], dt, t_max, root)
     max_cycles = opts["max_cycles"]
+    # `count` (`counted_cycles`): that many cycles a path, t_max the longest slip followed
+    counted = opts["count"] is not None
     path_ids = np.arange(start, stop)
     n_paths = path_ids.size
     rows: list[dict[str, np.ndarray]] = []
@@ -259,7 +288,7 @@ def _cycles_block(model, dt, t_max, seed, opts, start, stop) -> dict:
     # stick led (`FrictionModel.release`); without, a round runs many cycles of every path
     # at once (they are independent given their keys).
     memory = bool(model.carries_state)
-    first, batch = 0, (1 if memory else _FIRST_BATCH)
+    first, batch = 0, (1 if memory else max_cycles if counted else _FIRST_BATCH)
     onsets = None  # (d, paths): where the next slips start (a model with memory)
     nonfinite = 0  # cycles whose state left the finite numbers (`_Run.cycle_outputs`)
     while active.any() and first < max_cycles:
@@ -288,18 +317,20 @@ def _cycles_block(model, dt, t_max, seed, opts, start, stop) -> dict:
             [np.zeros((ids.size, 1)), np.cumsum(period, axis=1)[:, :-1]], axis=1
         )
         out["release_time"] = begin.ravel()
-        keep = out["release_time"] < t_max
+        keep = np.isfinite(out["release_time"]) if counted else out["release_time"] < t_max
         rows.append({k: v[..., keep] for k, v in out.items()})
         elapsed[ids] = begin[:, -1] + period[:, -1]
-        active[ids] = elapsed[ids] < t_max
+        active[ids] = np.isfinite(elapsed[ids]) if counted else elapsed[ids] < t_max
         first += count
         batch *= 1 if memory else 2
     late = None
-    if active.any():
+    if active.any() and not counted:
         late = (int(active.sum()), float(np.mean(elapsed[active]) / max_cycles))
     table = {k: np.concatenate([r[k] for r in rows], axis=-1) for k in rows[0]}
     order = np.lexsort((table["cycle"], table["path"]))
     table = {k: v[..., order] for k, v in table.items()}
+    if opts.get("check") is not None:
+        opts["check"](table)
     traces = _traces(run, table, path_ids) if opts["record"] else ()
     cycles = {
         k: table[k]
