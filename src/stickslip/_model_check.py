@@ -19,13 +19,17 @@ _checked: set = set()  # the model structures whose shapes were probed
 
 def _key(model):
     """What the shapes of `model`'s methods may depend on: its class, its structure, the
-    shapes of its arrays and the values of its other fields (a field may set a shape)."""
+    shapes of its arrays and the values of its other fields (an integer may set a shape),
+    but not the value of a float (a fit's every point is a new one: probed again, 15 ms a
+    point)."""
     from ._jax import jax
 
     leaves, treedef = jax.tree_util.tree_flatten(model)
     values = tuple(
-        (np.shape(x), str(np.result_type(x))) if hasattr(x, "shape") else repr(x) for x in leaves
-    )
+        (np.shape(x), str(np.result_type(x))) if hasattr(x, "shape")
+        else float if type(x) is float else repr(x)
+        for x in leaves
+    )  # fmt: skip
     return (type(model), str(treedef), values, tuple(model.state_names), model.noise_dim)
 
 

@@ -581,14 +581,14 @@ def _hashed(seed, path, cycle, offset, stream, kind):
     stream (`_NOISE_STREAM`), far from the simulator's keys."""
     from scipy.special import ndtri
 
+    from ._samples import uniforms
+
     golden = np.uint64(_GOLDEN)
     with np.errstate(over="ignore"):
         head = np.zeros(1, np.uint64)
         for value in (seed, _NOISE_STREAM, path, stream):
             head = _mix(head + (np.uint64(value) + np.uint64(1)) * golden)
-        key = _mix(head + np.asarray(cycle).astype(np.uint64) * golden)
-        bits = _mix(key + np.asarray(offset).astype(np.uint64) * golden)
-    u = ((bits >> np.uint64(11)).astype(float) + 0.5) * 2.0**-53
+    u = uniforms(int(head[0]), np.broadcast_to(cycle, np.shape(offset)), offset)
     return ndtri(u) if kind == "normal" else u
 
 
@@ -602,6 +602,7 @@ def _cut_grid(release, slip, stick, n, h, window):
     the noise, of which the kept far samples (`Cut.far`) stand for the cut ones in the
     trace-wide statistics. Returns a `Cut`."""
     from .._extract._force import Cut
+    from ._samples import far_samples
 
     r = release / h
     e = np.where(np.isfinite(slip), (release + slip) / h, n - 1.0)
@@ -616,13 +617,8 @@ def _cut_grid(release, slip, stick, n, h, window):
     hi = np.maximum.reduceat(hi, np.flatnonzero(new))
     counts = hi - lo + 1
     index = np.repeat(lo - (np.cumsum(counts) - counts), counts) + np.arange(counts.sum())
-    # the distance of each kept sample to the nearest slip [release, stick]
-    j = np.searchsorted(r, index, side="right") - 1
-    after = np.where(j >= 0, index - e[np.maximum(j, 0)], np.inf)
-    before = np.where(j + 1 < r.size, r[np.minimum(j + 1, r.size - 1)] - index, np.inf)
-    inside = (j >= 0) & (index <= e[np.maximum(j, 0)])
-    distance = np.where(inside, 0.0, np.minimum(np.where(after > 0, after, np.inf), before))
-    far = distance > Cut.FAR * window
+    # further than FAR windows from the nearest slip [release, stick]
+    far = far_samples(index, r, e, Cut.FAR * window)
     n_far = int(far.sum())
     weight = (n_far + (n - index.size)) / n_far if n_far else 1.0
     return Cut(index=index, far=far, weight=float(weight))
