@@ -393,13 +393,13 @@ def _skewness(rate, far=None, weight=1.0) -> float:
     if far is None:
         u = rate - rate.mean()
         u2 = u * u
-        var, third = u2.mean(), np.dot(u2, u) / u.size
+        var, third = u2.mean(), _dot(u2, u) / u.size
     else:
         w = np.where(far, weight, 1.0)
         total = w.sum()
-        u = rate - np.dot(w, rate) / total
+        u = rate - _dot(w, rate) / total
         u2 = u * u
-        var, third = np.dot(w, u2) / total, np.dot(w * u2, u) / total
+        var, third = _dot(w, u2) / total, _dot(w * u2, u) / total
     sd = float(np.sqrt(var))
     return float(third / sd**3) if sd > 0 else 0.0
 
@@ -550,6 +550,14 @@ def _medians(y, start, stop) -> np.ndarray:
     return out
 
 
+def _dot(a, b) -> float:
+    """The dot product of two long 1-d arrays, in this thread: np.dot hands them to BLAS,
+    whose threads then spin for some milliseconds after the call, a second core taken
+    from the simulator's and the shape fits' threads (measured: 0.1 s of CPU a fit's point
+    of 0.13 s)."""
+    return float(np.einsum("i,i->", a, b))
+
+
 def _loading_slope(s, stick, position=None) -> float:
     """The sticks' pooled least-squares slope: each stick's own line, one common slope (an
     offset drift moves each stick's level, hardly its slope). Its sd is sigma over the root
@@ -566,14 +574,14 @@ def _loading_slope(s, stick, position=None) -> float:
     if position is not None:  # a cut trace: its samples' positions in the whole one
         x = position[stick]
         x = x - np.repeat(np.add.reduceat(x, starts) / n, n)
-        var = float(np.dot(x, x))
-        return float(np.dot(x, y - np.repeat(np.add.reduceat(y, starts) / n, n)) / var) \
+        var = _dot(x, x)
+        return _dot(x, y - np.repeat(np.add.reduceat(y, starts) / n, n)) / var \
             if var > 0 else 0.0  # fmt: skip
     mean_y = np.add.reduceat(y, starts) / n
     # each sample's index within its stick, less the stick's mean index
     j = np.arange(y.size, dtype=float) - np.repeat(starts + 0.5 * (n - 1), n)
     var = float(np.sum(n * (n * n - 1.0) / 12.0))
-    return float(np.dot(j, y - np.repeat(mean_y, n)) / var) if var > 0 else 0.0
+    return _dot(j, y - np.repeat(mean_y, n)) / var if var > 0 else 0.0
 
 
 def _drop_sd(y, window, sigma, far=None, weight=1.0) -> float:

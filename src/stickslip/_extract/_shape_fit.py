@@ -13,7 +13,10 @@ seconds) and cached on disk (`_jit`).
 
 from __future__ import annotations
 
+import functools
 import math
+import os
+import threading
 
 import numba
 import numpy as np
@@ -350,7 +353,39 @@ def fit_windows(double, y, lo, length, p0, lower, upper, sigma, gain_tol, max_it
     loss in units of sigma^2) and the covariance pinv(J^T W J) sigma^2."""
     ints = [np.ascontiguousarray(a, dtype=np.int64) for a in (lo, length)]
     floats = [np.ascontiguousarray(a, dtype=float) for a in (y, p0, lower, upper)]
-    args = (bool(double), floats[0], *ints, *floats[1:], float(sigma), float(gain_tol),
-            int(max_iter))  # fmt: skip
-    p, ok, cost, normal = call(_fit_windows, *args)
+    head, tail = (bool(double), floats[0]), (float(sigma), float(gain_tol), int(max_iter))
+    rows = [*ints, *floats[1:]]  # (one row a fit)
+    if len(p0) < _SPLIT_FROM or not _fit_windows.signatures or _cores() < 2:
+        p, ok, cost, normal = call(_fit_windows, *head, *rows, *tail)
+    else:
+        # every other fit in a second thread (the kernel holds no lock): each fit is its
+        # own, the same numbers whichever thread runs it
+        halves = [[np.ascontiguousarray(a[i::2]) for a in rows] for i in (0, 1)]
+        out = [None, None]
+
+        def run(i):
+            out[i] = _fit_windows(*head, *halves[i], *tail)
+
+        other = threading.Thread(target=run, args=(1,), daemon=True)
+        other.start()
+        run(0)
+        other.join()
+        p, ok, cost, normal = (np.empty((len(p0), *a.shape[1:]), a.dtype) for a in out[0])
+        for i in (0, 1):
+            for whole, part in zip((p, ok, cost, normal), out[i], strict=True):
+                whole[i::2] = part
     return p, ok, cost, np.linalg.pinv(normal) * sigma**2
+
+
+# Fits at least this many are shared between two threads (`fit_windows`: a thread's start
+# is ~0.1 ms; a fit takes ~0.03 ms, a two-slip one ~0.3 ms).
+_SPLIT_FROM = 32
+
+
+@functools.cache
+def _cores() -> int:
+    """The cores this process may use (its affinity, where the system says)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # (not Linux)
+        return os.cpu_count() or 1
