@@ -17,7 +17,7 @@ from ._errors import ParameterError
 _checked: set = set()  # the model structures whose shapes were probed
 
 
-def _key(model):
+def structure_key(model):
     """What the shapes of `model`'s methods may depend on: its class, its structure, the
     shapes of its arrays and the values of its other fields (an integer may set a shape),
     but not the value of a float (a fit's every point is a new one: probed again, 15 ms a
@@ -40,7 +40,7 @@ def check_shapes(owner: str, model) -> None:
     a number, `stick_level` a finite number; `noise_dim` is an integer >= 1. A
     `ParameterError` names the method, the shape expected and the one returned."""
     try:
-        key = _key(model)
+        key = structure_key(model)
     except Exception as err:  # state_names or noise_dim themselves fail
         raise ParameterError(owner, "model", f"{type(model).__name__}: {_short(err)}") from None
     if key in _checked:

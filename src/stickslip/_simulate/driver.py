@@ -19,7 +19,7 @@ from .. import _background, _compile, _rng
 from .._errors import ParameterError, ResourceError, check_choice, check_int, check_positive
 from .._jax import jax, jnp
 from .._model import CreepingSlider, FrictionModel, LinearGaussian, _to_arrays
-from .._model_check import check_shapes, explain, warn_nonfinite
+from .._model_check import check_shapes, explain, structure_key, warn_nonfinite
 from .._solver import EulerMaruyama, ExactGaussian
 from .._solver.base import over_paths
 from . import bridge, localise
@@ -192,13 +192,32 @@ def _lg_arrays(lg: LinearGaussian | None):
     return None if lg is None else tuple(getattr(lg, f) for f in _LG_FIELDS)
 
 
-def _traces_nothing(fn) -> bool:
+def _traces_nothing(fn, model=None) -> bool:
     """Whether `fn()` computes without a JAX operation (in NumPy, or constants): then it
-    needs no compiling."""
+    needs no compiling. With `model` (whose method `fn` is), the answer is kept per model
+    structure (`_model_check`'s key: not its float values), as a fit's every point asked it
+    again (2 ms of tracing). A kept answer can only cost time, never change a number: a
+    JAX computation run op by op, or a NumPy one compiled."""
+    key = None
+    if model is not None:
+        try:
+            key = structure_key(model)
+        except Exception:  # (the model's own checks say why)
+            key = None
+        if key in _NOTHING_TRACED:
+            return _NOTHING_TRACED[key]
     try:
-        return not jax.make_jaxpr(fn)().eqns
+        nothing = not jax.make_jaxpr(fn)().eqns
     except Exception:  # (the compiled call meets it again, and raises)
         return False
+    if key is not None:
+        if len(_NOTHING_TRACED) > 256:
+            _NOTHING_TRACED.clear()
+        _NOTHING_TRACED[key] = nothing
+    return nothing
+
+
+_NOTHING_TRACED: dict = {}  # `_traces_nothing`'s answers by model structure
 
 
 _LG_FIELDS = tuple(f.name for f in dataclasses.fields(LinearGaussian))
@@ -730,7 +749,7 @@ class _Run:
         # The slip's linear-Gaussian description on the host: as it is where it computes in
         # NumPy (nothing to trace: the built-in models), else by one compiled call (evaluated
         # op by op, its first use in a process would compile each operation).
-        if _traces_nothing(self.model.linear_gaussian):
+        if _traces_nothing(self.model.linear_gaussian, self.model):
             lg = _lg_arrays(self.model.linear_gaussian())
         else:
             lg = self.call(_linear_gaussian, self.model, paths=0)
