@@ -347,6 +347,8 @@ def _cycles_block(model, dt, t_max, seed, opts, start, stop) -> dict:
 
 def _traces(run, table, path_ids):
     """Re-run every kept slip with the same noise, saving each step, and join the cycles."""
+    from ._assemble import place  # (Numba imported on first use)
+
     dt = run.dt
     slots = ((table["path"].astype(np.uint64) << _CYCLE_BITS) + table["cycle"]).astype(np.uint32)
     slip_time = np.where(np.isfinite(table["slip_time"]), table["slip_time"], run.n_steps * dt)
@@ -358,8 +360,20 @@ def _traces(run, table, path_ids):
     fixed = _recorder(run)
     n = _record_size(run, fixed, d, min(group, slots.size), group)
     group = min(group, n)
-    samples = np.empty((int(np.sum(steps + 1)), d))  # each kept slip's onset and steps
-    begin = np.cumsum(steps + 1) - (steps + 1)
+    # each row's slip samples at release + k dt (k = 0 .. steps: its onset, then the
+    # recording solves' states), then its stick (where the slip ended)
+    ended = np.isfinite(table["slip_time"])
+    size = steps + 1 + ended
+    at = np.cumsum(size) - size
+    total = int(size.sum())
+    t = np.empty(total)
+    states = np.empty((total, d))
+    flags = np.ones(total, dtype=bool)
+    k = np.arange(int(np.sum(steps + 1))) - np.repeat(np.cumsum(steps + 1) - (steps + 1),
+                                                      steps + 1)  # fmt: skip
+    into = np.repeat(at, steps + 1) + k
+    t[into] = np.repeat(table["release_time"], steps + 1) + dt * k
+    states[at] = table["onset"].T
     for start in range(0, slots.size, group):
         idx = np.arange(start, min(start + group, slots.size))
         pad = n - idx.size
@@ -368,31 +382,12 @@ def _traces(run, table, path_ids):
             [np.where(table["immediate"][idx], INACTIVE, SLIPPING), np.full(pad, INACTIVE)]
         )
         path = np.concatenate([slots[idx], np.zeros(pad, dtype=np.uint32)])
-        X, parts = X0, []
+        X = X0
         for first in range(0, int(steps[idx].max()), _RECORD_STEPS):
             offset = np.asarray(float(first))
             ys = np.asarray(run._counted(fixed(X, ks, path, offset, *_record_tail(run), paths=n)))
-            parts.append(ys)
+            place(ys, first, idx, steps, at, states)
             X = ys[-1]
-        full = np.concatenate([X0[None], *parts], axis=0)  # (steps + 1, d, n)
-        # every row's onset and first `steps` states, rows one after the other
-        count = steps[idx] + 1
-        step = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
-        samples[begin[idx[0]] : begin[idx[-1]] + count[-1]] = full[
-            step, :, np.repeat(np.arange(idx.size), count)
-        ]
-    # each row's slip samples at release + k dt, then its stick (where the slip ended)
-    ended = np.isfinite(table["slip_time"])
-    size = steps + 1 + ended
-    at = np.cumsum(size) - size
-    total = int(size.sum())
-    t = np.empty(total)
-    states = np.empty((total, d))
-    flags = np.ones(total, dtype=bool)
-    k = np.arange(samples.shape[0]) - np.repeat(begin, steps + 1)
-    into = np.repeat(at, steps + 1) + k
-    t[into] = np.repeat(table["release_time"], steps + 1) + dt * k
-    states[into] = samples
     end = (at + size - 1)[ended]
     t[end] = (table["release_time"] + table["slip_time"])[ended]
     states[end] = table["stick"][:, ended].T
