@@ -229,3 +229,19 @@ def test_a_model_with_memory_runs_in_short_paths_with_the_same_law(monkeypatch):
     assert short["slip_time"].size > 800 and long["slip_time"].size > 800
     for k in m.columns:
         assert stats.ks_2samp(short[k], long[k]).pvalue > 0.01 / 3, k
+
+
+@pytest.mark.parametrize("weight", [1.0, 2.9, 17.02])
+@pytest.mark.parametrize("n", [5000, 300_000])
+def test_weighted_median_is_the_first_far_value_whose_count_reaches_half(weight, n):
+    """Against its definition, evaluated by sorting: the smallest rank r of the far values
+    whose count (near values up to it, plus weight (r + 1)) reaches half the total; on
+    quantised values (ties, as an ADC's) and a trace's length, where guessing the next
+    rank alone alternated between two."""
+    rng = np.random.default_rng(n + int(10 * weight))
+    a = np.round(np.r_[rng.normal(0.0, 1.0, n), rng.normal(0.8, 3.0, n // 2)], 2)
+    far = rng.random(a.size) < 0.35
+    outer, inner = np.sort(a[far]), np.sort(a[~far])
+    half = 0.5 * (inner.size + weight * outer.size)
+    count = np.searchsorted(inner, outer, side="right") + weight * np.arange(1, outer.size + 1)
+    assert weighted_median(a, far, weight) == outer[np.argmax(count >= half)]

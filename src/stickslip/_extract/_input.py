@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import bisect
 import math
 
 import numpy as np
@@ -112,21 +113,41 @@ def weighted_median(a: np.ndarray, far=None, weight: float = 1.0) -> float:
     counts `weight` (>= 1) times, the others once: the lowest value of `a[far]` at which the
     counted values up to it reach half the total (or the plain median where no value is
     far). It stands for a trace whose far samples are `weight` times as many (`_force.Cut`):
-    a value of `a[far]` at a resolution of one in their number. A few selections of
-    `a[far]`: from its own median, each finds the rank the near values' count leaves it
-    until the value repeats (the near values are a minority, their count moves slowly)."""
+    a value of `a[far]` at a resolution of one in their number.
+
+    The rank r of that value among `a[far]` is the smallest whose count (the near values
+    up to it, plus `weight` (r + 1)) reaches half, a count that grows with r: from the
+    middle rank, the next rank is the one the near values' count at the last value leaves
+    (they are a minority: it moves little), or the middle of the ranks still open where
+    that one is not (the guesses alone could alternate between two ranks, 20 times over on
+    a fit's trace); `a[far]` is partitioned in place between the ranks already taken, so
+    each selection after the first sorts only the stretch between its neighbours."""
     if far is None:
         return median(a)
     outer, inner = a[far], a[~far]
     if outer.size == 0:
         return median(a)
     half = 0.5 * (inner.size + weight * outer.size)
-    value = median(outer)
-    for _ in range(20):
-        below = np.count_nonzero(inner <= value)
-        rank = int(np.clip(math.ceil((half - below) / weight) - 1, 0, outer.size - 1))
-        new = float(np.partition(outer, rank)[rank])
-        if new == value:
-            break
-        value = new
-    return value
+    taken = [-1, outer.size]  # ranks at which `outer` is partitioned, and the two ends
+
+    def value(r: int) -> float:
+        i = bisect.bisect_left(taken, r)
+        if taken[i] != r:
+            lo, hi = taken[i - 1] + 1, taken[i]
+            outer[lo:hi].partition(r - lo)  # (in place: a view)
+            taken.insert(i, r)
+        return float(outer[r])
+
+    low, high = -1, outer.size - 1  # counts below half at low (or none), reaching it at high
+    r = (outer.size - 1) // 2
+    while True:
+        below = np.count_nonzero(inner <= value(r))
+        if below + weight * (r + 1) >= half:
+            high = r
+        else:
+            low = r
+        if high - low <= 1:
+            return value(high)
+        r = math.ceil((half - below) / weight) - 1
+        if not low < r < high:
+            r = (low + high) // 2
