@@ -297,3 +297,28 @@ def test_a_force_traces_noise_and_spikes_are_keyed_by_cycle():
     release = [measured_trace(langevin({**PUBLIC, "D": D}), clean, 400, seed=5).truth[
         "release_time"] for D in (0.4, 0.4 * math.exp(0.02))]  # fmt: skip
     assert abs(release[0][both[-1]] - release[1][both[-1]]) > 5 * h
+
+
+def test_paths_shared_between_threads_keep_their_order_and_errors():
+    """`_each_path`: each path's result in its place, whichever thread ran it, and a
+    path's error raised in the caller's thread (the first path's, as a loop raises it)."""
+    import threading
+
+    from stickslip._inference import measurement as meas
+
+    ran = {}
+
+    def work(p):
+        ran[p] = threading.current_thread().name
+        return p * p
+
+    assert meas._each_path(work, 7) == [p * p for p in range(7)]
+    assert sorted(ran) == list(range(7))
+
+    def failing(p):
+        if p in (2, 5):
+            raise ss.DataError(f"path {p}")
+        return p
+
+    with pytest.raises(ss.DataError, match="path 2"):
+        meas._each_path(failing, 7)

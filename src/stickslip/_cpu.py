@@ -7,7 +7,9 @@ the executables (`stickslip._compile.executable_dir`), the background compiler's
 (`stickslip._background.queue_dir`) and enters JAX's own cache keys (`stickslip._jax`).
 """
 
+import functools
 import hashlib
+import os
 
 
 def description(path: str = "/proc/cpuinfo") -> dict:
@@ -74,3 +76,13 @@ KIND = kind(DESCRIPTION)
 
 def has_avx512() -> bool:
     return "avx512f" in DESCRIPTION.get("flags", "").split()  # (not Linux: XLA's default)
+
+
+@functools.cache
+def usable_cores() -> int:
+    """The cores this process may use: its affinity (a batch job's share of a node) where
+    the system says, else the machine's count."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # (not Linux)
+        return os.cpu_count() or 1

@@ -13,14 +13,13 @@ seconds) and cached on disk (`_jit`).
 
 from __future__ import annotations
 
-import functools
 import math
-import os
 import threading
 
 import numba
 import numpy as np
 
+from .._cpu import usable_cores
 from ._jit import call
 
 _COS_PI, _SIN_PI = math.cos(math.pi), math.sin(math.pi)
@@ -355,7 +354,7 @@ def fit_windows(double, y, lo, length, p0, lower, upper, sigma, gain_tol, max_it
     floats = [np.ascontiguousarray(a, dtype=float) for a in (y, p0, lower, upper)]
     head, tail = (bool(double), floats[0]), (float(sigma), float(gain_tol), int(max_iter))
     rows = [*ints, *floats[1:]]  # (one row a fit)
-    if len(p0) < _SPLIT_FROM or not _fit_windows.signatures or _cores() < 2:
+    if len(p0) < _SPLIT_FROM or not _fit_windows.signatures or usable_cores() < 2:
         p, ok, cost, normal = call(_fit_windows, *head, *rows, *tail)
     else:
         # every other fit in a second thread (the kernel holds no lock): each fit is its
@@ -390,12 +389,3 @@ def _pinv(A: np.ndarray) -> np.ndarray:
 # Fits at least this many are shared between two threads (`fit_windows`: a thread's start
 # is ~0.1 ms; a fit takes ~0.03 ms, a two-slip one ~0.3 ms).
 _SPLIT_FROM = 32
-
-
-@functools.cache
-def _cores() -> int:
-    """The cores this process may use (its affinity, where the system says)."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):  # (not Linux)
-        return os.cpu_count() or 1

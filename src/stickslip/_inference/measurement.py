@@ -30,12 +30,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import threading
 import warnings
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
+from .._cpu import usable_cores
 from .._errors import (
     DataError,
     ParameterError,
@@ -385,9 +387,11 @@ def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
 
         series = counted_cycles(model, n_paths, dt, horizon, seed, count, check=check)
     ix, iv = names.index("x"), names.index("v")
-    traces = []
     table = series.cycles
-    for p in range(n_paths):
+    if measurement.signal != "force":
+        _pool(seed)  # (made here, not by two paths' threads at once)
+
+    def path_signals(p):
         t, states, _ = series.trajectory(p)
         # the slip samples lie at release + k dt, which may pass the stick by rounding
         t = np.maximum.accumulate(np.asarray(t, float))
@@ -425,8 +429,38 @@ def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
         signals = _record(measurement, grid, x, v, noise, rng, uniforms, lines=kept is None)
         if kept is not None:
             signals["cut"] = kept
-        traces.append(signals)
+        return signals
+
+    traces = _each_path(path_signals, n_paths)
     return MeasuredTrace(tuple(traces), dict(series.cycles), measurement, dt)
+
+
+def _each_path(work, n_paths: int) -> list:
+    """`[work(p) for p in range(n_paths)]`, the paths shared between two threads where the
+    process may use two cores: a path's synthesis and extraction are its own (the same
+    numbers in either thread), and most of their time is spent in NumPy, SciPy and the
+    compiled kernels without Python's lock. The first exception raised is raised here."""
+    if n_paths == 1 or usable_cores() < 2:
+        return [work(p) for p in range(n_paths)]
+    out: list = [None] * n_paths
+    failed: list = [None] * n_paths
+    order = iter(range(n_paths))  # (next() under Python's lock: each path taken once)
+
+    def run():
+        for p in order:
+            try:
+                out[p] = work(p)
+            except BaseException as err:  # (raised in the caller's thread)
+                failed[p] = err
+
+    other = threading.Thread(target=run, name="stickslip-paths", daemon=True)
+    other.start()
+    run()
+    other.join()
+    for err in failed:
+        if err is not None:
+            raise err
+    return out
 
 
 def _check_trace(owner: str, duration: float, n_cycles: int, h: float) -> None:
@@ -695,15 +729,19 @@ def measured_cycles(model, measurement: Measurement, n_cycles: int, seed: int, *
     no stick-slip), with `extract_cycles`' reason.
     """
     trace = measured_trace(model, measurement, n_cycles, seed, dt=dt, sticks=sticks)
-    tables = []
-    for p, signals in enumerate(trace.traces):
+
+    def table(p):
         try:
-            tables.append(extracted(signals, measurement, float(model.v_b)))
+            return _extracted(trace.traces[p], measurement, float(model.v_b))
         except StickSlipError as err:
             raise DataError(
                 f"measured_cycles: the simulated trace (path {p}) shows no cycles through "
                 f"this measurement: {err}"
             ) from None
+
+    with warnings.catch_warnings():  # (here: the filters are the process's, not a thread's)
+        warnings.simplefilter("ignore")
+        tables = _each_path(table, len(trace.traces))
     return {k: np.concatenate([tb[k] for tb in tables]) for k in measurement.columns}
 
 
@@ -713,19 +751,25 @@ def extracted(signals: dict, measurement: Measurement, v_b: float) -> dict[str, 
     extraction on the kept samples, without the notch its making applied already. The
     simulated sticks move at exactly v_b and the noise is the data's: a warning here is
     about the simulation, which the fit reports in its own terms, and is not shown."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return _extracted(signals, measurement, v_b)
+
+
+def _extracted(signals: dict, measurement: Measurement, v_b: float) -> dict[str, np.ndarray]:
+    """`extracted` with the warnings left to the caller (who may run it in a thread: the
+    warning filters are the process's)."""
     from .._extract import extract_cycles
     from .._extract._force import check_thresholds, extract_slips
 
     settings = measurement.extract_settings(v_b)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        if "cut" not in signals:
-            return extract_cycles(**signals, **settings).table
-        return extract_slips(
-            signals["t"], signals["force"], measurement.sampling_interval, 1.0, v_b,
-            measurement.window, check_thresholds(settings["thresholds"]), (),
-            cut=signals["cut"],
-        )[0]  # fmt: skip
+    if "cut" not in signals:
+        return extract_cycles(**signals, **settings).table
+    return extract_slips(
+        signals["t"], signals["force"], measurement.sampling_interval, 1.0, v_b,
+        measurement.window, check_thresholds(settings["thresholds"]), (),
+        cut=signals["cut"],
+    )[0]  # fmt: skip
 
 
 def _number(info: Mapping, key: str) -> float:
