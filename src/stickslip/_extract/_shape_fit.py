@@ -170,6 +170,26 @@ def _normal_single(y, lo, hi, p, sigma, A, grad):
 
 
 @numba.njit(**_JIT)
+def _walked(phi, kappa, T, past, tail, full, walk, n):
+    """`shape_point(phi, kappa)` of a slip of T samples walked sample by sample (`walk`:
+    cos, sin and decay at the last sample inside it and their per-sample factors; `n`
+    samples walked inside so far): the shape, its two derivatives and `n` after."""
+    if phi >= 1.0:
+        return past[0], past[1], past[2], n
+    if phi <= 0.0 or not math.isfinite(phi):
+        S, S_phi, S_kappa = shape_point(phi, kappa)
+        return S, S_phi, S_kappa, n
+    if n % _RESYNC == 0:
+        walk[0], walk[1], walk[2], walk[3], walk[4], walk[5] = _walk_start(phi, kappa, T)
+    else:
+        cos, sin = walk[0], walk[1]
+        walk[0], walk[1] = cos * walk[3] - sin * walk[4], sin * walk[3] + cos * walk[4]
+        walk[2] *= walk[5]
+    S, S_phi, S_kappa = _shape_at(walk[0], walk[1], walk[2], phi, kappa, tail, full)
+    return S, S_phi, S_kappa, n + 1
+
+
+@numba.njit(**_JIT)
 def _normal_double(y, lo, hi, p, sigma, A, grad):
     """As `_normal_single` for two slips, parameters (i0a, Ta, Da, kappa_a, gap, Tb, Db,
     kappa_b, y0)."""
@@ -180,37 +200,14 @@ def _normal_double(y, lo, hi, p, sigma, A, grad):
     past_a, past_b = shape_point(1.0, ka), shape_point(1.0, kb)  # (the same past each slip)
     tail_a, tail_b = math.exp(-ka), math.exp(-kb)
     full_a, full_b = 1.0 + tail_a, 1.0 + tail_b
-    # each slip's walk (`_normal_single`): its samples inside it are consecutive
-    ca = sa_ = da_ = ca1 = sa1 = da1 = 0.0
-    cb = sb_ = db_ = cb1 = sb1 = db1 = 0.0
+    # each slip's walk (`_walked`): its samples inside it are consecutive
+    walk_a, walk_b = np.empty(6), np.empty(6)
     na = nb = 0  # samples walked inside each slip
     for x in range(hi - lo):
         pa = (x - i0a) / ta
         pb = (x - i0a - ta - gap) / tb
-        if pa >= 1.0:
-            sa, sa_phi, sa_k = past_a
-        elif pa <= 0.0 or not math.isfinite(pa):
-            sa, sa_phi, sa_k = shape_point(pa, ka)
-        else:
-            if na % _RESYNC == 0:
-                ca, sa_, da_, ca1, sa1, da1 = _walk_start(pa, ka, ta)
-            else:
-                ca, sa_ = ca * ca1 - sa_ * sa1, sa_ * ca1 + ca * sa1
-                da_ *= da1
-            na += 1
-            sa, sa_phi, sa_k = _shape_at(ca, sa_, da_, pa, ka, tail_a, full_a)
-        if pb >= 1.0:
-            sb, sb_phi, sb_k = past_b
-        elif pb <= 0.0 or not math.isfinite(pb):
-            sb, sb_phi, sb_k = shape_point(pb, kb)
-        else:
-            if nb % _RESYNC == 0:
-                cb, sb_, db_, cb1, sb1, db1 = _walk_start(pb, kb, tb)
-            else:
-                cb, sb_ = cb * cb1 - sb_ * sb1, sb_ * cb1 + cb * sb1
-                db_ *= db1
-            nb += 1
-            sb, sb_phi, sb_k = _shape_at(cb, sb_, db_, pb, kb, tail_b, full_b)
+        sa, sa_phi, sa_k, na = _walked(pa, ka, ta, past_a, tail_a, full_a, walk_a, na)
+        sb, sb_phi, sb_k, nb = _walked(pb, kb, tb, past_b, tail_b, full_b, walk_b, nb)
         r = base - da * sa - db * sb - y[lo + x]
         w, loss = _loss(r, sigma)
         cost += loss
