@@ -278,6 +278,7 @@ class Fixed:
         self.key = _interned((fn, treedef, shapes, _static_key(static)))
         self.leaves = [_on_device(x) for x in leaves]
         self.entries: dict = {}
+        self.traced: set = set()  # the shapes `trace` found traced (or traced)
 
     def __call__(self, *rest, paths: int | None = None):
         key = (paths,) + tuple((x.shape, x.dtype) for x in rest)
@@ -297,10 +298,16 @@ class Fixed:
     def trace(self, *rest, paths: int) -> None:
         """Trace the program for these shapes now (memory, disk, or a new trace), compiling
         nothing: a caller that wants other work (a thread's) to start after the tracing,
-        which holds Python's lock, and overlap the compilation, which does not."""
+        which holds Python's lock, and overlap the compilation, which does not. Once per
+        shape for this object (a model with memory steps its cycles one round at a time,
+        and asked again every round: the look-up's partition took ~1 ms)."""
+        key = (paths,) + tuple((x.shape, x.dtype) for x in rest)
+        if key in self.traced or key in self.entries:
+            return
         dynamic, static = eqx.partition((*self.fixed, *rest), eqx.is_array)
         leaves, treedef = jax.tree_util.tree_flatten(dynamic)
         _export(self.fn, leaves, treedef, static, paths)
+        self.traced.add(key)
 
     def ready(self, *rest, paths: int, build: bool = False) -> bool:
         """Whether a call on these shapes (`rest`: arrays, or stand-ins of their shapes) runs
