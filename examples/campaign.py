@@ -34,8 +34,10 @@ and 9 minutes, the comparison 3.5, the three leave-one-out fits 21; docs/runs.md
 from __future__ import annotations
 
 import argparse
+import concurrent.futures
 import csv
 import math
+import multiprocessing
 import pathlib
 import time
 import warnings
@@ -94,24 +96,33 @@ def fits_markdown(fits) -> str:
     return "\n".join(lines)
 
 
-def leave_one_out(law, stick, n_sim, seed):
-    """Each stick-slip run predicted from `law` fitted to the others: one row each."""
-    rows = []
-    for i, run in enumerate(stick):
-        others = [r for j, r in enumerate(stick) if j != i]
-        r, said = joint_fit(law, others, n_sim, seed)
-        p = r.predict(run.cycles)
-        row = dict(run=run.settings["name"], stiffness=run.settings["stiffness"],
-                   v_b=run.settings["v_b"], fitted_to=" + ".join(
-                       o.settings["name"] for o in others), regime=p.regime)  # fmt: skip
-        for k, (model, data) in p.medians().items():
-            row[f"{k}_predicted"] = model
-            row[f"{k}_run"] = data
-            row[f"{k}_ratio"] = data / model if model and data else math.nan
-            row[f"{k}_p"] = p.p_values[k]
-        row["warnings"] = len(said)
-        rows.append(row)
-    return rows
+def left_out(law, stick, i, n_sim, seed):
+    """Run i predicted from `law` fitted to the other stick-slip runs: its row (for a
+    worker process)."""
+    run = stick[i]
+    others = [r for j, r in enumerate(stick) if j != i]
+    r, said = joint_fit(law, others, n_sim, seed)
+    p = r.predict(run.cycles)
+    row = dict(run=run.settings["name"], stiffness=run.settings["stiffness"],
+               v_b=run.settings["v_b"], fitted_to=" + ".join(
+                   o.settings["name"] for o in others), regime=p.regime)  # fmt: skip
+    for k, (model, data) in p.medians().items():
+        row[f"{k}_predicted"] = model
+        row[f"{k}_run"] = data
+        row[f"{k}_ratio"] = data / model if model and data else math.nan
+        row[f"{k}_p"] = p.p_values[k]
+    row["warnings"] = len(said)
+    return row
+
+
+def compared(fits, seed):
+    """`compare_fits` of the joint fits, its warnings left out (its summary lists them);
+    for a worker process."""
+    import stickslip as ss
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return ss.compare_fits(fits, seed=seed)
 
 
 def loo_markdown(rows) -> str:
@@ -138,6 +149,8 @@ def main(argv=None):
     parser.add_argument("--n-sim", type=int, default=1000, help="model cycles a point a run")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--force", action="store_true", help="replace an earlier result")
+    parser.add_argument("--workers", type=int, default=2, help="processes at once: the "
+                        "laws' fits, then the leave-one-out fits")  # fmt: skip
     parser.add_argument("--check-only", action="store_true", help="read the runs and check "
                         "each law's box on them, fit nothing (seconds)")  # fmt: skip
     args = parser.parse_args(argv)
@@ -167,25 +180,37 @@ def main(argv=None):
                     ss.get_model(model)(**slider.model_parameters({**fixed, **at}))
             print(f"{name}: {model}, {', '.join(free)} free: every run's model builds")
         return
+    # The fits in worker processes (`--workers` at a time, a fresh JAX in each): the two
+    # laws side by side, then the comparison, then the leave-one-out fits of the chosen
+    # law. The numbers do not depend on the workers or on the order the fits end in.
     fits = {}
-    for name, law in laws.items():
+    context = multiprocessing.get_context("spawn")
+    with concurrent.futures.ProcessPoolExecutor(args.workers, mp_context=context) as pool:
         t1 = time.perf_counter()
-        fits[name] = joint_fit(law, stick, args.n_sim, args.seed)
-        print(f"{name}: fitted to {len(stick)} runs in {time.perf_counter() - t1:.0f} s")
-        print("  " + fits[name][0].summary().replace("\n", "\n  "))
-    t1 = time.perf_counter()
-    with warnings.catch_warnings():  # (its summary lists its warnings)
-        warnings.simplefilter("ignore")
-        comparison = ss.compare_fits({k: r for k, (r, _) in fits.items()}, seed=args.seed + 100)
-    print(f"compared in {time.perf_counter() - t1:.0f} s")
-    print("  " + comparison.summary().replace("\n", "\n  "))
-    chosen = comparison.chosen_name
-    best = comparison.chosen
-    best.save(out / "campaign_fit.json")
+        jobs = {pool.submit(joint_fit, law, stick, args.n_sim, args.seed): name
+                for name, law in laws.items()}  # fmt: skip
+        for job in concurrent.futures.as_completed(jobs):
+            name = jobs[job]
+            fits[name] = job.result()
+            print(f"{name}: fitted to {len(stick)} runs, done after "
+                  f"{time.perf_counter() - t1:.0f} s")  # fmt: skip
+            print("  " + fits[name][0].summary().replace("\n", "\n  "))
+        fits = {name: fits[name] for name in laws}  # the laws' own order
+        t1 = time.perf_counter()
+        comparison = pool.submit(
+            compared, {k: r for k, (r, _) in fits.items()}, args.seed + 100
+        ).result()
+        print(f"compared in {time.perf_counter() - t1:.0f} s")
+        print("  " + comparison.summary().replace("\n", "\n  "))
+        chosen = comparison.chosen_name
+        best = comparison.chosen
+        best.save(out / "campaign_fit.json")
 
-    t1 = time.perf_counter()
-    loo = leave_one_out(laws[chosen], stick, args.n_sim, args.seed)
-    print(f"leave one out: {time.perf_counter() - t1:.0f} s")
+        t1 = time.perf_counter()
+        loo = list(pool.map(left_out, [laws[chosen]] * len(stick), [stick] * len(stick),
+                            range(len(stick)), [args.n_sim] * len(stick),
+                            [args.seed] * len(stick)))  # fmt: skip
+        print(f"leave one out: {time.perf_counter() - t1:.0f} s")
     with open(out / "leave_one_out.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(loo[0]))
         writer.writeheader()

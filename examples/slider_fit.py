@@ -142,13 +142,19 @@ PANELS = (("stick_time", "stick time (s)", 1.0), ("slip_time", "slip time (ms)",
           ("force_drop", "force drop (mN)", 1e3))  # fmt: skip
 
 
-def plot_check(data_si, models_si, p_values, chosen, path):
-    """Data against each fitted model: histograms (density) and distribution functions."""
+def _plotting():
+    """matplotlib's pyplot, on the file backend (imported once: ~1 s)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    return plt
+
+
+def plot_check(data_si, models_si, p_values, chosen, path):
+    """Data against each fitted model: histograms (density) and distribution functions."""
+    plt = _plotting()
     fig, axes = plt.subplots(2, 3, figsize=(12, 6.4))
     styles = {"fixed threshold": ("tab:orange", "--"), "random threshold": ("tab:green", "-")}
     for j, (name, label, scale) in enumerate(PANELS):
@@ -255,6 +261,7 @@ def run_all(data, slider, n_sim, seed, workers):
         with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
             jobs = {pool.submit(fitted, data, slider, spec, n_sim, seed): name
                     for name, spec in specs.items()}  # fmt: skip
+            _plotting()  # (here, while the workers fit: not after them)
             for job in concurrent.futures.as_completed(jobs):
                 name = jobs[job]
                 fits[name], said[name] = job.result()

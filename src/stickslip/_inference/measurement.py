@@ -79,9 +79,12 @@ _PILOT_PATHS = 1024
 # 3-7 of them, its sticks some 100): a slip still going there ends its path's trace (and
 # the trace is refused where fewer than half the cycles stick), as it ended the pilot's.
 _PILOT_HORIZON = 200.0
-# Successive cycles run as several paths (vectorised over paths): 1000 cycles a path lose
-# 0.2 % of them to the cut ends of each path's trace, 64 paths bound the padding.
-_CYCLES_PER_PATH = 1000
+# Successive cycles run as several paths (vectorised over paths): 500 cycles a path lose
+# 0.4 % of them to the cut ends of each path's trace, 64 paths bound the padding. Two
+# paths or more are synthesised and extracted on two threads (`_each_path`): the default
+# fit's 1000 cycles a point as two paths took 0.105 s a point against 0.119 s as one
+# (`benchmarks/fit_forward.py`).
+_CYCLES_PER_PATH = 500
 _MAX_PATHS = 64
 # ... but a slip-and-stick model with memory (`carries_state`) runs its cycles one round at
 # a time, every path's next cycle in one round (`simulate_cycles`): 1000 cycles of one path
