@@ -18,7 +18,8 @@ from a temporary git worktree); its cumulative times are read per stage:
 
 Seconds per evaluated point, and each stage's share. cProfile adds its own overhead to
 every Python call (more to the many small ones), so the shares, not the totals, are the
-result; the totals are `fit_forward.py`'s.
+result; the totals are `fit_forward.py`'s. The fit runs in one thread here (cProfile sees
+only its own: the paths and shape fits a second thread takes would count as the wait).
 """
 
 from __future__ import annotations
@@ -59,6 +60,17 @@ def profiled() -> dict:
     import stickslip as ss
 
     cycles, slider, known, free = slider_problem()
+    # one thread: cProfile sees only the thread it runs in (a path or a half of the shape
+    # fits in a second thread would count as the wait for it)
+    import importlib
+
+    for name in ("stickslip._inference.measurement", "stickslip._extract._shape_fit"):
+        try:
+            module = importlib.import_module(name)
+        except ImportError:  # (an earlier tree)
+            continue
+        if hasattr(module, "usable_cores"):
+            module.usable_cores = lambda: 1
     profile = cProfile.Profile()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
