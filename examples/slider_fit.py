@@ -31,8 +31,8 @@ drift of the absolute force level over the run is outside the model: `peak_force
 fitted). The rig's 30.7 g only sets the units: an effective mass is fitted (omega0).
 
 `--out DIR`, then copy slider_fit.png to docs/img to refresh docs/slider_fit.md. About
-4.5 minutes of CPU, 2.6 minutes on 2 quiet cores (docs/slider_fit.md, "Cost"): a point of
-a fit through this measurement is 1000 model cycles as a 2 kHz trace, ~0.25 s.
+1.8 minutes of CPU, 1 minute on 2 quiet cores (docs/slider_fit.md, "Cost"): a point of a
+fit through this measurement is 1000 model cycles as a 2 kHz trace, ~0.1 s.
 """
 
 from __future__ import annotations
