@@ -89,7 +89,8 @@ _MAX_PATHS = 64
 # ... but a slip-and-stick model with memory (`carries_state`) runs its cycles one round at
 # a time, every path's next cycle in one round (`simulate_cycles`): 1000 cycles of one path
 # were 1000 rounds, 6x the memoryless model's time on the measured slider's random
-# threshold. In paths of this many cycles, 1000 are some 32 rounds (1.3x); each path's cut
+# threshold. In paths of this many cycles, 1000 are some 32 rounds (about 3x a memoryless
+# model's single round, 1.3x its doubling rounds before); each path's cut
 # ends lose ~2 of them, and each path starts at the onset state: a memory of a cycle or two
 # (a stick that carries its force into the next slip) has relaxed by the second cycle. A
 # creeping slider (rate and state), whose state relaxes over many cycles, keeps long paths.
