@@ -27,8 +27,9 @@ speeds of 42, 1100 and 4300 um/s. What it does:
    v_b=)`).
 
 Writes `DIR/fits.md`, `DIR/leave_one_out.csv` and `.md`, and `DIR/summary.md`; prints
-the summary. Slow: 37 minutes on 2 quiet cores at `--n-sim 1000` (the two joint fits 4
-and 9 minutes, the comparison 3.5, the three leave-one-out fits 21; docs/runs.md).
+the summary. About 13 minutes on 2 quiet cores at `--n-sim 1000`, the fits in worker
+processes (`--workers`, 2 by default): the two joint fits side by side 5 minutes, the
+comparison 1.5, the three leave-one-out fits 7 (docs/runs.md).
 """
 
 from __future__ import annotations

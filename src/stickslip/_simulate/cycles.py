@@ -186,6 +186,9 @@ def counted_cycles(model: FrictionModel, n_paths: int, dt: float, horizon: float
     n_paths, dt, horizon, seed, _ = _validate(
         "simulate_cycles", model, n_paths, dt, horizon, seed, "auto", "continuous", 1
     )
+    if not 1 <= count < 2**_CYCLE_BITS:  # (a slot's counter holds the cycle)
+        raise ParameterError("simulate_cycles", "count", f"must be in [1, {2**_CYCLE_BITS})",
+                             count)  # fmt: skip
     wall0 = time.perf_counter()
     opts = dict(solver="auto", monitor="continuous", record=True, max_cycles=count,
                 count=count, check=check)  # fmt: skip
