@@ -443,7 +443,8 @@ def _each_path(work, n_paths: int) -> list:
     """`[work(p) for p in range(n_paths)]`, the paths shared between two threads where the
     process may use two cores: a path's synthesis and extraction are its own (the same
     numbers in either thread), and most of their time is spent in NumPy, SciPy and the
-    compiled kernels without Python's lock. The first exception raised is raised here."""
+    compiled kernels without Python's lock. Where paths raise, the lowest such path's
+    exception is raised here (as a loop over the paths would raise it)."""
     if n_paths == 1 or usable_cores() < 2:
         return [work(p) for p in range(n_paths)]
     out: list = [None] * n_paths
