@@ -130,46 +130,6 @@ def _flat(y, lo, x0, x1, level, sigma, A, grad, after):
 
 
 @numba.njit(**_JIT)
-def _normal_single(y, lo, hi, p, sigma, A, grad):
-    """Fill A = J^T W J and grad = J^T W r of one slip at p on the window y[lo:hi] (local
-    sample indices x = 0, 1, ...); its cost."""
-    i0, T, y0, D, kappa = p[0], p[1], p[2], p[3], p[4]
-    end = i0 + T
-    n = hi - lo
-    _zero(A, grad)
-    if not (math.isfinite(i0) and math.isfinite(end)):
-        return math.nan  # (no step is taken to such a point)
-    jac = np.empty(5)
-    # flat at x <= i0 and at x >= end, the shape strictly between
-    a = min(max(math.floor(i0) + 1, 0), n)
-    b = min(max(math.ceil(end), a), n)
-    cost = _flat(y, lo, 0, a, y0, sigma, A, grad, False)
-    tail = math.exp(-kappa)
-    full = 1.0 + tail
-    cos = sin = decay = c1 = s1 = d1 = 0.0
-    for x in range(a, b):
-        phi = (x - i0) / T
-        if (x - a) % _RESYNC == 0:
-            cos, sin, decay, c1, s1, d1 = _walk_start(phi, kappa, T)
-        else:
-            cos, sin = cos * c1 - sin * s1, sin * c1 + cos * s1
-            decay *= d1
-        S, S_phi, S_kappa = _shape_at(cos, sin, decay, phi, kappa, tail, full)
-        r = y0 - D * S - y[lo + x]
-        w, loss = _loss(r, sigma)
-        cost += loss
-        jac[0] = D * S_phi / T
-        jac[1] = jac[0] * phi
-        jac[2] = 1.0
-        jac[3] = -S
-        jac[4] = -D * S_kappa
-        _accumulate(A, grad, jac, w, r)
-    cost += _flat(y, lo, b, n, y0 - D, sigma, A, grad, True)
-    _mirror(A)
-    return cost
-
-
-@numba.njit(**_JIT)
 def _walked(phi, kappa, T, past, tail, full, walk, n):
     """`shape_point(phi, kappa)` of a slip of T samples walked sample by sample (`walk`:
     cos, sin and decay at the last sample inside it and their per-sample factors; `n`
@@ -187,6 +147,43 @@ def _walked(phi, kappa, T, past, tail, full, walk, n):
         walk[2] *= walk[5]
     S, S_phi, S_kappa = _shape_at(walk[0], walk[1], walk[2], phi, kappa, tail, full)
     return S, S_phi, S_kappa, n + 1
+
+
+@numba.njit(**_JIT)
+def _normal_single(y, lo, hi, p, sigma, A, grad):
+    """Fill A = J^T W J and grad = J^T W r of one slip at p on the window y[lo:hi] (local
+    sample indices x = 0, 1, ...); its cost."""
+    i0, T, y0, D, kappa = p[0], p[1], p[2], p[3], p[4]
+    end = i0 + T
+    n = hi - lo
+    _zero(A, grad)
+    if not (math.isfinite(i0) and math.isfinite(end)):
+        return math.nan  # (no step is taken to such a point)
+    jac = np.empty(5)
+    # flat at x <= i0 and at x >= end, the shape strictly between
+    a = min(max(math.floor(i0) + 1, 0), n)
+    b = min(max(math.ceil(end), a), n)
+    cost = _flat(y, lo, 0, a, y0, sigma, A, grad, False)
+    tail = math.exp(-kappa)
+    full = 1.0 + tail
+    past = shape_point(1.0, kappa)  # (a phi rounded up to 1 inside the slip)
+    walk = np.empty(6)
+    n_walked = 0
+    for x in range(a, b):
+        phi = (x - i0) / T
+        S, S_phi, S_kappa, n_walked = _walked(phi, kappa, T, past, tail, full, walk, n_walked)
+        r = y0 - D * S - y[lo + x]
+        w, loss = _loss(r, sigma)
+        cost += loss
+        jac[0] = D * S_phi / T
+        jac[1] = jac[0] * phi
+        jac[2] = 1.0
+        jac[3] = -S
+        jac[4] = -D * S_kappa
+        _accumulate(A, grad, jac, w, r)
+    cost += _flat(y, lo, b, n, y0 - D, sigma, A, grad, True)
+    _mirror(A)
+    return cost
 
 
 @numba.njit(**_JIT)
