@@ -300,11 +300,11 @@ def test_a_force_traces_noise_and_spikes_are_keyed_by_cycle():
 
 
 def test_paths_shared_between_threads_keep_their_order_and_errors():
-    """`_each_path`: each path's result in its place, whichever thread ran it, and a
+    """`_cpu.on_two_threads`: each path's result in its place, whichever thread ran it, and a
     path's error raised in the caller's thread (the first path's, as a loop raises it)."""
     import threading
 
-    from stickslip._inference import measurement as meas
+    from stickslip._cpu import on_two_threads
 
     ran = {}
 
@@ -312,7 +312,7 @@ def test_paths_shared_between_threads_keep_their_order_and_errors():
         ran[p] = threading.current_thread().name
         return p * p
 
-    assert meas._each_path(work, 7) == [p * p for p in range(7)]
+    assert on_two_threads(work, 7) == [p * p for p in range(7)]
     assert sorted(ran) == list(range(7))
 
     def failing(p):
@@ -321,4 +321,4 @@ def test_paths_shared_between_threads_keep_their_order_and_errors():
         return p
 
     with pytest.raises(ss.DataError, match="path 2"):
-        meas._each_path(failing, 7)
+        on_two_threads(failing, 7)

@@ -10,6 +10,7 @@ the executables (`stickslip._compile.executable_dir`), the background compiler's
 import functools
 import hashlib
 import os
+import threading
 
 
 def description(path: str = "/proc/cpuinfo") -> dict:
@@ -86,3 +87,32 @@ def usable_cores() -> int:
         return len(os.sched_getaffinity(0))
     except (AttributeError, OSError):  # (not Linux)
         return os.cpu_count() or 1
+
+
+def on_two_threads(work, n: int) -> list:
+    """`[work(i) for i in range(n)]`, the items shared between this thread and a second
+    one where the process may use two cores: for independent items whose time is spent
+    without Python's lock (NumPy, SciPy, compiled kernels), the same results in either
+    thread (a measured trace's paths, halves of the shape fits). Where items raise, the
+    lowest such item's exception is raised here (as a loop would raise it)."""
+    if n == 1 or usable_cores() < 2:
+        return [work(i) for i in range(n)]
+    out: list = [None] * n
+    failed: list = [None] * n
+    order = iter(range(n))  # (next() under Python's lock: each item taken once)
+
+    def run():
+        for i in order:
+            try:
+                out[i] = work(i)
+            except BaseException as err:  # (raised in the caller's thread)
+                failed[i] = err
+
+    other = threading.Thread(target=run, name="stickslip-work", daemon=True)
+    other.start()
+    run()
+    other.join()
+    for err in failed:
+        if err is not None:
+            raise err
+    return out

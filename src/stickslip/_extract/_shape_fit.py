@@ -14,12 +14,11 @@ seconds) and cached on disk (`_jit`).
 from __future__ import annotations
 
 import math
-import threading
 
 import numba
 import numpy as np
 
-from .._cpu import usable_cores
+from .._cpu import on_two_threads, usable_cores
 from ._jit import call
 
 _COS_PI, _SIN_PI = math.cos(math.pi), math.sin(math.pi)
@@ -354,15 +353,7 @@ def fit_windows(double, y, lo, length, p0, lower, upper, sigma, gain_tol, max_it
         # every other fit in a second thread (the kernel holds no lock): each fit is its
         # own, the same numbers whichever thread runs it
         halves = [[np.ascontiguousarray(a[i::2]) for a in rows] for i in (0, 1)]
-        out = [None, None]
-
-        def run(i):
-            out[i] = _fit_windows(*head, *halves[i], *tail)
-
-        other = threading.Thread(target=run, args=(1,), daemon=True)
-        other.start()
-        run(0)
-        other.join()
+        out = on_two_threads(lambda i: _fit_windows(*head, *halves[i], *tail), 2)
         p, ok, cost, normal = (np.empty((len(p0), *a.shape[1:]), a.dtype) for a in out[0])
         for i in (0, 1):
             for whole, part in zip((p, ok, cost, normal), out[i], strict=True):

@@ -30,14 +30,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import threading
 import warnings
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
-from .._cpu import usable_cores
+from .._cpu import on_two_threads
 from .._errors import (
     DataError,
     ParameterError,
@@ -81,7 +80,7 @@ _PILOT_PATHS = 1024
 _PILOT_HORIZON = 200.0
 # Successive cycles run as several paths (vectorised over paths): 500 cycles a path lose
 # 0.4 % of them to the cut ends of each path's trace, 64 paths bound the padding. Two
-# paths or more are synthesised and extracted on two threads (`_each_path`): the default
+# paths or more are synthesised and extracted on two threads (`_cpu.on_two_threads`): the default
 # fit's 1000 cycles a point as two paths took 0.105 s a point against 0.119 s as one
 # (`benchmarks/fit_forward.py`).
 _CYCLES_PER_PATH = 500
@@ -435,37 +434,8 @@ def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
             signals["cut"] = kept
         return signals
 
-    traces = _each_path(path_signals, n_paths)
+    traces = on_two_threads(path_signals, n_paths)
     return MeasuredTrace(tuple(traces), dict(series.cycles), measurement, dt)
-
-
-def _each_path(work, n_paths: int) -> list:
-    """`[work(p) for p in range(n_paths)]`, the paths shared between two threads where the
-    process may use two cores: a path's synthesis and extraction are its own (the same
-    numbers in either thread), and most of their time is spent in NumPy, SciPy and the
-    compiled kernels without Python's lock. Where paths raise, the lowest such path's
-    exception is raised here (as a loop over the paths would raise it)."""
-    if n_paths == 1 or usable_cores() < 2:
-        return [work(p) for p in range(n_paths)]
-    out: list = [None] * n_paths
-    failed: list = [None] * n_paths
-    order = iter(range(n_paths))  # (next() under Python's lock: each path taken once)
-
-    def run():
-        for p in order:
-            try:
-                out[p] = work(p)
-            except BaseException as err:  # (raised in the caller's thread)
-                failed[p] = err
-
-    other = threading.Thread(target=run, name="stickslip-paths", daemon=True)
-    other.start()
-    run()
-    other.join()
-    for err in failed:
-        if err is not None:
-            raise err
-    return out
 
 
 def _check_trace(owner: str, duration: float, n_cycles: int, h: float) -> None:
@@ -746,7 +716,7 @@ def measured_cycles(model, measurement: Measurement, n_cycles: int, seed: int, *
 
     with warnings.catch_warnings():  # (here: the filters are the process's, not a thread's)
         warnings.simplefilter("ignore")
-        tables = _each_path(table, len(trace.traces))
+        tables = on_two_threads(table, len(trace.traces))
     return {k: np.concatenate([tb[k] for tb in tables]) for k in measurement.columns}
 
 
