@@ -64,7 +64,7 @@ def profiled() -> dict:
     # fits in a second thread would count as the wait for it)
     import importlib
 
-    for name in ("stickslip._cpu", "stickslip._inference.measurement", "stickslip._extract._shape_fit"):
+    for name in ("stickslip._cpu", "stickslip._extract._shape_fit"):
         try:
             module = importlib.import_module(name)
         except ImportError:  # (an earlier tree)
