@@ -81,19 +81,18 @@ def reference_slider(cycles):
     return ss.Slider.from_cycles(cycles, MASS, stiffness=STIFFNESS, zeta=ZETA)
 
 
+CANDIDATES = ("fixed threshold", "random threshold")
+
+
 def candidates(slider):
-    """{name: (model, free, fixed)}: the fixed and the random static threshold."""
+    """{name: (model, free, fixed)} of `CANDIDATES`: the fixed and the random static
+    threshold."""
     known = dict(zeta=ZETA, v_b=slider.dimensionless()["v_b"], tau=TAU)
     shared = {"omega0": BOX["omega0"], "D": BOX["D"]}
     law = {"threshold_params.mean": BOX["threshold"], "threshold_params.sd": BOX["sd"]}
-    return {
-        "fixed threshold": ("langevin", {**shared, "x0": BOX["threshold"]}, known),
-        "random threshold": (
-            "random-threshold",
-            {**shared, **law},
-            {**known, "threshold": "normal"},
-        ),
-    }
+    fixed = ("langevin", {**shared, "x0": BOX["threshold"]}, known)
+    random = ("random-threshold", {**shared, **law}, {**known, "threshold": "normal"})
+    return dict(zip(CANDIDATES, (fixed, random), strict=True))
 
 
 def fitted(data, slider, spec, n_sim, seed):
@@ -246,33 +245,44 @@ ALLOCATOR = {
 
 
 def run_all(data, slider, n_sim, seed, workers):
-    """Everything in worker processes (`workers` at a time, `ALLOCATOR`'s settings): the
-    candidates' fits; each candidate's goodness of fit and predictive cycles (`checked`),
-    submitted as soon as its fit ends; the comparison, once every fit has ended, beside
-    the checks still running. Returns `(fits, said, comparison, caught, checks,
-    fits_done)`, the last the `time.perf_counter()` at which the last fit ended. The
-    numbers do not depend on `workers` or on the order the fits end in."""
+    """Everything in worker processes (`ALLOCATOR`'s settings), one candidate's work in one
+    process (up to `workers`; candidate i in process i mod `workers`): its fit, then, for
+    the simplest candidate, the comparison's replicates (`draw_replicates`: most of the
+    comparison's cost, drawn beside the richer fit), and its goodness of fit and
+    predictive cycles (`checked`), each submitted as soon as the fit ends; the comparison,
+    once every fit has ended, in the simplest candidate's process (a job on a process
+    that has not run its model first loads the model's compiled simulation, ~2 s a model
+    here). Returns `(fits, said, comparison, caught, checks, fits_done)`, the last the
+    `time.perf_counter()` at which the last fit ended. The numbers do not depend on
+    `workers` or on the order the fits end in."""
     specs = candidates(slider)
+    simplest = min(specs, key=lambda name: len(specs[name][1]))  # the comparison's null
     fits, said, checking = {}, {}, {}
     context = multiprocessing.get_context("spawn")  # a fresh JAX in each worker
     saved = {k: os.environ.get(k) for k in ALLOCATOR}
     os.environ.update(ALLOCATOR)
+    pools = [concurrent.futures.ProcessPoolExecutor(1, mp_context=context)
+             for _ in range(max(1, min(workers, len(specs))))]  # fmt: skip
+    home = {name: pools[i % len(pools)] for i, name in enumerate(specs)}
     try:
-        with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
-            jobs = {pool.submit(fitted, data, slider, spec, n_sim, seed): name
-                    for name, spec in specs.items()}  # fmt: skip
-            _plotting()  # (here, while the workers fit: not after them)
-            for job in concurrent.futures.as_completed(jobs):
-                name = jobs[job]
-                fits[name], said[name] = job.result()
-                checking[name] = pool.submit(checked, fits[name], seed, n_sim, slider)
-                print(f"\n{name}:\n{fits[name].summary()}", flush=True)
-            fits_done = time.perf_counter()
-            fits = {name: fits[name] for name in specs}  # the candidates' own order
-            comparison, caught = pool.submit(compared, fits, seed).result()
-            print("\n" + comparison.summary(), flush=True)
-            checks = {name: checking[name].result() for name in specs}
+        jobs = {home[name].submit(fitted, data, slider, spec, n_sim, seed): name
+                for name, spec in specs.items()}  # fmt: skip
+        _plotting()  # (here, while the workers fit: not after them)
+        for job in concurrent.futures.as_completed(jobs):
+            name = jobs[job]
+            fits[name], said[name] = job.result()
+            if name == simplest:
+                drawing = home[name].submit(drawn, fits[name], seed)
+            checking[name] = home[name].submit(checked, fits[name], seed, n_sim, slider)
+            print(f"\n{name}:\n{fits[name].summary()}", flush=True)
+        fits_done = time.perf_counter()
+        fits = {name: fits[name] for name in specs}  # the candidates' own order
+        comparison, caught = home[simplest].submit(compared, fits, drawing.result()).result()
+        print("\n" + comparison.summary(), flush=True)
+        checks = {name: checking[name].result() for name in specs}
     finally:
+        for pool in pools:
+            pool.shutdown()
         for k, v in saved.items():
             if v is None:
                 os.environ.pop(k, None)
@@ -281,13 +291,22 @@ def run_all(data, slider, n_sim, seed, workers):
     return fits, said, comparison, caught, checks, fits_done
 
 
-def compared(fits, seed):
-    """`compare_fits` and its warnings (returned rather than printed); for a worker."""
+def drawn(fit, seed):
+    """The comparison's replicates of `fit` (the simpler candidate), with a seed of their
+    own; for a worker process."""
+    import stickslip as ss
+
+    return ss.draw_replicates(fit, seed=seed + 100)
+
+
+def compared(fits, replicates):
+    """`compare_fits` with the simpler candidate's `replicates`, and its warnings (returned
+    rather than printed); for a worker."""
     import stickslip as ss
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        comparison = ss.compare_fits(fits, seed=seed + 100)
+        comparison = ss.compare_fits(fits, replicates=[replicates])
     return comparison, _ours(caught)
 
 
@@ -337,8 +356,8 @@ def main(argv=None):
     parser.add_argument("--n-sim", type=int, default=1000, help="model cycles per point")
     parser.add_argument("--seed", type=int, default=1, help="the fits' simulation seed")
     parser.add_argument("--workers", type=int, default=2,
-                        help="processes at once: the candidates' fits, then the goodness "
-                        "checks beside the comparison")  # fmt: skip
+                        help="processes, up to one per candidate: its fit, then its goodness "
+                        "check (the simpler's: the comparison's replicates too)")  # fmt: skip
     args = parser.parse_args(argv)
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import stickslip as ss
-from stickslip._inference.compare import _named, _polynomial_max, compare_fits
+from stickslip._inference.compare import _named, _polynomial_max, _stream, compare_fits
 from stickslip._inference.likelihood import _simulate
 
 BASE = dict(omega0=1.0, zeta=0.1, v_b=1.0, tau=0.1)
@@ -92,6 +92,48 @@ def test_kept_cycles_are_the_ones_simulated_again(clear_case):
                          alpha=0.05, n_boot=39, seed=1)  # fmt: skip
     assert again.tests == comparison.tests
     assert again.chosen_name == comparison.chosen_name
+
+
+def test_replicates_drawn_ahead_are_the_comparisons_own(clear_case):
+    """`draw_replicates` with the seed `compare_fits` gives the null (its stream of the
+    comparison's seed) draws the same cycles: handed over, even from a pickled copy of the
+    fit (another process's), the same tests to the bit; another seed, other cycles, and
+    the tests say whose seed they used."""
+    import pickle
+
+    r_fixed, r_random, comparison = clear_case
+    reps = ss.draw_replicates(r_fixed, 39, seed=_stream(1, 0))  # "fixed": the first name
+    assert (reps.n_boot, reps.sets[0]["slip_time"].size) == (39, 39 * 60)
+    copy = pickle.loads(pickle.dumps(r_fixed))
+    given = compare_fits({"fixed": copy, "random": r_random}, alpha=0.05, seed=7,
+                         replicates=[pickle.loads(pickle.dumps(reps))])  # fmt: skip
+    assert given.tests == comparison.tests
+    assert given.n_boot == 39 and given.chosen_name == "random"
+    other = ss.draw_replicates(r_fixed, 39, seed=5)
+    assert not np.array_equal(other.sets[0]["slip_time"], reps.sets[0]["slip_time"])
+    c = compare_fits({"fixed": r_fixed, "random": r_random}, alpha=0.05, replicates=[other])
+    assert c.tests[0]["replicate_seed"] == 5 and c.chosen_name == "random"
+
+
+def test_replicates_refusals(clear_case):
+    r_fixed, r_random, _ = clear_case
+    reps = ss.draw_replicates(r_fixed, 39, seed=3)
+    fits = {"fixed": r_fixed, "random": r_random}
+    with pytest.raises(ss.ParameterError, match="replicates.*list of Replicates"):
+        compare_fits(fits, alpha=0.05, replicates=reps)
+    with pytest.raises(ss.ParameterError, match=r"replicates\[1\].*fixed's again"):
+        compare_fits(fits, alpha=0.05, replicates=[reps, reps])
+    with pytest.raises(ss.ParameterError, match=r"replicates.*39 data sets against n_boot = 79"):
+        compare_fits(fits, alpha=0.05, n_boot=79, replicates=[reps])
+    refit = dataclasses.replace(r_fixed, estimate={"x0": r_fixed.estimate["x0"] * 1.01})
+    with pytest.raises(ss.ParameterError, match=r"replicates\[0\].*not among the fits"):
+        compare_fits({"fixed": refit, "random": r_random}, alpha=0.05, replicates=[reps])
+    with pytest.raises(ss.ParameterError, match="alpha = 0.01.*at least 100"):
+        compare_fits(fits, replicates=[reps])  # 39 replicates: no p-value below 0.01
+    with pytest.raises(ss.ParameterError, match="draw_replicates: parameter 'fit'"):
+        ss.draw_replicates({"slip_time": [1.0]})
+    with pytest.raises(ss.ParameterError, match="draw_replicates: parameter 'n_boot'"):
+        ss.draw_replicates(r_fixed, 0)
 
 
 def test_table_shape(clear_case):

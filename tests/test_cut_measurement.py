@@ -245,3 +245,25 @@ def test_weighted_median_is_the_first_far_value_whose_count_reaches_half(weight,
     half = 0.5 * (inner.size + weight * outer.size)
     count = np.searchsorted(inner, outer, side="right") + weight * np.arange(1, outer.size + 1)
     assert weighted_median(a, far, weight) == outer[np.argmax(count >= half)]
+
+
+@pytest.mark.parametrize("size", [1, 3, 7, 31])
+def test_running_median_is_scipys_median_filter(size):
+    """The despiking median against SciPy's `median_filter(mode="nearest")` (an independent
+    implementation: it sorts each window afresh), bit for bit: traces shorter than the
+    window, ties (quantised values, runs of one value), spikes; a value that is not finite
+    goes to SciPy's filter itself."""
+    from scipy.ndimage import median_filter
+
+    from stickslip._extract._median import running_median
+
+    rng = np.random.default_rng(size)
+    cases = [rng.normal(size=n) for n in (1, 2, size, size + 1, 1000)]
+    cases += [np.round(rng.normal(size=5000), 1), np.repeat(rng.normal(size=400), 5)]
+    spiky = rng.normal(size=3000)
+    spiky[rng.integers(0, 3000, 60)] += 50.0
+    cases.append(spiky)
+    for y in cases:
+        assert np.array_equal(running_median(y, size), median_filter(y, size, mode="nearest"))
+    with pytest.raises(ValueError, match="odd"):
+        running_median(cases[0], 4)

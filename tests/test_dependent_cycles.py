@@ -108,7 +108,7 @@ def test_nesting_is_read_from_the_models_and_the_boxes():
     assert not compare._nested(fixed, _candidate("random", rt, None, 3))
 
 
-def test_a_nested_pair_never_scores_below_zero(monkeypatch):
+def test_a_nested_pair_never_scores_below_zero():
     """The richer fit's surface below the nested one's (by 15 log-likelihood units, as a
     fit that missed its maximum gives): the statistic is 0, not -30, for the data and the
     replicates alike, and the comparison says why."""
@@ -130,13 +130,13 @@ def test_a_nested_pair_never_scores_below_zero(monkeypatch):
     a = cand("fixed", L, {"x0": (0.5, 2.0)}, 0.0)
     b = cand("random", rt, {"threshold_params.mean": (0.5, 2.0),
                             "threshold_params.sd": (0.0, 1.0)}, -15.0)  # fmt: skip
-    reps = [{"slip_time": np.ones(n)} for _ in range(n_boot)]
-    monkeypatch.setattr(compare, "_replicates", lambda *args: reps)
-    t = compare._test(a, b, n_boot, 0, {})
+    reps = compare.Replicates(fit=(), n_boot=n_boot, seed=0,
+                              sets=({"slip_time": np.ones(n * n_boot)},))  # fmt: skip
+    t = compare._test(a, b, reps, {})
     assert t["nested"] and t["raw_statistic"] == [-30.0, -30.0]
     assert t["statistic"] == [0.0, 0.0] and t["p_value"] == 1.0
     # not nested (the box of sd away from 0): the statistic as it came
     b_far = cand("random", rt, {"threshold_params.mean": (0.5, 2.0),
                                 "threshold_params.sd": (0.05, 1.0)}, -15.0)  # fmt: skip
-    t = compare._test(a, b_far, n_boot, 0, {})
+    t = compare._test(a, b_far, reps, {})
     assert not t["nested"] and t["statistic"] == pytest.approx([-30.0, -30.0])

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import abc
+import dataclasses
+import functools
 import math
 
 import equinox as eqx
@@ -41,14 +43,11 @@ class ThresholdLaw(eqx.Module):
         NumPy warnings: an extreme law gives 0 or inf here, which `check_spread` refuses)."""
         if self.point is not None:
             return (self.point,) * 3
-        import warnings
-
-        dist = self.frozen()
-        with np.errstate(all="ignore"), warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            lo, med = (float(dist.ppf(p)) for p in (SPREAD_TAIL, 0.5))
-            hi = float(dist.isf(SPREAD_TAIL))
-        return lo, med, hi
+        values = tuple(getattr(self, f.name) for f in dataclasses.fields(self))
+        try:
+            return _spread(type(self), values)
+        except TypeError:  # (a parameter that cannot be hashed: an array)
+            return _spread.__wrapped__(type(self), values)
 
     def quadrature(self, nodes: int):
         """Gauss-Hermite nodes in the normal score z = Phi^-1(F(x0)): `(values, weights)`,
@@ -190,6 +189,21 @@ class Weibull(ThresholdLaw):
     @property
     def point(self):
         return None
+
+
+@functools.lru_cache(maxsize=256)
+def _spread(cls, values: tuple) -> tuple[float, float, float]:
+    """`ThresholdLaw.spread` of the law `cls(*values)`, kept for the laws last asked about:
+    a model is built, and its scales checked, several times at each point of a fit (SciPy's
+    frozen law and its quantiles cost ~1 ms a call)."""
+    import warnings
+
+    dist = cls(*values).frozen()
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        lo, med = (float(dist.ppf(p)) for p in (SPREAD_TAIL, 0.5))
+        hi = float(dist.isf(SPREAD_TAIL))
+    return lo, med, hi
 
 
 # The spread of a threshold law: its quantiles at SPREAD_TAIL and 1 - SPREAD_TAIL (|z| = 7 in

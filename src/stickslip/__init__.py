@@ -64,6 +64,8 @@ _LAZY = {
     "GoodnessOfFit": "._inference.goodness",
     "compare_fits": "._inference.compare",
     "Comparison": "._inference.compare",
+    "draw_replicates": "._inference.compare",
+    "Replicates": "._inference.compare",
     "Measurement": "._inference.measurement",
     "clear_caches": "._compile",
     "cache_info": "._compile",

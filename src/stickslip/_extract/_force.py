@@ -53,6 +53,7 @@ from ._input import (
     runs,
     weighted_median,
 )
+from ._median import running_median
 
 # In noise sd. A noise excursion beyond 5 sd: probability 6e-7 per independent value.
 THRESHOLDS = {
@@ -178,14 +179,12 @@ def extract_slips(t, f, h, k, v_b, window, thr, lines, cut: Cut | None = None):
     """The extraction of a force trace whose settings are checked: `(table, info)`. `t`
     and `f` are evenly sampled at `h` unless `cut` says which samples of such a trace they
     are (`Cut`)."""
-    from scipy.ndimage import median_filter
-
     # scaled by a power of 2 (exact): a trace in any units finds the same cycles
     s_f = power_of_two(float(np.max(np.abs(f))))
     y_raw = f / s_f
     if np.ptp(y_raw) == 0:
         raise DataError("extract_cycles: no stick-slip: the force is constant")
-    med = median_filter(y_raw, size=_DESPIKE, mode="nearest")
+    med = running_median(y_raw, _DESPIKE)
     resid = y_raw - med
     far, weight = (None, 1.0) if cut is None else (cut.far, cut.weight)
     res_sd = _robust_sd(resid, far, weight)
@@ -409,11 +408,10 @@ def read_regime(t, f) -> dict:
     mains lines notched as `extract_force` does, its rate at the first pass's window, its
     skewness against `_SKEW` and the share of samples where it falls, in one line; the
     despiked force, its mean and the samples' noise sd (N)."""
-    from scipy.ndimage import median_filter
     from scipy.signal import savgol_filter
 
     h = median(np.diff(t))
-    med = median_filter(f, size=_DESPIKE, mode="nearest")
+    med = running_median(f, _DESPIKE)
     resid = f - med
     res_sd = _robust_sd(resid)
     spikes = np.abs(resid) > THRESHOLDS["spike"] * res_sd if res_sd > 0 else resid != resid

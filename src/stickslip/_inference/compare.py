@@ -158,8 +158,84 @@ class Comparison:
         return "\n".join(lines)
 
 
+@dataclasses.dataclass(frozen=True)
+class Replicates:
+    """Parametric-bootstrap data sets of one fit, drawn ahead of `compare_fits`
+    (`draw_replicates`): `n_boot` data sets of the fit's data size, simulated from its
+    fitted model at its estimate through its fit's observation rule, with `seed`; `sets`
+    holds, per run (one for a fit of one data set), each column's values of every set one
+    after another (`n_boot` times the run's cycles). `fit` says whose they are (its model,
+    estimate and log-likelihood)."""
+
+    fit: tuple
+    n_boot: int
+    seed: int
+    sets: tuple = dataclasses.field(repr=False)
+
+
+def draw_replicates(fit, n_boot: int | None = None, *, seed: int = 0) -> Replicates:
+    r"""The parametric-bootstrap data sets `compare_fits` draws from a simpler candidate,
+    drawn ahead: for candidates fitted side by side, the simpler one's replicates (most of
+    a comparison's cost, where the fit is through a measurement) can be drawn as soon as
+    its own fit ends, beside the richer fits, and handed to `compare_fits(...,
+    replicates=[...])`.
+
+    **Arguments:**
+
+    - `fit`: a `FitResult` (from `fit`; a fit of several runs too: each replicate is then
+      a set of runs, each through its own measurement).
+    - `n_boot`: how many data sets; by default `compare_fits`'s for a candidate with one
+      richer rival (199 at its default level 0.01).
+    - `seed`: their seed (take one other than the data's and the fits'). The sets depend
+      on the fit and the seed alone: drawn here or inside `compare_fits` with the same
+      seed, they are the same cycles.
+
+    **Returns:** `Replicates`, to pass to `compare_fits` with the fits (a process of its
+    own can draw them: they pickle).
+    """
+    owner = "draw_replicates"
+    from .result import FitResult
+
+    if not isinstance(fit, FitResult):
+        raise ParameterError(owner, "fit", "must be a FitResult (from fit)", type(fit))
+    if n_boot is None:
+        n_boot = max(1, math.ceil(2 / ALPHA) - 1)
+    n_boot = check_int(owner, "n_boot", n_boot, minimum=1)
+    seed = check_int(owner, "seed", seed, minimum=0)
+    if seed >= 2**63:
+        raise ParameterError(owner, "seed", "must be < 2**63", seed)
+    if fit.diagnostics.get("runs") and fit.diagnostics.get("joint") is None:
+        raise ParameterError(owner, "fit", _LOADED_JOINT)
+    return _drawn(_Candidate.of("fit", fit), n_boot, seed)
+
+
+def _drawn(null, n_boot: int, seed: int) -> Replicates:
+    """`n_boot` replicates of candidate `null` with `seed`: each run's from its own stream
+    (run 0 from `seed` itself)."""
+    sets = []
+    for r, (setting, data) in enumerate(zip(null.parts, null.columns, strict=True)):
+        n = next(iter(data.values())).size
+        reps = _replicates(setting, n, n_boot, seed if r == 0 else _stream(seed, 1000 + r))
+        sets.append({k: np.concatenate([x[k] for x in reps]) for k in data})
+    return Replicates(fit=_fingerprint(null.result), n_boot=n_boot, seed=seed,
+                      sets=tuple(sets))  # fmt: skip
+
+
+def _fingerprint(result) -> tuple:
+    """What identifies a fit across processes (a pickled copy is another object): its
+    model, estimate, log-likelihood and simulation seeds."""
+    seeds = tuple(int(x) for x in result.diagnostics.get("design", {}).get("seeds", ()))
+    return (_model_name(type(result.model)), tuple(sorted(result.estimate.items())),
+            float(result.log_likelihood), seeds)  # fmt: skip
+
+
+_LOADED_JOINT = ("is a loaded fit of several runs: the map from its SI values to each run's "
+                 "model is not saved; use a fit made by fit(model, [run, ...]) in this "
+                 "session")  # fmt: skip
+
+
 def compare_fits(
-    fits, *, alpha: float = ALPHA, n_boot: int | None = None, seed: int = 0
+    fits, *, alpha: float = ALPHA, n_boot: int | None = None, seed: int = 0, replicates=None
 ) -> Comparison:
     r"""Choose, among models fitted to the same data, the simplest one the data do not
     reject.
@@ -179,6 +255,9 @@ def compare_fits(
       richer rivals, Bonferroni's $k$ times more); refused where no p-value could fall
       below `alpha`.
     - `seed`: seed of the replicates (take one other than the data's and the fits').
+    - `replicates`: a list of `Replicates` (`draw_replicates`) drawn ahead from some of the
+      fits: a candidate's given replicates stand for its own as the null (their seed, not
+      one of `seed`'s streams; their number is `n_boot`, which all given must share).
 
     A simpler candidate is tested against each richer one by a likelihood ratio of the
     fits' own smoothed log-likelihoods, calibrated by a parametric bootstrap from the
@@ -199,12 +278,18 @@ def compare_fits(
     names = list(named)
     for k, r in named.items():
         if r.diagnostics.get("runs") and r.diagnostics.get("joint") is None:
-            raise ParameterError(
-                owner, "fits", f"holds {k}, a loaded fit of several runs: the map from its SI "
-                "values to each run's model is not saved; compare fits made by fit(model, "
-                "[run, ...]) in this session",
-            )  # fmt: skip
+            raise ParameterError(owner, "fits", f"holds {k}, which {_LOADED_JOINT}")
     _check_same_data(named)
+    given = _given(replicates, named, owner)
+    if given:
+        counts = {x.n_boot for x in given.values()}
+        if len(counts) > 1 or (n_boot is not None and n_boot not in counts):
+            raise ParameterError(
+                owner, "replicates", f"hold {' and '.join(map(str, sorted(counts)))} data sets"
+                f"{'' if n_boot is None else f' against n_boot = {n_boot}'}: draw every "
+                "candidate's as many as n_boot",
+            )  # fmt: skip
+        n_boot = counts.pop()
     cands = {k: _Candidate.of(k, r) for k, r in named.items()}
     order = sorted(names, key=lambda k: (cands[k].n_free, -cands[k].log_likelihood))
     # the most richer rivals a candidate has: its smallest p-value is that many times
@@ -222,6 +307,7 @@ def compare_fits(
         )  # fmt: skip
     tests: dict[tuple[str, str], dict] = {}
     designs: dict[str, tuple] = {}
+    drawn: dict[str, Replicates] = {}
     said: list[str] = []
     rejected: dict[str, tuple[str, float]] = {}  # name -> (by whom, Bonferroni p)
     # the loop stops at the latest at the first of the richest: no richer rival rejects it
@@ -229,8 +315,10 @@ def compare_fits(
     for i, a in enumerate(order):
         rivals = [b for b in order[i + 1 :] if cands[b].n_free > cands[a].n_free]
         for b in rivals:
-            tests[a, b] = _test(cands[a], cands[b], n_boot, _stream(seed, names.index(a)),
-                                designs)  # fmt: skip
+            if a not in drawn:  # (each null's replicates drawn once, for all its rivals)
+                drawn[a] = given.get(a) or _drawn(cands[a], n_boot,
+                                                  _stream(seed, names.index(a)))  # fmt: skip
+            tests[a, b] = _test(cands[a], cands[b], drawn[a], designs)
         p = [tests[a, b]["p_value"] for b in rivals]
         p_adj = min(1.0, len(rivals) * min(p)) if rivals else 1.0
         if p_adj >= alpha:
@@ -463,16 +551,14 @@ def _region(offsets: np.ndarray) -> np.ndarray:
     return np.vstack([inside, offsets])
 
 
-def _test(a: _Candidate, b: _Candidate, n_boot: int, seed: int, designs) -> dict:
+def _test(a: _Candidate, b: _Candidate, reps: Replicates, designs) -> dict:
     """The parametric-bootstrap likelihood-ratio test of `a` (null) against `b`, with each
-    fit's two simulation seeds (the same replicates for both); `designs` caches each
-    candidate's design (the fit's: it does not depend on the null). Of several runs, each
-    run's replicates are drawn through its own measurement (its own stream of `seed`)."""
-    pooled = []
-    for r, (setting, data) in enumerate(zip(a.parts, a.columns, strict=True)):
-        n = next(iter(data.values())).size
-        reps = _replicates(setting, n, n_boot, seed if r == 0 else _stream(seed, 1000 + r))
-        pooled.append({k: np.concatenate([data[k]] + [x[k] for x in reps]) for k in data})
+    fit's two simulation seeds (the same replicates `reps` of `a` for both); `designs`
+    caches each candidate's design (the fit's: it does not depend on the null). Of several
+    runs, each run's replicates are drawn through its own measurement."""
+    n_boot = reps.n_boot
+    pooled = [{k: np.concatenate([data[k], drawn[k]]) for k in data}
+              for data, drawn in zip(a.columns, reps.sets, strict=True)]  # fmt: skip
     for c in (a, b):
         if c.name not in designs:
             designs[c.name] = c.design()
@@ -491,7 +577,7 @@ def _test(a: _Candidate, b: _Candidate, n_boot: int, seed: int, designs) -> dict
     return dict(
         null=a.name, alternative=b.name, statistic=stats, p_values=p_values,
         p_value=max(p_values), n_design=(len(designs[0][0]), len(designs[1][0])),
-        nested=nested, raw_statistic=raw,
+        nested=nested, raw_statistic=raw, replicate_seed=reps.seed,
     )  # fmt: skip
 
 
@@ -592,6 +678,33 @@ def _table(order, cands, chosen, rejected, tests, alpha) -> list[dict]:
     for i, r in enumerate(ranked):
         r["rank"] = i + 1
     return [{"rank": r.pop("rank"), **r} for r in ranked]
+
+
+def _given(replicates, named: dict, owner: str) -> dict:
+    """`{name: Replicates}` of the candidates whose replicates are given (`None`: none),
+    each matched to its fit by `_fingerprint`."""
+    if replicates is None:
+        return {}
+    if isinstance(replicates, Replicates) or not isinstance(replicates, (list, tuple)):
+        raise ParameterError(owner, "replicates", "must be a list of Replicates (from "
+                             "draw_replicates)", type(replicates))  # fmt: skip
+    prints = {_fingerprint(r): k for k, r in named.items()}
+    out: dict[str, Replicates] = {}
+    for i, x in enumerate(replicates):
+        if not isinstance(x, Replicates):
+            raise ParameterError(owner, f"replicates[{i}]", "must be Replicates (from "
+                                 "draw_replicates)", type(x))  # fmt: skip
+        name = prints.get(x.fit)
+        if name is None:
+            raise ParameterError(
+                owner, f"replicates[{i}]", f"were drawn from a fit that is not among the fits "
+                f"({x.fit[0]} at {dict(x.fit[1])})",
+            )  # fmt: skip
+        if name in out:
+            raise ParameterError(owner, f"replicates[{i}]", f"are {name}'s again: give each "
+                                 "candidate's once")  # fmt: skip
+        out[name] = x
+    return out
 
 
 def _named(fits, owner) -> dict:
