@@ -16,10 +16,11 @@ examples/data/slider_paper_on_paper/README.md.
    sqrt(k/m)) and a friction-noise intensity `D` free: a fixed static threshold `x0`,
    and a normal random one (`threshold_params.mean`, `.sd`); their fits run side by
    side, one process each;
-4. `compare_fits` chooses the simpler unless the data reject it (scoring its replicates
-   against the cycles the fits simulated at their designs); each candidate's goodness of
-   fit (`goodness_of_fit`, 100 replicates through the measurement) and its cycles for the
-   predictive check run in the worker processes, submitted as soon as its fit ends;
+4. `compare_fits` chooses the simpler unless the data reject it (scoring its replicates,
+   drawn by `draw_replicates` as soon as the simpler fit ends, against the cycles the
+   fits simulated at their designs); each candidate's goodness of fit
+   (`goodness_of_fit`, 100 replicates through the measurement) and its cycles for the
+   predictive check run in its worker process, submitted as soon as its fit ends;
 5. its parameters in SI with 95 % intervals, a predictive check (`slider_fit.png`: data
    against both fitted models, stick time, slip time, force drop), and the verdict,
    printed and written to `slider_fit.md` (and `slider_fit.json`).
