@@ -11,6 +11,14 @@ mass, noise and static friction free; `random-threshold-held`: mass, noise and t
 threshold's mean and sd free; the kinetic friction, damping and noise time fixed at the
 generator's; boxes not centred on the truth), then `compare_fits` chooses. Prints the
 fits' estimates and times and the comparison's table.
+
+The model-choice study over many sets reuses the fits of `fit_joint_independent.py
+--keep DIR` (each set's runs and its fit of the law that made them, pickled): each set's
+other law is fitted to the same runs with the same seed and boxes, the simpler law's
+replicates drawn (`draw_replicates`), and `compare_fits` chooses; one JSON line a set:
+
+    python benchmarks/compare_joint.py --kept DIR --log choice.jsonl [--jobs 2]
+    python benchmarks/compare_joint.py --summary choice.jsonl
 """
 
 from __future__ import annotations
@@ -58,12 +66,88 @@ def laws(rig) -> dict:
     }  # fmt: skip
 
 
+def chosen_on_kept(path: str) -> dict:
+    """One set of the study: the kept runs and fit of the law that made them
+    (`fit_joint_independent.py --keep`), the other law fitted with that script's boxes and
+    seed, the comparison; its record."""
+    import pickle
+
+    import stickslip as ss
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import fit_joint_independent as study
+
+    case, i = pathlib.Path(path).stem.rsplit("-", 1)
+    with open(path, "rb") as f:
+        kept = pickle.load(f)
+    other = "random" if case == "fixed" else "fixed"
+    model, free, fixed, _ = study.problem(other, kept["rig"])
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fits = {case: kept["fit"],
+                other: ss.fit(model, kept["runs"], free, fixed, n_sim=kept["fit"].diagnostics[
+                    "n_sim"], seed=60_000 + int(i))}  # fmt: skip
+        fit_seconds = time.perf_counter() - t0
+        fits = {k: fits[k] for k in ("fixed", "random")}  # (the simpler first)
+        reps = ss.draw_replicates(fits["fixed"], seed=70_000 + int(i))
+        c = ss.compare_fits(fits, replicates=[reps])
+    (test,) = c.tests
+    return dict(case=case, set=int(i), chosen=c.chosen_name, right=c.chosen_name == case,
+                statistic=test["statistic"], p_values=test["p_values"],
+                log_likelihood={k: float(r.log_likelihood) for k, r in fits.items()},
+                fit_seconds=fit_seconds, seconds=time.perf_counter() - t0,
+                warnings=c.warnings)  # fmt: skip
+
+
+def study_main(args) -> None:
+    """`--kept`: the study over every kept set (those in `--log` skipped); `--summary`."""
+    import concurrent.futures
+    import json
+
+    if args.summary:
+        rows = [json.loads(x) for f in args.summary for x in open(f) if x.strip()]
+        for case in sorted({r["case"] for r in rows}):
+            mine = [r for r in rows if r["case"] == case]
+            right = sum(r["right"] for r in mine)
+            p = sorted(max(r["p_values"]) for r in mine)
+            print(f"{case} threshold true: the right law chosen in {right} of {len(mine)} "
+                  f"sets; p-values (the larger of the two seeds') {p[0]:.3g} to {p[-1]:.3g}; "
+                  f"{sum(r['seconds'] for r in mine) / len(mine):.0f} s a set")  # fmt: skip
+        return
+    done = set()
+    if args.log and pathlib.Path(args.log).exists():
+        done = {(r["case"], r["set"]) for r in map(json.loads, open(args.log)) if r}
+    paths = []
+    for p in sorted(pathlib.Path(args.kept).glob("*.pkl")):
+        case, i = p.stem.rsplit("-", 1)
+        if (case, int(i)) not in done:
+            paths.append(str(p))
+    with concurrent.futures.ProcessPoolExecutor(args.jobs) as pool:
+        for record in pool.map(chosen_on_kept, paths):
+            line = json.dumps(record, default=float)
+            if args.log:
+                with open(args.log, "a") as f:
+                    f.write(line + "\n")
+            print(f"{record['case']} set {record['set']}: chose {record['chosen']}, 2 dlogL "
+                  f"{record['statistic']}, p {record['p_values']}, {record['seconds']:.0f} s",
+                  flush=True)  # fmt: skip
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--gap-sd", type=float, required=True, help="the threshold's sd, N")
+    parser.add_argument("--gap-sd", type=float, default=None, help="the threshold's sd, N")
+    parser.add_argument("--kept", default=None, help="the study over these kept sets")
+    parser.add_argument("--log", default=None, help="the study's JSON lines (appended)")
+    parser.add_argument("--jobs", type=int, default=1, help="the study's sets at once")
+    parser.add_argument("--summary", nargs="+", default=None, help="summarise study logs")
     parser.add_argument("--seed", type=int, default=500)
     parser.add_argument("--n-sim", type=int, default=1000)
     args = parser.parse_args(argv)
+    if args.kept or args.summary:
+        return study_main(args)
+    if args.gap_sd is None:
+        parser.error("--gap-sd is needed (or --kept / --summary for the study)")
 
     import stickslip as ss
 

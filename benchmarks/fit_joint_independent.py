@@ -28,6 +28,7 @@ import dataclasses
 import importlib.util
 import json
 import pathlib
+import pickle
 import sys
 import time
 import warnings
@@ -72,7 +73,7 @@ def problem(case: str, rig):
     return CASES[case]["model"], free, fixed, truth
 
 
-def one_set(case: str, i: int, n_sim: int | None) -> dict:
+def one_set(case: str, i: int, n_sim: int | None, keep: pathlib.Path | None = None) -> dict:
     import stickslip as ss
 
     t0 = time.perf_counter()
@@ -91,6 +92,10 @@ def one_set(case: str, i: int, n_sim: int | None) -> dict:
         warnings.simplefilter("always")
         r = ss.fit(model, runs, free, fixed, n_sim=n_sim, seed=60_000 + i)
     d = r.diagnostics
+    if keep is not None:  # the runs and the fit, for compare_joint.py's study (they pickle)
+        keep.mkdir(parents=True, exist_ok=True)
+        with open(keep / f"{case}-{i}.pkl", "wb") as f:
+            pickle.dump(dict(runs=runs, fit=r, rig=rig), f)
     return dict(
         case=case, set=i, n_cycles=[row["cycles"] for row in d["runs"]],
         seconds=time.perf_counter() - t0, fit_seconds=d["seconds"],
@@ -108,6 +113,8 @@ def main():
     parser.add_argument("--first", type=int, default=0)
     parser.add_argument("--n-sim", type=int, default=1000, help="fit's n_sim a run")
     parser.add_argument("--log", default=None, help="JSON lines, one a set (appended)")
+    parser.add_argument("--keep", default=None,
+                        help="a folder: each set's runs and fit pickled (CASE-SET.pkl)")
     parser.add_argument("--summary", nargs="+", default=None, help="summarise these logs")
     parser.add_argument("--out", default=None, help="write the summary table here")
     args = parser.parse_args()
@@ -122,7 +129,8 @@ def main():
     for i in range(args.first, args.first + args.sets):
         if i in done:
             continue
-        record = one_set(args.case, i, args.n_sim)
+        record = one_set(args.case, i, args.n_sim,
+                         None if args.keep is None else pathlib.Path(args.keep))
         line = json.dumps(record, default=float)
         if args.log:
             with open(args.log, "a") as f:
