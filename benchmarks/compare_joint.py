@@ -118,10 +118,11 @@ def study_main(args) -> None:
     done = set()
     if args.log and pathlib.Path(args.log).exists():
         done = {(r["case"], r["set"]) for r in map(json.loads, open(args.log)) if r}
-    paths = []
-    for p in sorted(pathlib.Path(args.kept).glob("*.pkl")):
+    paths = []  # the cases in turn, set by set (a study cut short has both)
+    for p in sorted(pathlib.Path(args.kept).glob("*.pkl"),
+                    key=lambda p: (int(p.stem.rsplit("-", 1)[1]), p.stem)):  # fmt: skip
         case, i = p.stem.rsplit("-", 1)
-        if (case, int(i)) not in done:
+        if (case, int(i)) not in done and case in args.cases:
             paths.append(str(p))
     with concurrent.futures.ProcessPoolExecutor(args.jobs) as pool:
         for record in pool.map(chosen_on_kept, paths):
@@ -140,6 +141,8 @@ def main(argv=None) -> None:
     parser.add_argument("--kept", default=None, help="the study over these kept sets")
     parser.add_argument("--log", default=None, help="the study's JSON lines (appended)")
     parser.add_argument("--jobs", type=int, default=1, help="the study's sets at once")
+    parser.add_argument("--cases", nargs="+", default=["fixed", "random"],
+                        help="the study's cases: the law that made the data")  # fmt: skip
     parser.add_argument("--summary", nargs="+", default=None, help="summarise study logs")
     parser.add_argument("--seed", type=int, default=500)
     parser.add_argument("--n-sim", type=int, default=1000)
