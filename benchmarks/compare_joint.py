@@ -117,7 +117,8 @@ def study_main(args) -> None:
         return
     done = set()
     if args.log and pathlib.Path(args.log).exists():
-        done = {(r["case"], r["set"]) for r in map(json.loads, open(args.log)) if r}
+        done = {(r["case"], r["set"]) for r in (json.loads(x) for x in open(args.log)
+                                                if x.strip())}  # fmt: skip
     paths = []  # the cases in turn, set by set (a study cut short has both)
     for p in sorted(pathlib.Path(args.kept).glob("*.pkl"),
                     key=lambda p: (int(p.stem.rsplit("-", 1)[1]), p.stem)):  # fmt: skip

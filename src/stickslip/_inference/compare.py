@@ -198,13 +198,12 @@ def draw_replicates(fit, n_boot: int | None = None, *, seed: int = 0) -> Replica
 
     if not isinstance(fit, FitResult):
         raise ParameterError(owner, "fit", "must be a FitResult (from fit)", type(fit))
-    if n_boot is None:
-        n_boot = max(1, math.ceil(2 / ALPHA) - 1)
-    n_boot = check_int(owner, "n_boot", n_boot, minimum=1)
+    n_boot = check_int(owner, "n_boot", _default_n_boot(1, ALPHA) if n_boot is None else n_boot,
+                       minimum=1)  # fmt: skip
     seed = check_int(owner, "seed", seed, minimum=0)
     if seed >= 2**63:
         raise ParameterError(owner, "seed", "must be < 2**63", seed)
-    if fit.diagnostics.get("runs") and fit.diagnostics.get("joint") is None:
+    if _loaded_joint(fit):
         raise ParameterError(owner, "fit", _LOADED_JOINT)
     return _drawn(_Candidate.of("fit", fit), n_boot, seed)
 
@@ -227,6 +226,18 @@ def _fingerprint(result) -> tuple:
     seeds = tuple(int(x) for x in result.diagnostics.get("design", {}).get("seeds", ()))
     return (_model_name(type(result.model)), tuple(sorted(result.estimate.items())),
             float(result.log_likelihood), seeds)  # fmt: skip
+
+
+def _default_n_boot(rivals: int, alpha: float) -> int:
+    """The replicates that put the smallest (Bonferroni-adjusted) p-value of a candidate
+    with `rivals` richer rivals at alpha / 2."""
+    return max(1, math.ceil(2 * rivals / alpha) - 1)
+
+
+def _loaded_joint(result) -> bool:
+    """A fit of several runs loaded from disk (`load_fit`): its map to each run's model is
+    not saved."""
+    return bool(result.diagnostics.get("runs")) and result.diagnostics.get("joint") is None
 
 
 _LOADED_JOINT = ("is a loaded fit of several runs: the map from its SI values to each run's "
@@ -277,7 +288,7 @@ def compare_fits(
         raise ParameterError(owner, "seed", "must be < 2**63", seed)
     names = list(named)
     for k, r in named.items():
-        if r.diagnostics.get("runs") and r.diagnostics.get("joint") is None:
+        if _loaded_joint(r):
             raise ParameterError(owner, "fits", f"holds {k}, which {_LOADED_JOINT}")
     _check_same_data(named)
     given = _given(replicates, named, owner)
@@ -296,7 +307,7 @@ def compare_fits(
     # 1 / (n_boot + 1) (Bonferroni), which must fall below alpha for a rejection
     rivals_max = max(sum(c.n_free > cands[k].n_free for c in cands.values()) for k in names)
     if n_boot is None:
-        n_boot = max(1, math.ceil(2 * rivals_max / alpha) - 1)  # smallest p: alpha / 2
+        n_boot = _default_n_boot(rivals_max, alpha)
     n_boot = check_int(owner, "n_boot", n_boot, minimum=1)
     if rivals_max and rivals_max / (n_boot + 1) >= alpha:
         raise ParameterError(
