@@ -101,9 +101,12 @@ def problem(case: str, release: str = "threshold"):
     return "langevin", free, known, dict(omega0=dim["omega0"], D=dim["D"], x0=dim["x0"])
 
 
-def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold") -> dict:
-    """Make trace i, extract its cycles, fit them; the record of the set."""
+def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold",
+            keep: pathlib.Path | None = None) -> dict:  # fmt: skip
+    """Make trace i, extract its cycles, fit them; the record of the set (`keep`: the
+    cycles and the fit pickled there too, for a later look at the fit's surface)."""
     import stickslip as ss
+    from stickslip._inference.likelihood import cycle_log_likelihood
 
     rig = rig_of(case)
     slider = truth_slider(rig)
@@ -120,6 +123,18 @@ def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold") ->
                    check=False)  # fmt: skip
     scales = r.diagnostics["scales"]
     d = r.diagnostics.get("dependence", {})
+    mc = r.diagnostics.get("mc_noise", {})
+    # the log-likelihood at the truth (the fit's seed and simulation): did the search find
+    # a maximum above it?
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        at_truth = float(np.sum(cycle_log_likelihood(r, truth)))
+    if keep is not None:
+        import pickle
+
+        keep.mkdir(parents=True, exist_ok=True)
+        with open(keep / f"{case}-{release}-{i}.pkl", "wb") as f:
+            pickle.dump(dict(cycles=data, fit=r, truth=truth), f)
     x_unit = slider.scales.length
     gaps = np.asarray(true["threshold"]) - rig.kinetic_friction - rig.damping * rig.v_b
     return dict(
@@ -144,6 +159,12 @@ def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold") ->
             se_ratio=d.get("se_ratio"),
         ),  # fmt: skip
         warnings=[str(w.message) for w in caught if str(w.message).startswith("fit:")],
+        log_likelihood=r.log_likelihood,
+        log_likelihood_at_truth=at_truth,
+        mc_sd=mc.get("sd"),
+        mc_ratio=mc.get("ratio"),
+        covariance=r.diagnostics["covariance"],
+        steps=r.diagnostics["design"]["steps"],
     )
 
 
@@ -236,6 +257,7 @@ def main():
                         "threshold drawn (random-threshold, the paper's reset) or from where it "
                         "is (random-threshold-held)")  # fmt: skip
     parser.add_argument("--log", default=None, help="JSON lines, one a set (appended)")
+    parser.add_argument("--keep", default=None, help="pickle each set's cycles and fit here")
     parser.add_argument("--summary", nargs="+", default=None, help="summarise these logs")
     parser.add_argument("--out", default=None, help="write the summary table here")
     args = parser.parse_args()
@@ -250,7 +272,9 @@ def main():
             and r.get("release", "threshold") == args.release} if args.log else set()  # fmt: skip
     todo = [i for i in range(args.first, args.first + args.sets) if i not in done]
     with concurrent.futures.ProcessPoolExecutor(args.jobs) as pool:
-        futures = {pool.submit(one_set, args.case, i, args.n_sim, args.release): i for i in todo}
+        keep = None if args.keep is None else pathlib.Path(args.keep)
+        futures = {pool.submit(one_set, args.case, i, args.n_sim, args.release, keep): i
+                   for i in todo}  # fmt: skip
         for f in concurrent.futures.as_completed(futures):
             r = f.result()
             line = "; ".join(f"{k} {v:.4g} [{r['ci'][k][0]:.4g}, {r['ci'][k][1]:.4g}]"

@@ -140,3 +140,32 @@ def test_a_nested_pair_never_scores_below_zero():
                                 "threshold_params.sd": (0.05, 1.0)}, -15.0)  # fmt: skip
     t = compare._test(a, b_far, reps, {})
     assert not t["nested"] and t["statistic"] == pytest.approx([-30.0, -30.0])
+
+
+def test_newey_west_meat_of_a_chain_against_its_closed_form():
+    """A chain's meat: Bartlett's weights 1 - l/(L+1) over L lags. For MA(1) scores
+    e_t + theta e_{t-1} (unit innovations) its expected value per row is, in closed form,
+    (1 + theta^2) + 2 (1 - 1/(L+1)) theta; the lag is Newey and West's rule."""
+    assert [intervals.newey_west_lag(n) for n in (100, 180, 272, 273, 620, 621)] == [
+        4, 4, 4, 5, 5, 6,
+    ]  # floor(4 (n/100)^(2/9))
+    rng = np.random.default_rng(5)
+    theta, n, L = 0.5, 200_000, 4
+    g = _ma(theta, n, rng)[:, None]
+    g = g - g.mean()
+    got = float(intervals._meat(g, g, L, bartlett=True)[0, 0]) / n
+    want = (1 + theta**2) + 2 * (1 - 1 / (L + 1)) * theta
+    # sampling sd of a lag-4 Bartlett long-run variance: sqrt(2 (2L+1) / n) times it, ~0.02
+    sd = math.sqrt(2 * (2 * L + 1) / n) * want
+    assert abs(got - want) < 4 * sd
+
+
+def test_a_chain_takes_newey_wests_lags_however_small_its_autocorrelation():
+    """A model with memory (structural lag unknown): the meat's lag is Newey and West's,
+    with Bartlett's weights, even where no single lag passes the significance band."""
+    rng = np.random.default_rng(6)
+    n = 180
+    G = rng.standard_normal((n, 2))
+    dep = intervals._dependence(G, None, ["a", "b"], None)
+    assert dep["lag"] == intervals.newey_west_lag(n) == 4 and dep["bartlett"]
+    assert not intervals._dependence(G, None, ["a", "b"], 1)["bartlett"]

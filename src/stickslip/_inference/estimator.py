@@ -24,7 +24,7 @@ from .._errors import DataError, ParameterError, check_int, check_positive
 from .data import LOG_KINDS, _check_data, _looks_sampled, _measurement, _transform
 from .forward import _simulate, _simulation_settings
 from .intervals import _combine_seeds, _mc_noise, _sandwich, _wald, concave, structural_lag
-from .likelihood import _bandwidth, _sample, _scored
+from .likelihood import JACKKNIFE_BLOCKS, _bandwidth, _jackknife_values, _sample, _scored
 from .params import (
     ToFit,
     _check_box,
@@ -129,7 +129,6 @@ def _estimate(
                 owner, "data", f"has columns the measurement does not extract: "
                 f"{', '.join(missing)}", sorted(data),
             )  # fmt: skip
-    n_data = max(x.size for x in data.values())
     if runs is None:
         parts = [(data, measured, {k: _bandwidth(_transform(k, data[k]), n_sim) for k in data})]
 
@@ -151,6 +150,10 @@ def _estimate(
     # fit in KEEP_SAMPLES_BYTES; `recording` holds them while the design is evaluated.
     keep = runs is None and _keeps_samples(n_sim, len(data), len(names))
     recording: dict | None = None
+    # The design's points, each with its log-likelihood with a block of its simulated
+    # cycles left out in turn (`likelihood._jackknife_values`), for the simulation's noise
+    # in the estimate (`intervals._jackknife`); `None` outside the design.
+    blocks: dict | None = None
 
     def loglik(u, at_seed=seed):
         """The log-likelihood at `u` (clipped to the box) and its per-cycle terms (`None`
@@ -158,7 +161,7 @@ def _estimate(
         u = np.clip(u, lo, hi)
         key = u.tobytes()
         kept = best.get(at_seed)
-        if kept is not None and kept[0] == key:
+        if kept is not None and kept[0] == key and (blocks is None or (key, at_seed) in blocks):
             out = kept[1]
         else:
             out = _loglik(u, at_seed)
@@ -173,7 +176,7 @@ def _estimate(
             models = build(params(u))
         except (ValueError, ArithmeticError):
             models = [None] * len(parts)
-        per_run, sim = [], None
+        per_run, sim, left_out = [], None, 0.0
         for m, (d, measure, h) in zip(models, parts, strict=True):
             try:
                 sim = None if m is None else _sample(m, n_sim, dt, t_max, at_seed, measure)
@@ -183,6 +186,11 @@ def _estimate(
             per_run.append(_scored(d, sim, h, measure))
             if per_run[-1] is None:
                 break
+            if blocks is not None:  # (several runs: their blocks' values add up)
+                left_out = left_out + _jackknife_values(d, sim, h, measure)
+        if blocks is not None:
+            whole = all(t is not None for t in per_run)
+            blocks[u.tobytes(), at_seed] = left_out if whole else np.full(JACKKNIFE_BLOCKS, -np.inf)
         # (several runs: each column's terms one run after the other, the rows of `data`)
         if any(t is None for t in per_run):
             terms = None
@@ -212,13 +220,16 @@ def _estimate(
         # step of 0.3 put the design past both ends (a one-sided fit at the box)
         step = np.minimum(step, (hi - lo) / 8)
     recording = {} if keep else None
+    blocks = {}
     surface = _local_surface(loglik, u_best, lo, hi, data, names, step)
     caught += surface.warnings
     # 3. the simulation's own noise: the same design with a second, independent seed. The
     # simulator's draws move with the parameters (see `surface._search`), so the surface
     # carries Monte Carlo noise that common random numbers do not cancel: measured, the two
     # seeds' vertices differed by 1-1.5 standard errors at n_sim = 2e4 for two columns, far
-    # above the sqrt(n / n_sim) widening alone assumes. The two seeds' per-cycle scores
+    # above the sqrt(n / n_sim) widening alone assumes. The estimate's Monte Carlo
+    # covariance is a jackknife over each seed's simulated cycles (`blocks`), checked by the
+    # two seeds' difference (`intervals._combine_seeds`). The two seeds' per-cycle scores
     # also give the sandwich's J without the simulation's noise (`_sandwich`).
     seed2 = (seed + 0x9E3779B97F4A7C15) % 2**64  # far from seed: an independent stream
     values2, scores2 = _evaluate(surface.design, lambda u: loglik(u, seed2), data)
@@ -229,28 +240,31 @@ def _estimate(
             for at in (seed, seed2)
         )  # fmt: skip
         recording = None
+    block_values = [np.array([blocks[np.clip(u, lo, hi).tobytes(), at] for u in surface.design])
+                    for at in (seed, seed2)]  # fmt: skip
+    blocks = None
     # successive rows share a draw where the onset is random (`intervals.structural_lag`)
     cov, said, dependence = _sandwich(surface, names, scores2, structural_lag(centre))
     caught += said
     shift2, _ = _polynomial_vertex(surface.design - surface.centre, np.array(values2),
                                    surface.steps)  # fmt: skip
     se = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    mc_noise = _mc_noise(names, surface.shift, shift2, se, n_sim)
+    u_hat, cov, noise = _combine_seeds(surface, shift2, cov, block_values, lo, hi)
+    mc_noise = _mc_noise(names, noise, se, n_sim)
     mc_noise.update(
         seed=seed2, log_likelihood_difference=float(surface.values[0] - values2[0])
     )  # fmt: skip
-    # The second seed's surface has no maximum where the first's has: the simulation's
-    # noise, not the data, made the first one's curvature, and there is no interval. On an
+    # A seed's surface (or most of the jackknife's) has no maximum near the estimate: the
+    # simulation's noise, not the data, made the curvature, and there is no interval. On an
     # independent generator's random thresholds at n_sim 1000, 4 of the 5 fits where this
     # happened had missed the truth with at least one interval (7 of their 20), by up to
     # 7 standard errors. (Evaluating the design again at 4x n_sim was tried: on one of
     # those sets both seeds then had a maximum and the interval still missed by 8 standard
     # errors, on the mean-sd ridge; a rejected law fitted to three runs had none at 4000
     # either, at 3x the time.)
-    lost = surface.shift is not None and shift2 is None
+    lost = noise["mc"] is None
     if mc_noise["warning"]:
         caught.append(mc_noise["warning"])
-    u_hat, cov = _combine_seeds(surface, shift2, cov, n_data, n_sim, lo, hi)
     # 4. the estimate, its intervals
     ll_hat, _ = loglik(u_hat)
     estimate = params(u_hat)

@@ -1,19 +1,20 @@
 r"""The estimate's uncertainty: 95 % Wald intervals in fit coordinates (so asymmetric in the
 parameter) with the sandwich covariance $H^{-1} J H^{-1}$ (`_sandwich`: per-cycle scores
 summed over the columns, `_score_matrix`; the smoothed likelihood is not a likelihood, and
-the columns of one cycle are dependent), widened by $\sqrt{1 + n/n_{sim}}$ for the
-simulation's own noise; and the Monte Carlo noise check (`_mc_noise`): the surface's design
-evaluated again with a second seed, the estimate the mean of the two vertices, the square
-of their half difference, the Monte Carlo covariance of that mean, added to the covariance
-(`_combine_seeds`). The two seeds' per-cycle scores also give $J$ free of the simulation's
-noise (their cross product, `_sandwich`).
+the columns of one cycle are dependent), plus the simulation's own noise in the estimate
+(`_combine_seeds`): the surface's design evaluated again with a second seed, the estimate
+the mean of the two vertices, its Monte Carlo covariance a jackknife over the cycles
+simulated at the design points (`_jackknife`), which the two seeds' half difference checks
+(`_mc_noise` says what it found). The two seeds' per-cycle scores also give $J$ free of
+the simulation's noise (their cross product, `_sandwich`).
 
 Successive cycles are not independent where one draw reaches two rows: a row is a slip
 and the stick that follows it, and a random static threshold ends that stick and starts
 the next row's slip (`structural_lag`). $J$ then holds the scores' lagged cross products
 up to that lag, $J = \Gamma_0 + \sum_{l=1}^{L} (\Gamma_l + \Gamma_l^T)$ (`_meat`), and the
 lags the scores themselves show beyond it (`_dependence`: an autocorrelation past
-`ACF_BAND` of its sampling sd) are added too.
+`ACF_BAND` of its sampling sd) are added too. A model with memory makes its cycles a
+chain: Bartlett's weights over Newey and West's number of lags (`newey_west_lag`).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from .params import _from_fit
+from .surface import _polynomial_vertex
 
 Z95 = 1.959963984540054
 # The Monte Carlo noise check: a warning when the estimate's Monte Carlo sd (from two seeds)
@@ -32,6 +34,12 @@ Z95 = 1.959963984540054
 # brings it to MC_RATIO_GOAL (under 5 % wider).
 MC_RATIO_WARN = 0.5
 MC_RATIO_GOAL = 0.3
+# The jackknife's replicates (`_jackknife`): at least this share of them with a vertex, or
+# the simulation's noise decides the maximum and there is no interval. The two seeds' half
+# difference against the jackknife's sd: past MC_CHECK (a two-sided 0.1 % each) in any
+# parameter the fit says so (the difference is in the interval either way).
+JACK_LEAST = 0.8
+MC_CHECK = 3.29
 # Dependent cycles (`_dependence`): the scores' autocorrelations are looked at up to
 # MAX_LAG; one beyond the structural lag counts when it passes ACF_BAND times its sampling
 # sd 1/sqrt(n) (with 3 free parameters and 5 lags, 15 looks: a false alarm in ~4 % of fits,
@@ -67,7 +75,7 @@ def _sandwich(surface, names, scores2=None, lag=0) -> tuple[np.ndarray, list[str
     scores show (`_meat`)."""
     said = []
     info = -surface.hessian
-    dependence: dict = dict(lag=0, structural=lag, acf={}, band=None)
+    dependence: dict = dict(lag=0, structural=lag, acf={}, band=None, bartlett=False)
     if not concave(surface.hessian):
         said.append(
             "the log-likelihood is not concave around the estimate (the data do not pin the "
@@ -83,12 +91,13 @@ def _sandwich(surface, names, scores2=None, lag=0) -> tuple[np.ndarray, list[str
             G2 = _score_matrix(surface.nominal, surface.design, surface.centre, scores2)
         dependence = _dependence(G, G2, names, lag)
         J = None
+        chain = dependence["bartlett"]
         if G2 is not None:
-            J = _meat(G, G2, dependence["lag"])
+            J = _meat(G, G2, dependence["lag"], chain)
             if not np.all(np.linalg.eigvalsh(J) > 0):
                 J = None
         if J is None:
-            J = _meat(G, G, dependence["lag"])
+            J = _meat(G, G, dependence["lag"], chain)
         cov = bread @ J @ bread
         if dependence["lag"] > 0:  # what treating the rows as independent would have said
             J0 = None if G2 is None else _meat(G, G2, 0)
@@ -143,17 +152,29 @@ def _dependence(G, G2, names, lag) -> dict:
             if abs(r) > band:
                 far = max(far, m)
         acf[k] = values
-    chosen = max(lag or 0, far)
+    chosen = max(newey_west_lag(n) if lag is None else lag, far)
     return dict(lag=int(chosen), structural=lag, acf=acf, band=band,
-                from_scores=bool(far > (lag or 0)))  # fmt: skip
+                from_scores=bool(far > (lag or 0)), bartlett=lag is None)  # fmt: skip
 
 
-def _meat(G, G2, lag) -> np.ndarray:
+def newey_west_lag(n: int) -> int:
+    r"""The lag a chain's meat takes with Bartlett's weights: Newey and West's rule,
+    $\lfloor 4 (n/100)^{2/9} \rfloor$ (4 for 100-272 rows, 5 to 620). A model with memory
+    couples its cycles through its state at every lag, fading; a significance band on each
+    lag missed it: an independent generator's random threshold held from the stick had
+    lag-1 autocorrelations of +0.13 to +0.18 in the threshold's scores, under the band's
+    +0.22 at 180 rows, in 3 of 4 fits, and those intervals covered too rarely."""
+    return int(4 * (max(n, 1) / 100) ** (2 / 9))
+
+
+def _meat(G, G2, lag, bartlett=False) -> np.ndarray:
     r"""The sandwich's $J$ from the scores of two seeds (the same `G` twice for one):
     $\Gamma_0 + \sum_{l=1}^{L} (\Gamma_l + \Gamma_l^T)$ with $\Gamma_l$ the symmetrised
     cross product of rows $l$ apart; exact for scores that are $L$-dependent. Where that
     sum is not positive definite (its lagged terms are noisy), Bartlett's weights
-    $1 - l/(2L + 1)$ over $2L$ lags, which keep it positive semi-definite (Newey-West)."""
+    $1 - l/(2L + 1)$ over $2L$ lags, which keep it positive semi-definite (Newey-West).
+    `bartlett`: a chain's dependence, which fades rather than ends: Bartlett's weights
+    $1 - l/(L + 1)$ over the $L$ lags (Newey-West)."""
 
     def gamma(m):
         if m == 0:
@@ -161,6 +182,8 @@ def _meat(G, G2, lag) -> np.ndarray:
         c = 0.5 * (G[m:].T @ G2[:-m] + G2[m:].T @ G[:-m])
         return c + c.T
 
+    if bartlett:
+        return gamma(0) + sum((1 - m / (lag + 1)) * gamma(m) for m in range(1, lag + 1))
     J = sum(gamma(m) for m in range(lag + 1))
     if lag == 0 or np.all(np.linalg.eigvalsh(J) > 0):
         return J
@@ -168,19 +191,66 @@ def _meat(G, G2, lag) -> np.ndarray:
     return gamma(0) + sum((1 - m / (wide + 1)) * gamma(m) for m in range(1, wide + 1))
 
 
-def _combine_seeds(surface, shift2, cov, n_data, n_sim, lo, hi):
-    """The estimate and covariance from two seeds' vertices: the covariance widened by
-    $1 + n/n_{sim}$, and, when both seeds have a vertex, the estimate their mean and the
-    square of their half difference added (unbiased; one draw, so added on top of the
-    widening rather than instead of it)."""
+def _jackknife(surface, block_values) -> np.ndarray | None:
+    r"""The simulation's covariance of one seed's vertex: the delete-a-block jackknife over
+    the cycles simulated at the design points. `block_values[j, b]`: the log-likelihood at
+    design point j with the b-th block of its simulated cycles left out (the same block, by
+    position, at every point: the common random numbers), so that replicate b is the
+    surface, and its vertex, without those cycles; the covariance is
+    $\frac{B-1}{B} \sum_b (\hat u_{(b)} - \bar u)(\hat u_{(b)} - \bar u)^T$ over the B
+    replicates. `None` where fewer than `JACK_LEAST` of them have a vertex (the surface's
+    noise then decides whether there is a maximum at all)."""
+    du = surface.design - surface.centre
+    shifts = []
+    for column in np.asarray(block_values, float).T:
+        x, _ = _polynomial_vertex(du, column, surface.steps)
+        if x is not None:
+            shifts.append(x)
+    B = np.shape(block_values)[1]
+    if len(shifts) < JACK_LEAST * B:
+        return None
+    X = np.array(shifts)
+    dev = X - X.mean(axis=0)
+    return (B - 1) / B * (dev.T @ dev) * B / len(shifts)
+
+
+def _combine_seeds(surface, shift2, cov, blocks, lo, hi):
+    """The estimate (the mean of two seeds' vertices) and its covariance: the sandwich's plus
+    the simulation's, and what was found of the simulation's noise. The simulation's is the
+    jackknife's over each seed's simulated cycles (`_jackknife`; a quarter of the two
+    seeds' sum: the mean of two independent seeds) plus what of the two seeds' half
+    difference the jackknife does not explain, per parameter (its square less the
+    jackknife's variance, where positive: one draw, rank one). The jackknife sees the noise
+    of the cycles themselves; what moves all of a simulated trace's cycles together (the
+    statistics its extraction takes over the whole trace) only a second seed sees. Without
+    both vertices or a jackknife the covariance is the sandwich's alone, with the reason
+    (`_wald` then gives no interval)."""
     u_hat = surface.vertex(lo, hi)
-    cov = cov * (1.0 + n_data / n_sim)
     shift = surface.shift
-    if shift is not None and shift2 is not None:
-        half = 0.5 * (shift - shift2)
-        u_hat = np.clip(surface.centre + 0.5 * (shift + shift2), lo, hi)
-        cov = cov + np.outer(half, half)
-    return u_hat, cov
+    noise: dict[str, Any] = dict(mc=None, half=None, reason=None, check=None)
+    if shift is None:
+        noise["reason"] = "the first seed's surface has no maximum near the best point found"
+        return u_hat, cov, noise
+    if shift2 is None:
+        noise["reason"] = "the second seed's surface has no maximum near the estimate"
+        return u_hat, cov, noise
+    half = 0.5 * (shift - shift2)
+    u_hat = np.clip(surface.centre + 0.5 * (shift + shift2), lo, hi)
+    noise["half"] = half
+    jack = [_jackknife(surface, b) for b in blocks]
+    if any(c is None for c in jack):
+        noise["reason"] = (
+            f"left out a tenth of the simulated cycles, the surface has no maximum near the "
+            f"estimate in more than {1 - JACK_LEAST:.0%} of the jackknife's replicates"
+        )
+        return u_hat, cov, noise
+    mc = 0.25 * (jack[0] + jack[1])
+    variance = np.maximum(np.diag(mc), 1e-300)
+    noise["check"] = half / np.sqrt(variance)
+    excess = np.sign(half) * np.sqrt(np.maximum(half**2 - variance, 0.0))
+    mc = mc + np.outer(excess, excess)
+    noise["mc"] = mc
+    return u_hat, cov + mc, noise
 
 
 def _wald(u_hat, cov, names, scales, lo, hi, free, concave=True) -> tuple[dict, list[str]]:
@@ -223,33 +293,42 @@ def _score_matrix(nominal, design, u_hat, scores):
     return G - G.mean(axis=0)
 
 
-def _mc_noise(names, shift, shift2, se, n_sim) -> dict[str, Any]:
-    """The Monte Carlo sd of the estimate (the mean of two seeds' vertices: |difference|
-    / 2) against the standard error; a warning when it passes MC_RATIO_WARN of it, with the
-    n_sim that would bring it to MC_RATIO_GOAL (its variance falls as 1/n_sim)."""
+def _mc_noise(names, noise, se, n_sim) -> dict[str, Any]:
+    """The Monte Carlo sd of the estimate (`_combine_seeds`' jackknife) against the standard
+    error; a warning when it passes MC_RATIO_WARN of it, with the n_sim that would bring it
+    to MC_RATIO_GOAL (its variance falls as 1/n_sim), and one where there is no interval
+    for the simulation's noise."""
     out: dict[str, Any] = dict(warning=None)
-    if shift is None:
-        return out
-    if shift2 is None:
+    if noise["reason"] is not None:
         out["warning"] = (
-            "with a second seed the surface has no maximum near the estimate: the simulation "
-            "noise hides the likelihood's curvature, so there is no interval; take n_sim >= "
-            f"{4 * n_sim}"
+            f"{noise['reason']}: the simulation noise hides the likelihood's curvature, so "
+            f"there is no interval; take n_sim >= {4 * n_sim}"
         )
         return out
-    sd = 0.5 * np.abs(shift - shift2)
+    sd = np.sqrt(np.maximum(np.diag(noise["mc"]), 0.0))
     ratio = sd / np.maximum(se, 1e-300)
     worst = int(np.argmax(ratio))
     need = n_sim * (ratio[worst] / MC_RATIO_GOAL) ** 2
     out.update(
         sd={k: float(v) for k, v in zip(names, sd, strict=True)},
         ratio={k: float(v) for k, v in zip(names, ratio, strict=True)},
+        seeds_apart={k: float(v) for k, v in zip(names, noise["check"], strict=True)},
         n_sim_needed=int(float(f"{max(need, n_sim):.2g}")),
     )
+    said = []
+    if np.max(np.abs(noise["check"])) > MC_CHECK:
+        j = int(np.argmax(np.abs(noise["check"])))
+        said.append(
+            f"the two seeds' estimates of {names[j]} differ by {abs(noise['check'][j]):.2g} "
+            "times the simulation's sd that the jackknife over its cycles gives (the "
+            "simulated trace's own statistics move its cycles together): the difference is "
+            "in the interval"
+        )
     if ratio[worst] > MC_RATIO_WARN:
-        out["warning"] = (
+        said.append(
             f"the simulation noise is comparable with the likelihood's curvature: its sd in "
-            f"{names[worst]}'s estimate (two seeds) is {ratio[worst]:.2g} standard errors; "
+            f"{names[worst]}'s estimate is {ratio[worst]:.2g} standard errors; "
             f"the interval includes it; take n_sim >= {out['n_sim_needed']:.2g} (now {n_sim})"
         )
+    out["warning"] = "; ".join(said) or None
     return out

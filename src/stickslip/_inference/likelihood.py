@@ -140,6 +140,42 @@ def _scored(data, sim, bandwidth, measurement) -> dict | None:
     return {k: _log_density(k, data[k], sim[k], bandwidth[k]) for k in data}
 
 
+# The simulation's noise in the estimate (`intervals._jackknife`): the cycles simulated at a
+# design point split into this many contiguous blocks, each left out in turn. A block of a
+# measured trace's cycles is ~100 successive cycles (at n_sim 1000), far longer than the
+# dependence a threshold or a state carries between cycles.
+JACKKNIFE_BLOCKS = 10
+
+
+def _jackknife_values(data, sim, bandwidth, measurement, blocks=JACKKNIFE_BLOCKS):
+    """The log-likelihood of `data` against the simulated cycles `sim` with each of
+    `blocks` contiguous blocks of them left out in turn (`-inf` where too few are left,
+    or `sim` is `None`): one value a block. Each block is binned once (`_binned`); a
+    replicate's density is the whole's counts less the block's."""
+    out = np.full(blocks, -np.inf)
+    if sim is None:
+        return out
+    total = np.zeros(blocks)
+    for k in data:
+        x = np.asarray(data[k], float)
+        y = _transform(k, x)
+        h = bandwidth[k]
+        lo, hi = y.min() - 8 * h, y.max() + 8 * h
+        a = np.asarray(sim[k], float)
+        edges = [b * a.size // blocks for b in range(blocks + 1)]
+        parts = [_binned(k, a[edges[b] : edges[b + 1]], lo, hi, KDE_BINS) for b in range(blocks)]
+        whole = [sum(p[i] for p in parts) for i in range(4)]
+        for b, part in enumerate(parts):
+            counts, n, zeros, finite = (w - p for w, p in zip(whole, part, strict=True))
+            if measurement is not None and a.size - (edges[b + 1] - edges[b]) < MIN_SIMULATED:
+                total[b] = -np.inf
+                continue
+            table = _table(k, counts, n, zeros, finite, h, lo, hi, np.mean(y),
+                           3.0 * max(np.std(y), h), fft=True)  # fmt: skip
+            total[b] += float(np.sum(_log_density_at(k, x, table)))
+    return total
+
+
 def _bandwidth(y, n_sim) -> float:
     iqr = np.subtract(*np.percentile(y, [75, 25])) / 1.349
     spread = min(np.std(y), iqr) if iqr > 0 else np.std(y)
@@ -184,31 +220,58 @@ def _density_table(kind, sim, h, lo, hi, bins, mu, sd):
     `[lo, hi]` (the kind's scale), its defensive normal of centre `mu` and sd `sd`, and the
     zero fraction: `(centres, smoothed log-density, p0)`, for `_log_density_at`. One table
     serves any data inside `[lo + 8h, hi - 8h]` (the goodness check's replicates)."""
-    s = _transform(kind, sim[np.isfinite(sim)])
-    n = max(s.size, 1)
+    return _table(kind, *_binned(kind, sim, lo, hi, bins), h, lo, hi, mu, sd)
+
+
+def _binned(kind, sim, lo, hi, bins):
+    """`sim`'s counts on the table's bins (the kind's scale), its finite values' number and
+    its zeros' (`_density_table`)."""
+    finite = sim[np.isfinite(sim)]
     # The grid spans the data (fixed for every theta): simulated values past it count in n
     # but add no density there (they lie over 8 bandwidths from every datum). A grid that
     # spanned the simulated values moved with the smallest of them (a stick of 1e-6 is -14
     # on the log scale) and the binning with it: the surface jumped ~10 units between
     # parameters 1e-4 apart, and Nelder-Mead ran into its cap.
+    s = _transform(kind, finite)
+    # equal bins by range: numpy bins them arithmetically (given the edges it sorts the
+    # sample, twice the time; the counts are the same)
+    counts = np.histogram(s, bins, range=(lo, hi))[0].astype(float)
+    return counts, s.size, np.count_nonzero(finite == 0), finite.size
+
+
+def _table(kind, counts, n_scaled, n_zero, n_finite, h, lo, hi, mu, sd, fft=False):
+    """`_density_table` from `_binned`'s counts: of the `n_scaled` values on the kind's
+    scale (a duration's positive ones), and of the `n_zero` zeros among `n_finite`.
+    `fft`: the kernel's convolutions by FFT (the jackknife's many tables: the same
+    numbers to ~1e-12, a tenth of the time for a kernel of hundreds of bins)."""
+    bins = counts.size
+    n = max(n_scaled, 1)
     edges = np.linspace(lo, hi, bins + 1)
     dx = edges[1] - edges[0]
     half = max(1, int(math.ceil(6 * h / dx)))
     k = np.arange(-half, half + 1) * dx
     kernel = np.exp(-0.5 * (k / h) ** 2)
     kernel /= kernel.sum()
-    # equal bins by range: numpy bins them arithmetically (given the edges it sorts the
-    # sample, twice the time; the counts are the same)
-    counts = np.histogram(s, bins, range=(lo, hi))[0].astype(float)
-    f = np.convolve(counts, kernel, mode="same") / (n * dx)
+    convolve = _fft_convolve if fft else np.convolve
+    f = convolve(counts, kernel, mode="same") / (n * dx)
     centres = 0.5 * (edges[1:] + edges[:-1])
     broad = np.exp(-0.5 * ((centres - mu) / sd) ** 2) / (sd * math.sqrt(2 * math.pi))
     eps = 1.0 / n
     floor = FLOOR_POINTS / (n * h * math.sqrt(2 * math.pi))  # (see FLOOR_POINTS)
     density = np.maximum((1 - eps) * f + eps * broad, floor)
-    smoothed_log = np.convolve(np.log(density), kernel, mode="same")
-    p0 = _zero_fraction(sim) if kind in LOG_KINDS else None
+    smoothed_log = convolve(np.log(density), kernel, mode="same")
+    # (the zero fraction as `_zero_fraction` gives it)
+    p0 = (n_zero + 0.5) / (n_finite + 1) if kind in LOG_KINDS else None
     return centres, smoothed_log, p0
+
+
+def _fft_convolve(x, kernel, mode="same"):
+    """`np.convolve(x, kernel, mode="same")` by FFT, for a kernel no longer than `x`."""
+    n = x.size + kernel.size - 1
+    size = 1 << (n - 1).bit_length()
+    full = np.fft.irfft(np.fft.rfft(x, size) * np.fft.rfft(kernel, size), size)[:n]
+    start = (kernel.size - 1) // 2
+    return full[start : start + x.size]
 
 
 def _log_density_at(kind, x, table) -> np.ndarray:

@@ -1,0 +1,143 @@
+"""How a fit's interval rules compare on the same fits: each kept fit's design (its points,
+both seeds' simulated cycles there: `fit_independent.py --keep DIR`) scored again, and the
+estimate's covariance built by each rule from the same pieces:
+
+- `sandwich + jackknife`: the sandwich and the jackknife over the simulated cycles;
+- `fit's rule`: that, plus the part of the two seeds' half difference the jackknife does
+  not explain (what `fit` reports);
+- `widened + half difference`: the sandwich widened by 1 + n/n_sim, plus the square of
+  the two seeds' half difference (the rule before the jackknife);
+- `Hessian + jackknife`: the Hessian's inverse instead of the sandwich.
+
+Per rule and parameter: the sd of (estimate - truth) / se over the fits with both
+seeds' vertices (1 for honest intervals), and how many of them cover. Also the fit's rule
+over all fits (a fit without an interval does not cover), and the mean square of the two
+seeds' half difference over the jackknife's sd (about 1 where the jackknife holds the
+simulation's noise).
+
+    python benchmarks/interval_rules.py "kept/fixed-threshold-*.pkl"
+    python benchmarks/interval_rules.py "kept/fixed-threshold-*.pkl" --time
+
+`--time`: what the jackknife costs a design point and seed against scoring the point
+once (the first kept fit's centre; warmed, the median of 7 in this process).
+"""
+
+from __future__ import annotations
+
+import glob
+import math
+import pickle
+import sys
+
+import numpy as np
+
+from stickslip._inference import intervals as iv
+from stickslip._inference.likelihood import _jackknife_values, _scored
+from stickslip._inference.surface import _polynomial_vertex, _quadratic_design, _Surface
+
+
+def pieces(path):
+    """A kept fit's estimate, truth and the rules' ingredients (fit coordinates)."""
+    with open(path, "rb") as f:
+        kept = pickle.load(f)
+    r, truth = kept["fit"], kept["truth"]
+    d = r.diagnostics
+    design = d["design"]
+    names = list(r.estimate)
+    points = np.array(design["points"])
+    centre, steps = np.array(design["centre"]), np.array(design["steps"])
+
+    def seed(s):
+        scores, values, blocks = [], [], []
+        for sim in design["samples"][s]:
+            t = None if sim is None else _scored(r.data, sim, d["bandwidth"], d["measurement"])
+            scores.append(None if t is None else np.sum([t[k] for k in r.data], axis=0))
+            values.append(-np.inf if t is None else float(sum(np.sum(v) for v in t.values())))
+            blocks.append(_jackknife_values(r.data, sim, d["bandwidth"], d["measurement"]))
+        return scores, np.array(values), np.array(blocks)
+
+    s1, v1, b1 = seed(0)
+    s2, v2, b2 = seed(1)
+    shift, H = _polynomial_vertex(points - centre, v1, steps)
+    shift2, H2 = _polynomial_vertex(points - centre, v2, steps)
+    surface = _Surface(centre=centre, steps=steps, nominal=_quadratic_design(centre, steps),
+                       design=points, values=list(v1), scores=s1, shift=shift, hessian=H,
+                       clipped=design["clipped"])  # fmt: skip
+    sandwich, _, _ = iv._sandwich(surface, names, s2, iv.structural_lag(r.model))
+    big = np.full(len(names), 1e9)
+    u_hat, cov, noise = iv._combine_seeds(surface, shift2, sandwich, [b1, b2], -big, big)
+    scales = d["scales"]
+    truth = np.array([math.log(truth[k]) if scales[k] == "log" else truth[k] for k in names])
+    out = dict(names=names, truth=truth, u=u_hat, fits=cov, interval=noise["mc"] is not None
+               and iv.concave(H), check=noise["check"])  # fmt: skip
+    if shift is None or shift2 is None:
+        return out
+    jack = [iv._jackknife(surface, b) for b in (b1, b2)]
+    if any(j is None for j in jack):
+        return out
+    mc = 0.25 * (jack[0] + jack[1])
+    half = 0.5 * (shift - shift2)
+    n = next(iter(r.data.values())).size
+    out["rules"] = {
+        "sandwich + jackknife": sandwich + mc,
+        "fit's rule": cov,
+        "widened + half difference": sandwich * (1 + n / d["n_sim"]) + np.outer(half, half),
+        "Hessian + jackknife": np.linalg.inv(-0.5 * (H + H2)) + mc,
+    }
+    return out
+
+
+def timing(path) -> None:
+    import time
+
+    with open(path, "rb") as f:
+        r = pickle.load(f)["fit"]
+    d = r.diagnostics
+    sim = d["design"]["samples"][0][0]
+    args = (r.data, sim, d["bandwidth"], d["measurement"])
+    for what, call in (("scored once", _scored), ("the 10 blocks' values", _jackknife_values)):
+        call(*args)
+        times = []
+        for _ in range(7):
+            t0 = time.perf_counter()
+            call(*args)
+            times.append(time.perf_counter() - t0)
+        print(f"{what}: {np.median(times) * 1e3:.1f} ms a point and seed "
+              f"({min(np.size(sim[k]) for k in r.data)} simulated cycles)")  # fmt: skip
+
+
+def main():
+    paths = sorted(glob.glob(sys.argv[1]))
+    if not paths:
+        sys.exit(f"no kept fits match {sys.argv[1]}")
+    if "--time" in sys.argv[2:]:
+        timing(paths[0])
+        return
+    found = [pieces(p) for p in paths]
+    names = found[0]["names"]
+    both = [f for f in found if "rules" in f]
+    print(f"{len(found)} fits, {len(both)} with both seeds' vertices and a jackknife")
+    print("| rule | " + " | ".join(f"{k}: z sd, covered" for k in names) + " |")
+    print("|---|" + "---|" * len(names))
+    for rule in both[0]["rules"] if both else []:
+        z = np.array([(f["u"] - f["truth"]) / np.sqrt(np.diag(f["rules"][rule])) for f in both])
+        cells = [f"{z[:, i].std():.2f}, {int(np.sum(np.abs(z[:, i]) < iv.Z95))}/{len(both)}"
+                 for i in range(len(names))]  # fmt: skip
+        print(f"| {rule} | " + " | ".join(cells) + " |")
+    covered = np.zeros(len(names), int)
+    for f in found:
+        if f["interval"]:
+            se = np.sqrt(np.diag(f["fits"]))
+            covered += np.abs(f["u"] - f["truth"]) <= iv.Z95 * se
+    print("fit's rule over all fits: covered " + ", ".join(
+        f"{k} {c}/{len(found)}" for k, c in zip(names, covered, strict=True))
+        + f"; {sum(not f['interval'] for f in found)} without an interval")  # fmt: skip
+    checks = np.array([f["check"] for f in found if f["check"] is not None])
+    if checks.size:
+        print("seeds' half difference / jackknife sd, mean square: " + ", ".join(
+            f"{k} {v:.2f}" for k, v in zip(names, (checks**2).mean(axis=0), strict=True))
+            + f" ({len(checks)} fits)")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
