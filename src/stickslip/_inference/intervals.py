@@ -209,9 +209,8 @@ def _jackknife(surface, block_values) -> np.ndarray | None:
     B = np.shape(block_values)[1]
     if len(shifts) < JACK_LEAST * B:
         return None
-    X = np.array(shifts)
-    dev = X - X.mean(axis=0)
-    return (B - 1) / B * (dev.T @ dev) * B / len(shifts)
+    dev = np.array(shifts) - np.mean(shifts, axis=0)
+    return (B - 1) / len(shifts) * (dev.T @ dev)  # (B-1)/B times the sum, over those kept
 
 
 def _combine_seeds(surface, shift2, cov, blocks, lo, hi):
@@ -227,7 +226,7 @@ def _combine_seeds(surface, shift2, cov, blocks, lo, hi):
     (`_wald` then gives no interval)."""
     u_hat = surface.vertex(lo, hi)
     shift = surface.shift
-    noise: dict[str, Any] = dict(mc=None, half=None, reason=None, check=None)
+    noise: dict[str, Any] = dict(mc=None, reason=None, check=None)
     if shift is None:
         noise["reason"] = "the first seed's surface has no maximum near the best point found"
         return u_hat, cov, noise
@@ -236,7 +235,6 @@ def _combine_seeds(surface, shift2, cov, blocks, lo, hi):
         return u_hat, cov, noise
     half = 0.5 * (shift - shift2)
     u_hat = np.clip(surface.centre + 0.5 * (shift + shift2), lo, hi)
-    noise["half"] = half
     jack = [_jackknife(surface, b) for b in blocks]
     if any(c is None for c in jack):
         noise["reason"] = (

@@ -158,9 +158,8 @@ def _jackknife_values(data, sim, bandwidth, measurement, blocks=JACKKNIFE_BLOCKS
     total = np.zeros(blocks)
     for k in data:
         x = np.asarray(data[k], float)
-        y = _transform(k, x)
         h = bandwidth[k]
-        lo, hi = y.min() - 8 * h, y.max() + 8 * h
+        lo, hi, mu, sd = _grid(k, x, h)
         a = np.asarray(sim[k], float)
         edges = [b * a.size // blocks for b in range(blocks + 1)]
         parts = [_binned(k, a[edges[b] : edges[b + 1]], lo, hi, KDE_BINS) for b in range(blocks)]
@@ -170,8 +169,7 @@ def _jackknife_values(data, sim, bandwidth, measurement, blocks=JACKKNIFE_BLOCKS
             if measurement is not None and a.size - (edges[b + 1] - edges[b]) < MIN_SIMULATED:
                 total[b] = -np.inf
                 continue
-            table = _table(k, counts, n, zeros, finite, h, lo, hi, np.mean(y),
-                           3.0 * max(np.std(y), h), fft=True)  # fmt: skip
+            table = _table(k, counts, n, zeros, finite, h, lo, hi, mu, sd, fft=True)
             total[b] += float(np.sum(_log_density_at(k, x, table)))
     return total
 
@@ -209,10 +207,16 @@ def _log_density(kind, x, sim, h):
     of the positive values, with $p_0$ the simulated fraction of zeros (`_zero_fraction`).
     Dropping the zeros instead biased D to 0.227 for a truth of 0.4 from stick times."""
     x = np.asarray(x, float)
-    y = _transform(kind, x)
-    lo, hi = y.min() - 8 * h, y.max() + 8 * h
-    table = _density_table(kind, sim, h, lo, hi, KDE_BINS, np.mean(y), 3.0 * max(np.std(y), h))
+    lo, hi, mu, sd = _grid(kind, x, h)
+    table = _density_table(kind, sim, h, lo, hi, KDE_BINS, mu, sd)
     return _log_density_at(kind, x, table)
+
+
+def _grid(kind, x, h):
+    """The table's span for data `x` (their range on the kind's scale, 8 bandwidths on
+    either side) and its defensive normal's centre and sd: `(lo, hi, mu, sd)`."""
+    y = _transform(kind, x)
+    return y.min() - 8 * h, y.max() + 8 * h, np.mean(y), 3.0 * max(np.std(y), h)
 
 
 def _density_table(kind, sim, h, lo, hi, bins, mu, sd):
