@@ -52,7 +52,8 @@ _spec.loader.exec_module(gen)
 Z95 = 1.959963984540054
 DURATION = 300.0
 COLUMNS = ("slip_time", "stick_time", "slip_distance")
-BOX = {"omega0": (0.5, 3.0), "D": (0.02, 3.0), "threshold": (0.3, 2.0), "sd": (0.0, 1.5)}
+BOX = {"omega0": (0.5, 3.0), "D": (0.02, 3.0), "threshold": (0.3, 2.0), "sd": (0.0, 1.5),
+       "cv": (0.0, 0.95)}
 CASES = {
     "random": dict(gap_sd=2.8e-3, model="random-threshold"),
     "fixed": dict(gap_sd=0.0, model="langevin"),
@@ -81,7 +82,7 @@ def truth_slider(rig):
     )  # fmt: skip
 
 
-def problem(case: str, release: str = "threshold"):
+def problem(case: str, release: str = "threshold", coords: str = "normal"):
     """(model name, free boxes, fixed values, truth of the free parameters) in model units;
     `release="stick"`: the random threshold fitted by `random-threshold-held` (a stick past
     its next threshold releases from where it is, as the generator's does)."""
@@ -96,13 +97,22 @@ def problem(case: str, release: str = "threshold"):
             "threshold_params.mean": dim["threshold_params"]["mean"],
             "threshold_params.sd": dim["threshold_params"]["sd"]})  # fmt: skip
         model = "random-threshold-held" if release == "stick" else "random-threshold"
+        if coords == "moments":  # the truncated law's own mean and cv (an experiment)
+            import truncated_moments as tm
+
+            m, s = tm.moments(truth.pop("threshold_params.mean"),
+                              truth.pop("threshold_params.sd"))  # fmt: skip
+            truth.update({"threshold_params.mean": m, "threshold_params.cv": s / m})
+            free.pop("threshold_params.sd")
+            free["threshold_params.cv"] = BOX["cv"]
+            return model, free, {**known, "threshold": "normal-moments"}, truth
         return model, free, {**known, "threshold": "normal"}, truth
     free = {**shared, "x0": BOX["threshold"]}
     return "langevin", free, known, dict(omega0=dim["omega0"], D=dim["D"], x0=dim["x0"])
 
 
 def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold",
-            keep: pathlib.Path | None = None) -> dict:  # fmt: skip
+            keep: pathlib.Path | None = None, coords: str = "normal") -> dict:  # fmt: skip
     """Make trace i, extract its cycles, fit them; the record of the set (`keep`: the
     cycles and the fit pickled there too, for a later look at the fit's surface)."""
     import stickslip as ss
@@ -110,7 +120,7 @@ def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold",
 
     rig = rig_of(case)
     slider = truth_slider(rig)
-    model, free, fixed, truth = problem(case, release)
+    model, free, fixed, truth = problem(case, release, coords)
     t0 = time.perf_counter()
     t, force, true = gen.make_trace(30_000 + i, DURATION, rig)
     with warnings.catch_warnings():
@@ -133,13 +143,15 @@ def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold",
         import pickle
 
         keep.mkdir(parents=True, exist_ok=True)
-        with open(keep / f"{case}-{release}-{i}.pkl", "wb") as f:
+        tag = "" if coords == "normal" else f"-{coords}"
+        with open(keep / f"{case}-{release}{tag}-{i}.pkl", "wb") as f:
             pickle.dump(dict(cycles=data, fit=r, truth=truth), f)
     x_unit = slider.scales.length
     gaps = np.asarray(true["threshold"]) - rig.kinetic_friction - rig.damping * rig.v_b
     return dict(
         case=case,
         release=release,
+        coords=coords,
         set=i,
         n_cycles=len(cycles),
         seconds=time.perf_counter() - t0,
@@ -175,7 +187,9 @@ def _to_fit(scale, x):
 def _label(record: dict) -> str:
     """A record's case, and the release rule where it is not the registered model's."""
     release = record.get("release", "threshold")
-    return record["case"] + ("" if release == "threshold" else f" (release from the {release})")
+    coords = record.get("coords", "normal")
+    return (record["case"] + ("" if release == "threshold" else f" (release from the {release})")
+            + ("" if coords == "normal" else f" ({coords})"))  # fmt: skip
 
 
 def summary(records: list[dict]) -> list[dict]:
@@ -257,6 +271,10 @@ def main():
                         "threshold drawn (random-threshold, the paper's reset) or from where it "
                         "is (random-threshold-held)")  # fmt: skip
     parser.add_argument("--log", default=None, help="JSON lines, one a set (appended)")
+    parser.add_argument("--coords", choices=("normal", "moments"), default="normal",
+                        help="random case: the threshold's normal law by its untruncated mean "
+                        "and sd (the plugin's) or by the truncated law's own mean and cv "
+                        "(truncated_moments.py, an experiment)")  # fmt: skip
     parser.add_argument("--keep", default=None, help="pickle each set's cycles and fit here")
     parser.add_argument("--summary", nargs="+", default=None, help="summarise these logs")
     parser.add_argument("--out", default=None, help="write the summary table here")
@@ -269,12 +287,13 @@ def main():
             pathlib.Path(args.out).write_text(text + "\n")
         return
     done = {r["set"] for r in _read([args.log]) if r["case"] == args.case
-            and r.get("release", "threshold") == args.release} if args.log else set()  # fmt: skip
+            and r.get("release", "threshold") == args.release
+            and r.get("coords", "normal") == args.coords} if args.log else set()  # fmt: skip
     todo = [i for i in range(args.first, args.first + args.sets) if i not in done]
     with concurrent.futures.ProcessPoolExecutor(args.jobs) as pool:
         keep = None if args.keep is None else pathlib.Path(args.keep)
-        futures = {pool.submit(one_set, args.case, i, args.n_sim, args.release, keep): i
-                   for i in todo}  # fmt: skip
+        futures = {pool.submit(one_set, args.case, i, args.n_sim, args.release, keep,
+                               args.coords): i for i in todo}  # fmt: skip
         for f in concurrent.futures.as_completed(futures):
             r = f.result()
             line = "; ".join(f"{k} {v:.4g} [{r['ci'][k][0]:.4g}, {r['ci'][k][1]:.4g}]"
