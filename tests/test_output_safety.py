@@ -515,3 +515,30 @@ def test_an_interrupt_during_the_swap_puts_the_earlier_results_back(tmp_path, mo
         _replace(tmp, out, force=True)
     assert (out / "results.nc").read_text() == "earlier"
     assert not list(tmp_path.glob(".res.old-*"))
+
+
+def test_an_interrupt_wrapped_in_another_error_still_ends_in_130():
+    """A Ctrl-C that lands in a class body's `__set_name__` (during an import) reaches the
+    command as "RuntimeError: Error calling __set_name__ ..." with the interrupt as its
+    cause: it ends as an interrupt (130), not as a failed run (1)."""
+    import click
+
+    from stickslip.cli._common import EXIT_INTERRUPTED, handle_errors
+
+    @click.command()
+    @handle_errors
+    def body():
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as interrupt:
+            raise RuntimeError("Error calling __set_name__ on 'Field' instance") from interrupt
+
+    result = CliRunner().invoke(body)
+    assert result.exit_code == EXIT_INTERRUPTED, result.output
+
+    @click.command()
+    @handle_errors
+    def failing():
+        raise RuntimeError("a real failure")
+
+    assert CliRunner().invoke(failing).exit_code == 1

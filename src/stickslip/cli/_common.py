@@ -51,6 +51,9 @@ def handle_errors(func):
             click.echo("interrupted: nothing was written under the output name", err=True)
             sys.exit(EXIT_INTERRUPTED)
         except Exception as err:  # a failure during the run
+            if _from_an_interrupt(err):
+                click.echo("interrupted: nothing was written under the output name", err=True)
+                sys.exit(EXIT_INTERRUPTED)
             if debug:
                 raise
             text = one_line(f"{type(err).__name__}: {err}".rstrip(": "))
@@ -64,6 +67,20 @@ def handle_errors(func):
     return click.option("--debug", is_flag=True, help="Show the full traceback of a failure.")(
         wrapper
     )
+
+
+def _from_an_interrupt(err: BaseException) -> bool:
+    """Whether an interrupt is what `err` wraps: Python turns a `KeyboardInterrupt` that
+    lands in some places into another error with the interrupt as its cause (in a class
+    body's `__set_name__`, during an import: "RuntimeError: Error calling __set_name__"),
+    which is still the user's Ctrl-C, not a failure."""
+    seen = set()
+    while err is not None and id(err) not in seen:
+        if isinstance(err, KeyboardInterrupt):
+            return True
+        seen.add(id(err))
+        err = err.__cause__ or err.__context__
+    return False
 
 
 def set_option(func):
