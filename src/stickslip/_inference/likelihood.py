@@ -180,13 +180,12 @@ def _bandwidth(y, n_sim) -> float:
     return float(0.9 * max(spread, 1e-12) * n_sim ** (-0.2))
 
 
-def _zero_fraction(sim: np.ndarray) -> float:
+def _zero_fraction(n_zero: int, n_finite: int) -> float:
     r"""The simulated fraction of zeros, $p_0 = (k + 1/2)/(n + 1)$ for $k$ zeros among $n$
     finite values: the Jeffreys-type half count keeps $\log p_0$ and $\log(1 - p_0)$ finite
     when no simulated value (or every one) is zero, and differs from $k/n$ by less than
     $1/n$."""
-    finite = sim[np.isfinite(sim)]
-    return (np.count_nonzero(finite == 0) + 0.5) / (finite.size + 1)
+    return (n_zero + 0.5) / (n_finite + 1)
 
 
 def _log_density(kind, x, sim, h):
@@ -264,8 +263,7 @@ def _table(kind, counts, n_scaled, n_zero, n_finite, h, lo, hi, mu, sd, fft=Fals
     floor = FLOOR_POINTS / (n * h * math.sqrt(2 * math.pi))  # (see FLOOR_POINTS)
     density = np.maximum((1 - eps) * f + eps * broad, floor)
     smoothed_log = convolve(np.log(density), kernel, mode="same")
-    # (the zero fraction as `_zero_fraction` gives it)
-    p0 = (n_zero + 0.5) / (n_finite + 1) if kind in LOG_KINDS else None
+    p0 = _zero_fraction(n_zero, n_finite) if kind in LOG_KINDS else None
     return centres, smoothed_log, p0
 
 
