@@ -10,8 +10,9 @@ import pytest
 from scipy import stats
 
 import stickslip as ss
+from stickslip import AndersonDarling
 from stickslip._inference.forward import _simulate
-from stickslip._inference.goodness import _anderson_darling, _pit, goodness_of_fit
+from stickslip._inference.goodness import _pit, goodness_of_fit
 from stickslip._inference.likelihood import cycle_log_likelihood
 
 BASE = dict(omega0=1.0, zeta=0.1, v_b=1.0, x0=1.0)
@@ -59,7 +60,50 @@ def test_anderson_darling_is_the_weighted_distance_of_its_definition():
     t = np.linspace(0.0, 1.0, 2_000_001)[1:-1]
     fn = np.searchsorted(np.sort(u), t, "right") / u.size
     want = u.size * np.trapezoid((fn - t) ** 2 / (t * (1 - t)), t)
-    assert _anderson_darling(u) == pytest.approx(want, rel=1e-3)
+    assert AndersonDarling()(u) == pytest.approx(want, rel=1e-3)
+
+
+def test_the_other_statistics_are_scipys():
+    """Cramer-von Mises and Kolmogorov-Smirnov against uniform: SciPy's own statistics."""
+    rng = np.random.default_rng(43)
+    for u in (rng.random(37), rng.beta(1.3, 1.0, 500) * 0.98 + 0.01):
+        want = stats.cramervonmises(u, "uniform").statistic
+        assert ss.CramerVonMises()(u) == pytest.approx(want, rel=1e-12)
+        assert ss.KolmogorovSmirnov()(u) == pytest.approx(stats.kstest(u, "uniform").statistic)
+
+
+class Watson(ss.Statistic):
+    """A user's statistic (Watson's U^2, invariant to rotations of the circle), counting
+    its calls."""
+
+    name, symbol = "Watson distance", "U^2"
+    calls = 0
+
+    def __call__(self, u):
+        Watson.calls += 1
+        u = np.sort(u)
+        n = u.size
+        w2 = 1 / (12 * n) + np.sum((u - (2 * np.arange(1, n + 1) - 1) / (2 * n)) ** 2)
+        return float(w2 - n * (np.mean(u) - 0.5) ** 2)
+
+
+@pytest.mark.slow  # three statistics, 200 replicates each, on the fit below
+@pytest.mark.parametrize("statistic", [ss.CramerVonMises(), ss.KolmogorovSmirnov(), Watson()])
+def test_every_statistic_rejects_exponential_slip_times(statistic):
+    """The statistic is a choice: each rejects what no stick-slip model makes (exponential
+    'slip times' of the model's own mean), and a user's class is called once for the data
+    and once per replicate, its symbol in the summary."""
+    mean = np.mean(cycles(20_000, seed=99)["slip_time"])
+    x = np.random.default_rng(5).exponential(mean, 1500)
+    r = fit_d({"slip_time": x})
+    Watson.calls = 0
+    with pytest.warns(UserWarning, match="the data reject the model"):
+        g = goodness_of_fit(r, n_rep=200, seed=3, statistic=statistic)
+    assert g.p_values["slip_time"] < 0.01, g.summary()
+    assert g.statistic is statistic and statistic.name in g.method
+    assert f"slip_time: {statistic.symbol} = " in g.summary()
+    if isinstance(statistic, Watson):
+        assert Watson.calls == 1 + 200
 
 
 @pytest.mark.slow  # a fit and its p-value check, ~10 s CPU; the default tier checks p-values below
@@ -133,6 +177,8 @@ def test_bad_arguments_are_one_line_naming_the_field(monkeypatch):
                FIXED, check="yes")  # fmt: skip
     with pytest.raises(ss.ParameterError, match="'n_rep' must be >= 1"):
         goodness_of_fit(r, n_rep=0)
+    with pytest.raises(ss.ParameterError, match="'statistic' must be a Statistic"):
+        goodness_of_fit(r, statistic="anderson")
     with pytest.warns(UserWarning, match="no p-value is below 0.0196: take n_rep >= 100"):
         goodness_of_fit(r, n_rep=50, seed=3)
     # 99 replicates: the smallest p-value is 1/100, not below 0.01: still no verdict

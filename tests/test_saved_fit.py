@@ -47,6 +47,37 @@ def test_a_loaded_fit_is_the_saved_one(result, tmp_path):
     assert (tmp_path / "fit.png").stat().st_size > 0
 
 
+def test_a_goodness_of_fits_statistic_comes_back(result, tmp_path):
+    """Its statistic by class (one of stickslip's), or by name and symbol (a user's: its
+    code is not saved, and calling it says so); a file saved before the statistic was a
+    choice reads as the Anderson-Darling, then the only one."""
+
+    class Mine(ss.Statistic):
+        name, symbol = "my distance", "M"
+
+        def __call__(self, u):
+            return float(np.max(np.abs(np.sort(u) - np.linspace(0, 1, u.size))))
+
+    for statistic in (ss.CramerVonMises(), Mine()):
+        r = dataclasses.replace(
+            result, goodness=dataclasses.replace(result.goodness, statistic=statistic)
+        )
+        path = tmp_path / "fit.json"
+        r.save(path)
+        back = ss.load_fit(path).goodness
+        assert (type(back.statistic).__name__ == "CramerVonMises") == (
+            statistic.name != "my distance"
+        )
+        assert back.statistic.symbol == statistic.symbol and back.statistic.name == statistic.name
+        if isinstance(statistic, Mine):
+            with pytest.raises(TypeError, match="only its name was kept"):
+                back.statistic(np.array([0.5]))
+    document = json.loads(path.read_text())
+    del document["goodness"]["statistic"]
+    path.write_text(json.dumps(document))
+    assert isinstance(ss.load_fit(path).goodness.statistic, ss.AndersonDarling)
+
+
 def _with(result, m):
     """`result` as if fitted through the measurement `m` (its settings, its columns)."""
     d = dict(result.diagnostics, measurement=m, observe=m, trace=True,

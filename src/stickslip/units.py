@@ -38,6 +38,8 @@ from typing import Any
 import numpy as np
 
 from ._errors import ParameterError, check_nonnegative, check_positive, check_real
+from .quantities import get as quantity
+from .quantities import names as quantity_names
 
 __all__ = ["Scales", "Slider", "SliderCycles", "noise_free_slip"]
 
@@ -76,16 +78,8 @@ _SI_FIELD = {
     "threshold": "threshold",
 }
 
-# Per-cycle columns: (unit, what a model value is multiplied by: "time", "length", "force").
-COLUMNS = {
-    "slip_time": ("s", "time"),
-    "slip_distance": ("m", "length"),
-    "stick_time": ("s", "time"),
-    "period": ("s", "time"),
-    "peak_force": ("N", "force"),
-    "force_drop": ("N", "force"),
-    "slider_travel": ("m", "length"),
-}
+# A Slider's per-cycle columns (their units and dimensions: `stickslip.quantities`).
+COLUMNS = quantity_names("slider")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -719,12 +713,15 @@ class Slider:
             seed=ensemble.info.get("seed"),
             units="time in s, lengths in m, forces in N",
         )
-        return SliderCycles(table, {k: COLUMNS[k][0] for k in table}, info, ensemble)
+        return SliderCycles(table, {k: quantity(k).unit for k in table}, info, ensemble)
+
+    def _factor(self, name) -> float:
+        """The SI value of the model's unit of the per-cycle quantity `name`."""
+        s = self.scales
+        return {"time": s.time, "length": s.length, "force": s.force}[quantity(name).dimension]
 
     def _si(self, name, values):
-        s = self.scales
-        factor = {"time": s.time, "length": s.length, "force": s.force}[COLUMNS[name][1]]
-        return np.asarray(values, float) * factor
+        return np.asarray(values, float) * self._factor(name)
 
     def _check_same_model(self, params):
         mine = self.dimensionless()
@@ -816,7 +813,7 @@ class Slider:
         table["peak_force"] = np.atleast_1d(self.force(1.0))
         table = {k: table[k] for k in COLUMNS}
         info = dict(slider=self.si_dict(), params=self.dimensionless(), noise_free=True)
-        return SliderCycles(table, {k: COLUMNS[k][0] for k in table}, info)
+        return SliderCycles(table, {k: quantity(k).unit for k in table}, info)
 
     def simulate(self, n_paths: int, dt: float | None = None, t_max: float | None = None,
                  seed: int = 0, **kwargs) -> SliderCycles:  # fmt: skip
@@ -854,23 +851,23 @@ class Slider:
         evenly spaced (cell averages, as in the estimator)."""
         from ._estimate import CrossingEstimator
 
-        s = self.scales
-        per = {"slip_time": s.time, "period": s.time, "slip_distance": s.length,
-               "force_drop": s.force}  # fmt: skip
-        if kind not in per:
+        # (a force drop is k times the slip distance: the same density in other units)
+        method = {
+            "slip_time": "slip_time_density",
+            "period": "period_density",
+            "slip_distance": "slip_distance_density",
+            "force_drop": "slip_distance_density",
+        }
+        if kind not in method:
             raise ParameterError(
-                "Slider.density", "kind", f"must be one of {', '.join(map(repr, per))}", kind
-            )
+                "Slider.density", "kind", f"must be one of {', '.join(map(repr, method))}",
+                kind,
+            )  # fmt: skip
         if estimator is None:
             estimator = CrossingEstimator(self.model())
-        x = np.asarray(values, float) / per[kind]
-        fn = {
-            "slip_time": estimator.slip_time_density,
-            "period": estimator.period_density,
-            "slip_distance": estimator.slip_distance_density,
-            "force_drop": estimator.slip_distance_density,
-        }[kind]
-        return np.asarray(fn(x, **kwargs)) / per[kind]
+        unit = self._factor(kind)
+        x = np.asarray(values, float) / unit
+        return np.asarray(getattr(estimator, method[kind])(x, **kwargs)) / unit
 
     # -- display ---------------------------------------------------------------------------
     def si_dict(self) -> dict[str, Any]:

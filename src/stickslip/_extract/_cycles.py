@@ -11,9 +11,10 @@ from typing import Any
 import numpy as np
 
 from .._errors import DataError
+from ..quantities import names
 
-COLUMNS = ("release_time", "slip_time", "slip_distance", "stick_time", "period")
-FORCE_COLUMNS = (*COLUMNS, "peak_force", "force_drop")
+COLUMNS = names("trace")  # every trace's cycles
+FORCE_COLUMNS = names("force")  # a force trace's
 _MAGIC = "# stickslip cycles"
 
 

@@ -18,9 +18,10 @@ from typing import Any
 import numpy as np
 
 from .._errors import DataError, ParameterError, StickSlipError
+from ..quantities import get, names
 
-KINDS = ("slip_time", "slip_distance", "stick_time", "period")  # the columns fitted
-LOG_KINDS = ("slip_time", "stick_time", "period")  # positive: fitted on a log scale
+KINDS = names("fit")  # the columns fitted
+LOG_KINDS = names("fit", positive=True)  # positive durations: fitted on a log scale
 
 # A column's density is a kernel estimate whose bandwidth comes from the data's spread, and
 # the intervals from per-cycle scores: below 10 cycles, or 10 distinct values (a constant or
@@ -111,8 +112,8 @@ def _force_table_in_model_units(table: dict, scales, stiffness=None) -> dict[str
     length = getattr(scales, "length", None)
     if length is None and stiffness is not None:
         length = force / float(stiffness)
-    per = {"slip_time": time, "stick_time": time, "period": time, "force_drop": force,
-           "slip_distance": length}  # fmt: skip
+    unit = {"time": time, "length": length, "force": force}
+    per = {name: unit[get(name).dimension] for name in names("measurement")}
     offset = getattr(scales, "force_offset", None)
     out = {}
     for name, values in table.items():

@@ -8,10 +8,10 @@ included.
 
 The statistic, per observable $k$ with data $x_1, \dots, x_n$: the probability integral
 transform (PIT) $u_i = F_{\hat\theta}(x_i)$ through the model's distribution function at
-the estimate (the empirical one of a large reference sample simulated there), then the
-Anderson-Darling distance of the $u_i$ from uniform,
+the estimate (the empirical one of a large reference sample simulated there), then a
+distance of the $u_i$ from uniform (a `Statistic`; by default the Anderson-Darling
 $A^2 = -n - \frac1n \sum_i (2i - 1) [\log u_{(i)} + \log(1 - u_{(n+1-i)})]$, which weighs
-both tails. A distribution with an atom (stick times of zero length: a stick that ends
+both tails). A distribution with an atom (stick times of zero length: a stick that ends
 beyond the next threshold releases at once) gets the randomised PIT
 $u_i = F(x_i^-) + V_i [F(x_i) - F(x_i^-)]$, $V_i$ uniform, which is exactly uniform for a
 datum of the model's law, atom included; the atom's mass is compared with the model's
@@ -46,11 +46,13 @@ from typing import Any
 import numpy as np
 
 from .._errors import DataError, ParameterError, ResourceError, check_int
+from ..quantities import get
 from .data import _transform
 from .forward import _simulate
 from .intervals import concave
 from .likelihood import KDE_BINS, _density_table, _log_density_at
 from .params import SIM_BYTES_PER_STATE, _from_fit, _memory_limit, _to_fit, model_kwargs
+from .statistics import AndersonDarling, Statistic
 
 ALPHA = 0.01  # below this p-value the data reject the model (the issue's verdict level)
 # the fewest replicates whose smallest p-value, 1 / (n_rep + 1), is below ALPHA
@@ -71,7 +73,6 @@ MAX_BATCH = 400_000  # simulated cycles per simulate call while making replicate
 # ... through a measurement: a recorded trace holds every slip step and sample (~1 s and
 # some 10 MB per 5000 cycles); batches of this size keep the memory of one near 100 MB
 MAX_MEASURED_BATCH = 50_000
-LOG_AXIS = ("slip_time", "stick_time", "period")  # positive durations: plotted on a log axis
 
 
 @dataclasses.dataclass(frozen=True)
@@ -82,7 +83,7 @@ class GoodnessOfFit:
       the fitted model's);
     - `p_value`: all observables at once (the smallest of `p_values`, calibrated over the
       same replicates); equal to the single one when there is one;
-    - `statistics`: `{observable: A^2}`, the data's Anderson-Darling distance;
+    - `statistics`: `{observable: T}`, the data's statistic (`statistic`: which one);
     - `replicates`: `{observable: array}`, the statistic of each simulated replicate;
     - `warnings`: what was said (a rejection, a p-value floor above 0.01);
     - `method`: what was done, in words.
@@ -97,6 +98,7 @@ class GoodnessOfFit:
     n_rep: int
     data: dict[str, np.ndarray] = dataclasses.field(repr=False)
     reference: dict[str, np.ndarray] = dataclasses.field(repr=False)
+    statistic: Statistic = dataclasses.field(default_factory=AndersonDarling)
 
     @property
     def rejected(self) -> bool:
@@ -106,7 +108,7 @@ class GoodnessOfFit:
     def summary(self) -> str:
         lines = [self.method]
         for k, p in self.p_values.items():
-            lines.append(f"  {k}: A^2 = {self.statistics[k]:.3g}, p = {p:.3g}")
+            lines.append(f"  {k}: {self.statistic.symbol} = {self.statistics[k]:.3g}, p = {p:.3g}")
         if len(self.p_values) > 1:
             lines.append(f"  all at once: p = {self.p_value:.3g}")
         lines += [f"  warning: {w}" for w in self.warnings]
@@ -127,7 +129,7 @@ class GoodnessOfFit:
         fig, axes = plt.subplots(2, len(kinds), figsize=(3.8 * len(kinds), 6.0), squeeze=False)
         for j, k in enumerate(kinds):
             x, ref = self.data[k], self.reference[k]
-            log = k in LOG_AXIS
+            log = get(k).positive  # a positive duration: on a log axis
             xp, rp = (x[x > 0], ref[ref > 0]) if log else (x, ref)
             zeros = ""
             if log and (x.size > xp.size or ref.size > rp.size):
@@ -168,6 +170,7 @@ def goodness_of_fit(
     seed: int = 1,
     refit: bool = False,
     n_ref: int | None = None,
+    statistic: Statistic | None = None,
 ) -> GoodnessOfFit:
     r"""Test a fitted model against its data: a simulation-calibrated p-value per observable.
 
@@ -183,6 +186,9 @@ def goodness_of_fit(
     - `n_ref`: cycles of the reference samples that stand for the model's distribution
       (default: the larger of the fit's `n_sim` and 20 times the data's size; 5 times for
       a fit through a measurement, whose cycles cost ~40 times more).
+    - `statistic`: the distance from uniform of the data's probability integral transform
+      (a `Statistic`: `AndersonDarling()`, the default, `CramerVonMises()`,
+      `KolmogorovSmirnov()` or a subclass of your own).
 
     Warns ("the data reject the model: ...") when a p-value is below 0.01.
 
@@ -199,6 +205,12 @@ def goodness_of_fit(
         raise ParameterError(owner, "seed", "must be < 2**63", seed)
     if not isinstance(refit, (bool, np.bool_)):
         raise ParameterError(owner, "refit", "must be True or False", refit)
+    statistic = AndersonDarling() if statistic is None else statistic
+    if not isinstance(statistic, Statistic):
+        raise ParameterError(
+            owner, "statistic", "must be a Statistic (AndersonDarling(), CramerVonMises(), "
+            "KolmogorovSmirnov() or a subclass)", type(statistic),
+        )  # fmt: skip
     d = result.diagnostics
     if d.get("runs"):
         raise ParameterError(
@@ -220,7 +232,7 @@ def goodness_of_fit(
     # the reference samples: at the estimate, and one step either side along each free axis
     reference = {k: _sorted(v) for k, v in setting.simulate(setting.u_hat, n_ref, ref_seed).items()}
     shifted = None if refit else setting.shifted_references(n_ref, ref_seed)
-    observed = {k: _anderson_darling(_pit(data[k], [reference[k]], [1.0], rng)) for k in kinds}
+    observed = {k: statistic(_pit(data[k], [reference[k]], [1.0], rng)) for k in kinds}
 
     reps = _replicates(setting, n, n_rep, int(rng.integers(2**62)))
     stats = {k: np.empty(n_rep) for k in kinds}
@@ -229,7 +241,7 @@ def goodness_of_fit(
             u_star = setting.refit(rep, seed=int(rng.integers(2**62)))
             ref = setting.simulate(u_star, n_ref, ref_seed)
             for k in kinds:
-                stats[k][r] = _anderson_darling(_pit(rep[k], [_sorted(ref[k])], [1.0], rng))
+                stats[k][r] = statistic(_pit(rep[k], [_sorted(ref[k])], [1.0], rng))
     else:
         newton = setting.newton()
         p = len(setting.names)
@@ -266,7 +278,7 @@ def goodness_of_fit(
                     c = du[j] / step
                     samples += [plus[k], minus[k]]
                     weights += [c, -c]
-                stats[k][r] = _anderson_darling(_pit(rep[k], samples, weights, rng))
+                stats[k][r] = statistic(_pit(rep[k], samples, weights, rng))
 
     p_values = {k: float((1 + np.sum(stats[k] >= observed[k])) / (1 + n_rep)) for k in kinds}
     p_value = _joint_p(observed, stats, p_values) if len(kinds) > 1 else p_values[kinds[0]]
@@ -276,7 +288,7 @@ def goodness_of_fit(
         else "the fit's estimator linearised at the estimate, plus its simulation noise"
     )
     method = (
-        f"Anderson-Darling distance of the randomised probability integral transform through "
+        f"{statistic.name} of the randomised probability integral transform through "
         f"the fitted model ({n_ref} reference cycles), against {n_rep} parametric-bootstrap "
         f"replicates of {n} cycles simulated at the estimate ({how})"
     )
@@ -302,6 +314,7 @@ def goodness_of_fit(
     return GoodnessOfFit(
         p_values=p_values, p_value=float(p_value), statistics=observed, replicates=stats,
         warnings=said, method=method, n_rep=n_rep, data=data, reference=reference,
+        statistic=statistic,
     )  # fmt: skip
 
 
@@ -562,13 +575,6 @@ def _pit(x, samples, weights, rng) -> np.ndarray:
     u = below + rng.random(x.size) * (upto - below)
     m = samples[0].size
     return np.clip(u, 0.5 / m, 1 - 0.5 / m)
-
-
-def _anderson_darling(u) -> float:
-    u = np.sort(u)
-    n = u.size
-    i = np.arange(1, n + 1)
-    return float(-n - np.sum((2 * i - 1) * (np.log(u) + np.log1p(-u[::-1]))) / n)
 
 
 def _joint_p(observed, stats, p_values) -> float:

@@ -23,6 +23,7 @@ def load_fit(path):
     from .measurement import Measurement
     from .params import ToFit
     from .result import FitResult
+    from .statistics import saved_statistic
 
     path = pathlib.Path(path)
     try:
@@ -60,6 +61,7 @@ def load_fit(path):
     if goodness is not None:
         for key in ("replicates", "data", "reference"):
             goodness[key] = {k: np.asarray(v, float) for k, v in goodness[key].items()}
+        goodness["statistic"] = saved_statistic(goodness.get("statistic"))
         goodness = GoodnessOfFit(**goodness)
     return FitResult(
         estimate={k: float(v) for k, v in document["estimate"].items()},

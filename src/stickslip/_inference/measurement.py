@@ -45,10 +45,11 @@ from .._errors import (
     check_nonnegative,
     check_positive,
 )
+from ..quantities import names
 
 OWNER = "Measurement"
 SIGNALS = ("x", "v", "x and v", "force")
-CYCLE_COLUMNS = ("slip_time", "slip_distance", "stick_time", "period", "peak_force", "force_drop")
+CYCLE_COLUMNS = names("measurement")
 # The noise's own stream, far from the simulator's (which derives its keys from `seed` by
 # JAX's threefry): common random numbers across parameter values, independent of the paths.
 _NOISE_STREAM = 0x6D656173

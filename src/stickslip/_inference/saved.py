@@ -79,7 +79,7 @@ def save_fit(result, path) -> pathlib.Path:
         method=result.method, data=result.data,
         measurement=None if measurement is None else dataclasses.asdict(measurement),
         diagnostics=diagnostics, units=units,
-        goodness=None if result.goodness is None else dataclasses.asdict(result.goodness),
+        goodness=None if result.goodness is None else _goodness(result.goodness),
     )  # fmt: skip
     text = json.dumps(jsonable(document), indent=1)
     part = path.with_name(f".{path.name}.partial-{os.getpid()}")
@@ -89,6 +89,14 @@ def save_fit(result, path) -> pathlib.Path:
     finally:
         part.unlink(missing_ok=True)
     return path
+
+
+def _goodness(goodness) -> dict:
+    """A goodness of fit's fields, its statistic by class name, symbol and words."""
+    out = {f.name: getattr(goodness, f.name) for f in dataclasses.fields(goodness)}
+    s = goodness.statistic
+    out["statistic"] = dict(kind=type(s).__name__, name=s.name, symbol=s.symbol)
+    return out
 
 
 def _version() -> str:

@@ -37,7 +37,7 @@ from .load import StudyError
 MARKERS = {"stick-slip": ("^", "tab:red"), "oscillation": ("o", "tab:blue"),
            "steady sliding": ("s", "tab:green")}  # fmt: skip
 # the per-cycle quantities the table summarises (median and 10-90 % range)
-QUANTITIES = (("stick_time", "s"), ("slip_time", "s"), ("force_drop", "N"))
+QUANTITIES = ("stick_time", "slip_time", "force_drop")
 
 
 class _Base(BaseModel):
@@ -159,7 +159,7 @@ class Campaign:
                 name=s["name"], stiffness=s["stiffness"], v_b=s["v_b"], mass=s["mass"],
                 regime=run.regime, cycles=0 if run.cycles is None else len(run.cycles),
             )  # fmt: skip
-            for q, _ in QUANTITIES:
+            for q in QUANTITIES:
                 values = None if run.cycles is None else np.asarray(run.cycles[q], float)
                 for tag, p in (("median", 50), ("p10", 10), ("p90", 90)):
                     row[f"{q}_{tag}"] = (

@@ -27,6 +27,7 @@ import numpy as np
 import xarray as xr
 
 from .._estimate.estimator import cell_average
+from ..quantities import get as quantity
 from .measure import (
     EVENTS,
     THEORY_DENSITIES,
@@ -41,11 +42,10 @@ from .measure import (
 )
 from .schema import DENSITIES, Study
 
+# An axis's label and the dimension of its unit: the per-cycle quantities' from the
+# registry, then the crossing counts' and the chain's coordinates.
 LABELS = {
-    "slip_time": ("slip time $T_{sl}$", "time"),
-    "period": ("period $T = T_{sl} + T_{st}$", "time"),
-    "slip_distance": ("slip distance $d = x_0 - x_{sl}$", "length"),
-    "stick_time": ("stick time $T_{st}$", "time"),
+    **{q: (quantity(q).label, quantity(q).dimension) for q in DENSITIES},
     "n1_time": ("time since slip onset $t$", "time"),
     "n2_t1": ("first time $t_1$", "time"),
     "n2_t2": ("second time $t_2$", "time"),

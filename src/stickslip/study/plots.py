@@ -19,6 +19,7 @@ import pathlib
 
 import numpy as np
 
+from ..quantities import QUANTITIES
 from .dataset import LABELS, units_of
 from .schema import Study
 
@@ -42,8 +43,7 @@ def _axis_label(ds, coord, model) -> str:
 def _density_label(ds, coord, model) -> str:
     kind = LABELS[coord][1]
     unit = units_of(model, kind)
-    sym = {"slip_time": "T_{sl}", "period": "T", "slip_distance": "d", "stick_time": "T_{st}"}
-    s = sym.get(coord)
+    s = QUANTITIES[coord].symbol if coord in QUANTITIES else None
     head = f"density $p({s})$" if s else "density"
     return f"{head} [1/{unit}]" if kind != "blocks" else head
 
