@@ -30,9 +30,9 @@ def _one_line(err):
 
 @pytest.fixture
 def memory_limit(monkeypatch):
-    """A fixed memory limit (64 GB), so that the refusals do not depend on the machine."""
-    monkeypatch.setenv("STICKSLIP_MEMORY_LIMIT", "64e9")
-    return 64e9
+    """A fixed memory limit (64 GiB), so that the refusals do not depend on the machine."""
+    monkeypatch.setenv("STICKSLIP_MEMORY_LIMIT", str(64 * 2**30))
+    return 64 * 2**30
 
 
 # -- 1. degenerate and overflowing models, refused where they are built ------------------------
@@ -121,15 +121,15 @@ def test_simulate_too_many_paths_refused(memory_limit):
         ss.simulate(Langevin(**BASE), 2**32 - 1, 0.1, 10.0)
     text = _one_line(info.value)
     # 2**32 paths of 3 states need over a terabyte; the figure and the limit are named
-    gb = float(text.split("needs about ")[1].split(" GB")[0])
-    assert gb > 2**32 * 3 * 8 * 3 / 1e9
-    assert "limit of 64 GB" in text
+    gib = float(text.split("needs about ")[1].split(" GiB")[0])
+    assert gib > 2**32 * 3 * 8 * 3 / 2**30
+    assert "limit of 64 GiB" in text
 
 
 def test_simulate_chain_too_many_paths_refused(memory_limit):
     m = BurridgeKnopoff(4, k_c=1.0, k_p=1.0, v_b=0.1, friction="velocity-weakening",
                         friction_params=VW)  # fmt: skip
-    with pytest.raises(ResourceError, match=r"needs about [0-9.e+]+ GB, past the limit of 64 GB"):
+    with pytest.raises(ResourceError, match=r"needs about [0-9.e+]+ GiB, past the limit of 64 GiB"):
         ss.simulate_chain(m, 10**12, 0.01, 10.0)
 
 

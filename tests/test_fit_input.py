@@ -138,7 +138,7 @@ def test_memory_limit_boundary(monkeypatch):
     """The estimate is linear in n_sim: at the limit it passes (and the constant data are
     what is refused next), one cycle above it it is refused."""
     per_cycle = params.SIM_BYTES_PER_STATE * 3  # langevin: x, v, eta
-    monkeypatch.setattr(params, "_memory_limit", lambda: 5000 * per_cycle)
+    monkeypatch.setenv("STICKSLIP_MEMORY_LIMIT", str(5000 * per_cycle))
     refused(ss.DataError, {"slip_time": np.ones(20)}, n_sim=5000)
     text = refused(ss.ResourceError, {"slip_time": np.ones(20)}, n_sim=5001)
     assert "take at most 5e+03" in text
@@ -300,7 +300,7 @@ def test_cli_non_finite_rows_are_reported_with_their_lines(tmp_path):
 
 def test_cli_a_byte_order_mark_reaches_the_fit(tmp_path, monkeypatch):
     """The marked file is read (the fit then refuses an n_sim past the memory limit)."""
-    monkeypatch.setattr(params, "_memory_limit", lambda: 2**30)
+    monkeypatch.setenv("STICKSLIP_MEMORY_LIMIT", str(2**30))
     csv = write_csv(tmp_path / "cycles.csv", GOOD, prefix="\ufeff")
     study(tmp_path, n_sim=10**9)
     line = fit_command(tmp_path, csv)

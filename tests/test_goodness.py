@@ -185,7 +185,7 @@ def test_bad_arguments_are_one_line_naming_the_field(monkeypatch):
     with pytest.warns(UserWarning, match="no p-value is below 0.01: take n_rep >= 100"):
         goodness_of_fit(r, n_rep=99, seed=3)
     # 10^6 replicates of 300 cycles are 2.24 GiB of values: refused before any is simulated
-    monkeypatch.setattr("stickslip._inference.goodness._memory_limit", lambda: 2**30)
+    monkeypatch.setenv("STICKSLIP_MEMORY_LIMIT", str(2**30))
     with pytest.raises(ss.ResourceError, match="'n_rep' needs about 2.24 GiB, past the limit"):
         goodness_of_fit(r, n_rep=10**6)
 

@@ -238,7 +238,7 @@ class CrossingEstimator:
         eight of them at once."""
         if not isinstance(self._source, GaussianSource):
             return
-        from .._simulate.driver import check_memory
+        from .._memory import check_memory
 
         n = math.ceil(t_end / self.dt - 1e-9) + 1
         n_grid = max(8192, 1 << (n - 1).bit_length())  # (`GaussianSource.grid`'s length)

@@ -45,13 +45,14 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import DataError, ParameterError, ResourceError, check_int
+from .._errors import DataError, ParameterError, check_int
+from .._memory import check_memory
 from ..quantities import get
 from .data import _transform
 from .forward import _simulate
 from .intervals import concave
 from .likelihood import KDE_BINS, _density_table, _log_density_at
-from .params import SIM_BYTES_PER_STATE, _from_fit, _memory_limit, _to_fit, model_kwargs
+from .params import SIM_BYTES_PER_STATE, _from_fit, _to_fit, model_kwargs
 from .statistics import AndersonDarling, Statistic
 
 ALPHA = 0.01  # below this p-value the data reject the model (the issue's verdict level)
@@ -502,19 +503,12 @@ class _Setting:
 def _check_memory(setting: _Setting, n: int, n_rep: int, n_ref: int) -> None:
     """The replicates (8 B a value, a column each, held at once) and one reference
     simulation (the fit's 160 B a cycle and state component) against the fit's limit."""
-    limit = _memory_limit()
     dim = setting.model(setting.u_hat).state_dim
     for name, value, need in (
         ("n_rep", n_rep, 8 * n * n_rep * len(setting.kinds)),
         ("n_ref", n_ref, SIM_BYTES_PER_STATE * dim * n_ref),
     ):
-        if need > limit:
-            raise ResourceError(
-                f"goodness_of_fit: parameter '{name}' needs about {need / 2**30:.3g} GiB, past "
-                f"the limit of {limit / 2**30:.3g} GiB (half this machine's memory, or "
-                f"STICKSLIP_MEMORY_LIMIT): take fewer "
-                f"(got {value})"
-            )
+        check_memory("goodness_of_fit", f"parameter '{name}'", need, f"take fewer (got {value})")
 
 
 def _replicates(setting: _Setting, n: int, n_rep: int, seed: int) -> list[dict]:

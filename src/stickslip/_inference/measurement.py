@@ -441,7 +441,7 @@ def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
 
 def _check_trace(owner: str, duration: float, n_cycles: int, h: float) -> None:
     """The memory check of a trace of this total `duration`, sampled every `h`."""
-    from .._simulate.driver import check_memory
+    from .._memory import check_memory
 
     check_memory(
         owner, f"a trace of {duration / h:.3g} samples ({n_cycles} cycles at an interval of "

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from .._errors import ParameterError, ResourceError
+from .._memory import memory_limit, past_limit
 from .data import _refuse
 
 # Peak memory of one evaluation, per simulated cycle and state component: measured 475 B a
@@ -144,28 +145,16 @@ def _check_box(Model, fixed, free, centre: dict):
     return built
 
 
-def _memory_limit() -> int:
-    """The simulator's memory limit (`driver.memory_limit`: half this machine's memory, or
-    `STICKSLIP_MEMORY_LIMIT`), so that a fit and a plain simulation refuse alike."""
-    from .._simulate.driver import memory_limit
-
-    return int(memory_limit())
-
-
 def _check_memory(n_sim: int, model) -> None:
-    need = n_sim * SIM_BYTES_PER_STATE * model.state_dim
-    limit = _memory_limit()
-    if need > limit:
+    """The simulator's memory limit (`stickslip`'s one: half this machine's memory, or
+    `STICKSLIP_MEMORY_LIMIT`), so that a fit and a plain simulation refuse alike."""
+    per_cycle = SIM_BYTES_PER_STATE * model.state_dim
+    words = past_limit(n_sim * per_cycle, f" per evaluated point ({per_cycle} B a simulated cycle)")
+    if words is not None:
         raise _refuse(
-            ResourceError,
-            "n_sim",
-            f"needs about {need / 2**30:.3g} GiB per evaluated point "
-            f"({SIM_BYTES_PER_STATE * model.state_dim} B a simulated cycle), past the limit of "
-            f"{limit / 2**30:.3g} GiB (half this machine's memory, or STICKSLIP_MEMORY_LIMIT): "
-            f"take at most "
-            f"{limit // (need // n_sim):.3g}",
+            ResourceError, "n_sim", f"{words}: take at most {memory_limit() // per_cycle:.3g}",
             n_sim,
-        )
+        )  # fmt: skip
     if n_sim > MAX_SIM_PATHS:
         raise ParameterError(
             "fit", "n_sim", "must be < 2**32 (the simulator numbers its paths with 32 bits)", n_sim

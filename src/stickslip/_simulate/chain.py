@@ -50,8 +50,8 @@ import numpy as np
 from .. import _compile, _rng
 from .._errors import ParameterError, check_int, check_positive
 from .._jax import jax, jnp
+from .._memory import check_memory
 from .._model import ChainModel, _to_arrays
-from .driver import check_memory
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

@@ -16,9 +16,10 @@ import numpy as np
 from .. import _background, _compile, _rng
 from .._errors import ParameterError, check_int
 from .._jax import jnp
+from .._memory import check_memory
 from .._model import CreepingSlider, FrictionModel
 from .._model_check import explain
-from .driver import _next_pow2, _Run, _validate, _zeros, check_memory
+from .driver import _next_pow2, _Run, _validate, _zeros
 from .hybrid import INACTIVE, SLIPPING
 from .loop import solve
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-import os
 import sys
 import threading
 import time
@@ -16,8 +15,9 @@ import equinox as eqx
 import numpy as np
 
 from .. import _background, _compile, _rng
-from .._errors import ParameterError, ResourceError, check_choice, check_int, check_positive
+from .._errors import ParameterError, check_choice, check_int, check_positive
 from .._jax import jax, jnp
+from .._memory import check_memory
 from .._model import CreepingSlider, FrictionModel, LinearGaussian, _to_arrays
 from .._model_check import check_shapes, explain, structure_key, warn_nonfinite
 from .._solver import EulerMaruyama, ExactGaussian
@@ -53,8 +53,6 @@ _LOOP_NODES = 2  # the stepping loop's solver: it never interpolates (see `_Run`
 
 
 # -- limits stated up front ------------------------------------------------------------------
-MEMORY_FRACTION = 0.5  # of this machine's physical memory: the default memory limit of a run
-MEMORY_FALLBACK = 8e9  # where the physical memory cannot be read (bytes)
 # Time scales: `rho` is the slip's fastest rate, max |eig(A)|. Past SCALE_REFUSE = pi 2**20
 # (dt rho), the finest level of the stick's location (dt / 2**MAX_DEPTH) is longer than the
 # slip's time scale pi/rho itself, and the step's propagators have lost their precision
@@ -74,42 +72,6 @@ SCALE_WARN = 0.1 * SCALE_REFUSE
 #   the state, Phi - I ~ A dt, keeps fewer than half of float64's digits (at dt rho = 1e-16
 #   it is lost in the rounding of v to v_b, and every path sticks in its first step).
 SCALE_FINE = math.sqrt(np.finfo(np.float64).eps)  # 1.5e-8
-
-
-def memory_limit() -> float:
-    """Bytes a run may use: `STICKSLIP_MEMORY_LIMIT` (bytes) if set, else `MEMORY_FRACTION`
-    of the machine's physical memory."""
-    env = os.environ.get("STICKSLIP_MEMORY_LIMIT")
-    if env:
-        try:
-            value = float(env)
-        except ValueError:
-            value = math.nan
-        if not (math.isfinite(value) and value > 0):
-            raise ParameterError(
-                "environment", "STICKSLIP_MEMORY_LIMIT", "must be a number of bytes > 0", env
-            )
-        return value
-    try:
-        return MEMORY_FRACTION * os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (ValueError, OSError, AttributeError):  # not a POSIX system
-        return MEMORY_FALLBACK
-
-
-def check_memory(owner: str, what: str, nbytes: float, advice: str) -> None:
-    """Refuse, before anything is allocated, a request estimated at `nbytes` past
-    `memory_limit()`, with the figure and the limit."""
-    limit = memory_limit()
-    if nbytes > limit:
-        source = (
-            "STICKSLIP_MEMORY_LIMIT"
-            if os.environ.get("STICKSLIP_MEMORY_LIMIT")
-            else f"{MEMORY_FRACTION:g} of this machine's memory; STICKSLIP_MEMORY_LIMIT sets it"
-        )
-        raise ResourceError(
-            f"{owner}: {what} needs about {nbytes / 1e9:.3g} GB, past the limit of "
-            f"{limit / 1e9:.3g} GB ({source}): {advice}"
-        )
 
 
 def _round_up(x: float) -> float:

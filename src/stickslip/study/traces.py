@@ -33,7 +33,7 @@ def read_trace(path: str, wanted) -> dict:
     # (the parser holds the array and about as much again while it grows it)
     nbytes = 2.0 * 8 * rows * len(names)
     if nbytes > 1e8:
-        from .._simulate.driver import check_memory
+        from .._memory import check_memory
 
         check_memory(path, f"its {rows} rows of {len(names)} values", nbytes,
                      "read a part of the trace")  # fmt: skip
