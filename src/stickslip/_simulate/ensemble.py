@@ -76,15 +76,18 @@ class Ensemble:
         se = float(np.std(x, ddof=1) / np.sqrt(x.size)) if x.size > 1 else float("nan")
         return float(np.mean(x)), se
 
-    def histogram(self, name: str, bins, *, density: bool = True):
+    def histogram(self, name: str, bins, *, density: bool = True, immediate: bool = True):
         """Histogram of an output over the paths that stuck, and its standard errors.
 
-        With `density=True` the values integrate to the fraction of paths counted, so that
-        they compare directly with a (possibly defective) first-passage density.
+        With `density=True` the values integrate to the fraction of paths counted (of all
+        paths), so that they compare directly with a (possibly defective) first-passage
+        density. `immediate=False` leaves out the paths that stuck at once (slips of zero
+        length): what a density's continuous part is compared with.
 
         **Returns:** `(values, standard_errors, edges)`.
         """
-        x = np.asarray(getattr(self, name))[self.stuck]
+        keep = self.stuck if immediate else self.stuck & ~self.immediate
+        x = np.asarray(getattr(self, name))[keep]
         if np.ndim(bins) == 1:  # given edges
             edges = np.asarray(bins, dtype=float)
             counts = _histogram.counts(x, edges)

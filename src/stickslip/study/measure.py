@@ -185,14 +185,8 @@ def cell_average_2d(f, edges, k: int = 2):
 def mc_density(point: Point, q: str, edges: np.ndarray):
     """Histogram of the simulated slips of non-zero length, normalised by all paths (so it
     compares with the theory's continuous part), and its standard errors."""
-    ens = point.ensemble
-    x = np.asarray(getattr(ens, q))
-    keep = ens.stuck & ~ens.immediate & np.isfinite(x)
-    counts, _ = np.histogram(x[keep], bins=edges)
-    n = ens.n_paths
-    p = counts / n
-    width = np.diff(edges)
-    return p / width, np.sqrt(p * (1 - p) / n) / width
+    value, se, _ = point.ensemble.histogram(q, edges, immediate=False)
+    return value, se
 
 
 def mc_n1(point: Point, edges: np.ndarray):
