@@ -71,7 +71,7 @@ def test_a_longer_run_records_on_a_compiled_size(series, Langevin, monkeypatch, 
         np.testing.assert_array_equal(X2[:n], X[:n])
     # The search itself, on a run whose recording solve is compiled at the sizes given.
     root = _rng.stream_key(_rng.seed_key(0), _rng.SERIES)
-    run = driver._Run("simulate_cycles", Langevin(**PUBLIC), "auto", "continuous", 0.005,
+    run = driver.HostRun("simulate_cycles", Langevin(**PUBLIC), "auto", "continuous", 0.005,
                       300.0, root)  # fmt: skip
 
     class Compiled:

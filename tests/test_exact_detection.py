@@ -111,15 +111,15 @@ def test_detector_choice(Langevin):
         (base | {"tau": None}, {}, "brownian"),
         (base, {"monitor": "grid"}, "grid"),
     ]
-    # The choice is made when a run is set up (`_Run`: no simulation, nothing compiled for
+    # The choice is made when a run is set up (`HostRun`: no simulation, nothing compiled for
     # the four other detectors, each a program of its own); the first case runs, and says
     # it in the ensemble's `info`.
     from stickslip._rng import seed_key
-    from stickslip._simulate.driver import _Run
+    from stickslip._simulate.driver import HostRun
 
     for params, kwargs, detector in cases:
         model = Langevin(**params)
-        run = _Run("simulate", model, kwargs.get("solver", "auto"),
+        run = HostRun("simulate", model, kwargs.get("solver", "auto"),
                    kwargs.get("monitor", "continuous"), 0.05, 5.0, seed_key(1))  # fmt: skip
         assert run.info(model)["detector"] == detector, (params, kwargs)
     ens = ss.simulate(Langevin(**base), 200, 0.05, 5.0, seed=1)
@@ -306,13 +306,13 @@ def test_compiled_refinement_is_the_depth_first_one(Langevin, dt, monkeypatch):
     sums the bounds of halves that a crossing found later, at a deeper level, places after
     the stick. The run's own candidates are mostly decided within a level or two, so the
     same candidates are refined again moved just below the level, where their halves stay
-    open level after level and outgrow their buffer (`_GROW`)."""
+    open level after level and outgrow their buffer (`GROW`)."""
     from stickslip._simulate import driver
 
     monkeypatch.setattr(bridge, "CAPACITIES", (256, 512))
     monkeypatch.setattr(bridge, "BATCH", 256)
     model = Langevin(**PUBLIC)
-    run = driver._Run("test", driver._to_arrays(model), "auto", "continuous", dt, 30.0,
+    run = driver.HostRun("test", driver._to_arrays(model), "auto", "continuous", dt, 30.0,
                       ss._rng.seed_key(5))  # fmt: skip
     got, statuses = [], []
     original, call = bridge.Refiner.first_crossing, bridge.Refiner._call
@@ -335,7 +335,7 @@ def test_compiled_refinement_is_the_depth_first_one(Langevin, dt, monkeypatch):
     for X in near:
         X[1] = PUBLIC["v_b"] * (1 - 1e-5)  # v, the crossing variable
     run.refiner().first_crossing(*near, path, step)  # (through the spy: checked below)
-    assert {bridge._GROW, bridge._SHRINK, bridge._DONE} <= set(statuses), set(statuses)
+    assert {bridge.GROW, bridge.SHRINK, bridge.DONE} <= set(statuses), set(statuses)
     T = run.solver.bridge
     levels = [jax.tree_util.tree_map(lambda x, j=j: np.asarray(x)[..., j : j + 1], T)
               for j in range(bridge.MAX_DEPTH + 1)]  # fmt: skip
@@ -397,7 +397,7 @@ def test_stepped_past_candidates_are_settled_in_step_order(Langevin, monkeypatch
     the stepping bound at the stick plus the refinements of the candidates up to it."""
     from stickslip._simulate import driver
 
-    run = driver._Run("test", driver._to_arrays(Langevin(**PUBLIC)), "exact", "continuous",
+    run = driver.HostRun("test", driver._to_arrays(Langevin(**PUBLIC)), "exact", "continuous",
                       0.5, 30.0, ss._rng.seed_key(1))  # fmt: skip
     below, above = np.array([[0.5], [0.9], [0.0]]), np.array([[0.4], [1.0], [0.0]])
     # Path rows 0 and 1. Row 0: steps 2 (crossing found at 0.25), 5; row 1: steps 3, 4
@@ -437,7 +437,7 @@ def test_refinement_in_two_threads_is_the_one_thread_one(Langevin, monkeypatch):
     # stands in for them)
     monkeypatch.setattr(_compile, "STAND_IN", 0)
     model = Langevin(**PUBLIC)
-    run = driver._Run("test", driver._to_arrays(model), "auto", "continuous", 0.8, 30.0,
+    run = driver.HostRun("test", driver._to_arrays(model), "auto", "continuous", 0.8, 30.0,
                       ss._rng.seed_key(7))  # fmt: skip
     got = []
     original = bridge.Refiner.first_crossing

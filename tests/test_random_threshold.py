@@ -72,10 +72,10 @@ def test_every_law_steps_on_the_plain_models_compiled_loop(RandomThreshold, Lang
     keys); only the release differs. That the numbers are the same: the zero-spread test
     above (bit for bit) and the slip-phase methods (here and in the model contract)."""
     from stickslip._rng import seed_key
-    from stickslip._simulate.driver import _Run
+    from stickslip._simulate.driver import HostRun
 
     def run(model):
-        return _Run("simulate", model, "auto", "continuous", 0.2, 20.0, seed_key(0))
+        return HostRun("simulate", model, "auto", "continuous", 0.2, 20.0, seed_key(0))
 
     for tau in (0.1, None):
         base = BASE | {"tau": tau}

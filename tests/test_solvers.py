@@ -216,7 +216,7 @@ print(json.dumps(dict(info=ss.cache_info(), digests=[hashlib.sha256(np.nan_to_nu
 def test_noise_drawn_in_the_step_or_carried_gives_the_same_ensembles(tmp_path):
     """On a CPU the slip solvers and the refinement draw their noise where it is used, in a
     branch of their own; on other backends a step (or a level) ahead, carried in the loop
-    (`AbstractSlipSolver.control`, `bridge._refine_levels`). Both are keyed by path, step
+    (`AbstractSlipSolver.control`, `bridge.refine_levels`). Both are keyed by path, step
     and tree node, so the ensembles are the same to the last bit: the carried paths are
     checked here by tracing them on the CPU (a new process each, a cache of its own, no
     shipped traces: those hold the CPU's paths)."""

@@ -706,7 +706,7 @@ def _environment(sources: bool = True) -> str:
 _UNTRACED = (
     "study", "cli", "_inference", "_extract", "selection.py", "stability.py",
     "__init__.py", "extract.py", "units.py", "_background.py", "_output.py", "_ship.py",
-    "_cpu.py", "_cache.py", "_model_check.py",
+    "_cpu.py", "_cache.py", "_model_check.py", "quantities.py",
 )  # fmt: skip
 
 

@@ -313,8 +313,8 @@ def _unpack(rows, j, layout):
     return jax.tree_util.tree_unflatten(treedef, out)
 
 
-# Status of a refinement call (`_refine_levels`).
-_GO, _DONE, _SHRINK, _GROW = 0, 1, 2, 3
+# Status of a refinement call (`refine_levels`).
+GO, DONE, SHRINK, GROW = 0, 1, 2, 3
 # Interval buffers of a refinement call. Each is a compilation (about 2 s on 2 cores), so the
 # small ones, where a pass costs little whatever its size, are few (1024 holds the tails of
 # small batches: without it those passes ran at 0.18 occupancy in 4096, 5 % of a run; a
@@ -333,7 +333,7 @@ HEADROOM = 1.25  # a buffer is chosen for this many times its open intervals
 COLD_CAPACITY = 4096
 
 
-def _refine_levels(
+def refine_levels(
     rows_t, j0, depths, level, tol, key, shrink_at, keyed, a, b, owner, pos, k0, k1, count, layout
 ):
     """Refine the open intervals of one tree level after another, inside one compiled call.
@@ -347,9 +347,9 @@ def _refine_levels(
     the candidate's key), decides each half as
     `Refiner.first_crossing` describes, and compacts the halves still open into the buffer,
     in order. Passes run from level `j0` while at least `shrink_at` intervals are open. The
-    call returns to the host when the refinement is done (`_DONE`), when fewer are open
-    (`_SHRINK`: a smaller buffer is cheaper), or when the next level would
-    overflow the buffer (`_GROW`: that level is left undone). It returns the buffer and,
+    call returns to the host when the refinement is done (`DONE`), when fewer are open
+    (`SHRINK`: a smaller buffer is cheaper), or when the next level would
+    overflow the buffer (`GROW`: that level is left undone). It returns the buffer and,
     per owner, what its passes found: `found`, `frac` (fraction of the step), `state`,
     `unresolved` and the summed bounds of its certified halves (`miss`); and the number of
     intervals split.
@@ -473,28 +473,28 @@ def _refine_levels(
         )  # fmt: skip
         status = jnp.where(
             (j + 1 >= certify) | (total == 0),
-            _DONE,
-            jnp.where(total < shrink_at, _SHRINK, _GO),
+            DONE,
+            jnp.where(total < shrink_at, SHRINK, GO),
         )
         grow = total > C
         kept = jax.tree_util.tree_map(lambda n, o: jnp.where(grow, o, n), new, carry[:-1])
-        return kept + (jnp.where(grow, _GROW, status),)
+        return kept + (jnp.where(grow, GROW, status),)
 
     zeros = jnp.zeros(C)
     k0, k1 = jax.lax.cond(keyed > 0, lambda: (k0, k1), lambda: _rng.candidate_key(key, k0, k1))
     init = (
         j0, a, b, owner, pos, k0, k1, count,
         jnp.zeros(C, bool), zeros, jnp.zeros_like(a), zeros, jnp.zeros(C, bool),
-        jnp.zeros((), count.dtype), draw(j0, pos, k0, k1) if carried else (), jnp.asarray(_GO),
+        jnp.zeros((), count.dtype), draw(j0, pos, k0, k1) if carried else (), jnp.asarray(GO),
     )  # fmt: skip
-    out = jax.lax.while_loop(lambda c: c[-1] == _GO, one_level, init)
+    out = jax.lax.while_loop(lambda c: c[-1] == GO, one_level, init)
     return out[:-2] + out[-1:]  # (the carried noise, if any, stays inside)
 
 
-_PACKED: collections.OrderedDict = collections.OrderedDict()  # `_packed`, by tables
+_PACKED: collections.OrderedDict = collections.OrderedDict()  # `packed`, by tables
 
 
-def _packed(tables: BridgeTables):
+def packed(tables: BridgeTables):
     """`level_tables(tables)`, transposed `(K, J)` (J is never a capacity) and on the device,
     with its layout: kept for the tables of the last few runs (the simulator's solver, and
     with it its tables, is one object for the runs of one model and step; ~0.5 ms a run)."""
@@ -560,11 +560,11 @@ os.register_at_fork(after_in_child=_pool.cache_clear)
 
 class Refiner:
     """The exact refinement of one run (its tables, level, tolerance, depths and key):
-    `first_crossing` on the host, `_refine_levels` compiled once per buffer capacity (traced
+    `first_crossing` on the host, `refine_levels` compiled once per buffer capacity (traced
     once for all of them, `_compile`, path axis symbolic)."""
 
     def __init__(self, tables: BridgeTables, level, key, depths, tol, timer=None):
-        rows_t, self.layout = _packed(tables)
+        rows_t, self.layout = packed(tables)
         # The arguments every call shares, on the device once (not copied at every call; the
         # tables of a model and step, and the small values, kept across runs by content).
         self.fixed = (rows_t,) + tuple(
@@ -642,7 +642,7 @@ class Refiner:
         for C in [c for c in CAPACITIES if c >= want] + [want]:
             if C in self.sizes or self._ready(C, d):
                 if C != want:
-                    _background.request(_refine_levels, *self._stand_ins(want, d), paths=want)
+                    _background.request(refine_levels, *self._stand_ins(want, d), paths=want)
                 return C
         return want
 
@@ -658,16 +658,16 @@ class Refiner:
         smaller = [C for C in sorted(self.sizes) if C < want]
         if not smaller or self._ready(want, d):
             return BATCH
-        _background.request(_refine_levels, *self._stand_ins(want, d), paths=want)
+        _background.request(refine_levels, *self._stand_ins(want, d), paths=want)
         return max(1, smaller[-1] * BATCH // CAPACITIES[-1])
 
     @property
     def _rent_key(self):
         """The refinement's rent key (`_compile.rent`): one for all its capacities."""
-        return (_refine_levels, self.layout)
+        return (refine_levels, self.layout)
 
     def _key(self, C: int):
-        return (_refine_levels, self.layout, C)
+        return (refine_levels, self.layout, C)
 
     def _stand_ins(self, C: int, d: int):
         zeros = lambda shape, dtype: np.broadcast_to(np.zeros((), dtype), shape)  # noqa: E731
@@ -686,9 +686,7 @@ class Refiner:
             if entry is not None:
                 self.sizes[C] = entry
                 return True
-            found = _compile.executable(
-                _refine_levels, *self._stand_ins(C, d), paths=C, build=build
-            )
+            found = _compile.executable(refine_levels, *self._stand_ins(C, d), paths=C, build=build)
             if found is None:
                 return False
             compiled, flat, _ = found
@@ -710,7 +708,7 @@ class Refiner:
 
                     def make():
                         compiled, flat, _ = _compile.executable(
-                            _refine_levels, *args, self.layout, timer=self.timer, paths=C
+                            refine_levels, *args, self.layout, timer=self.timer, paths=C
                         )
                         return compiled if flat else functools.partial(_tail, compiled, self.layout)
 
@@ -811,11 +809,11 @@ class Refiner:
                 miss[rows] += np.asarray(out[11])[:k]
                 unresolved[rows] |= np.asarray(out[12])[:k]
                 splits += int(out[13])
-                if status == _DONE:
+                if status == DONE:
                     break
                 # The open intervals are the first `count` slots of the returned buffer; on a
                 # smaller buffer the slots past them are left as they are (never read).
-                want = _capacity(2 * count if status == _GROW else HEADROOM * count)
+                want = _capacity(2 * count if status == GROW else HEADROOM * count)
                 C = self._choose(want, d)
                 buf = [np.asarray(x) for x in out[1:7]]
                 buf = [x[..., :C] if C <= x.shape[-1] else _padded(x, C - x.shape[-1])

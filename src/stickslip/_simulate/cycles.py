@@ -19,7 +19,7 @@ from .._jax import jnp
 from .._memory import check_memory
 from .._model import CreepingSlider, FrictionModel
 from .._model_check import explain
-from .driver import _next_pow2, _Run, _validate, _zeros
+from .driver import HostRun, next_pow2, stand_in, validate_args
 from .hybrid import INACTIVE, SLIPPING
 from .loop import solve
 
@@ -134,7 +134,7 @@ def simulate_cycles(
         return CycleSeries(
             out["cycles"], out["traces"], tuple(model.state_names), out["info"], out["stats"]
         )
-    n_paths, dt, t_max, seed, _ = _validate(
+    n_paths, dt, t_max, seed, _ = validate_args(
         "simulate_cycles", model, n_paths, dt, t_max, seed, solver, monitor, 1
     )
     if n_paths > 2 ** (32 - _CYCLE_BITS):
@@ -184,7 +184,7 @@ def counted_cycles(model: FrictionModel, n_paths: int, dt: float, horizon: float
     their keys), a model with memory one cycle a round. Not for a `CreepingSlider`.
     `check(table)`, where given, sees the cycles' table before their slips are recorded
     (a caller's refusal, e.g. of a trace past the memory limit, raised from it)."""
-    n_paths, dt, horizon, seed, _ = _validate(
+    n_paths, dt, horizon, seed, _ = validate_args(
         "simulate_cycles", model, n_paths, dt, horizon, seed, "auto", "continuous", 1
     )
     if not 1 <= count < 2**_CYCLE_BITS:  # (a slot's counter holds the cycle)
@@ -245,7 +245,7 @@ def prefetch_cycles(
     record: bool = True,
 ):
     """Start compiling, in a thread, the programs that `simulate_cycles` with these arguments
-    will start on (`_Run.prefetch`; with `record`, the recording solve for as many cycles as
+    will start on (`HostRun.prefetch`; with `record`, the recording solve for as many cycles as
     its first round runs), unless they are compiled already: a caller that runs other work
     first (a study: its ensemble) overlaps their compiling with it (XLA compiles without
     Python's lock). Returns the thread (join it before the `simulate_cycles` call, which
@@ -254,7 +254,7 @@ def prefetch_cycles(
     import threading
 
     try:
-        n_paths, dt, t_max, _, _ = _validate(
+        n_paths, dt, t_max, _, _ = validate_args(
             "simulate_cycles", model, n_paths, dt, t_max, 0, solver, monitor, 1
         )
     except Exception:  # (the call itself says why)
@@ -265,7 +265,9 @@ def prefetch_cycles(
     def build():
         with contextlib.suppress(Exception):  # (the call compiles them then, and says why)
             root = _rng.stream_key(_rng.seed_key(0), _rng.SERIES)
-            run = _Run("simulate_cycles", model, solver, monitor, dt, t_max, root, check_dt=False)
+            run = HostRun(
+                "simulate_cycles", model, solver, monitor, dt, t_max, root, check_dt=False
+            )
             run.prefetch(n_paths * _FIRST_BATCH)
             if record:
                 d = len(model.state_names)
@@ -279,7 +281,7 @@ def prefetch_cycles(
 def _cycles_block(model, dt, t_max, seed, opts, start, stop) -> dict:
     """`simulate_cycles` for the paths `start` .. `stop` - 1 (a task of a distributed run)."""
     root = _rng.stream_key(_rng.seed_key(seed), _rng.SERIES)
-    run = _Run("simulate_cycles", model, opts["solver"], opts["monitor"], dt, t_max, root)
+    run = HostRun("simulate_cycles", model, opts["solver"], opts["monitor"], dt, t_max, root)
     max_cycles = opts["max_cycles"]
     # `count` (`counted_cycles`): that many cycles a path, t_max the longest slip followed
     counted = opts["count"] is not None
@@ -294,7 +296,7 @@ def _cycles_block(model, dt, t_max, seed, opts, start, stop) -> dict:
     memory = bool(model.carries_state)
     first, batch = 0, (1 if memory else max_cycles if counted else _FIRST_BATCH)
     onsets = None  # (d, paths): where the next slips start (a model with memory)
-    nonfinite = 0  # cycles whose state left the finite numbers (`_Run.cycle_outputs`)
+    nonfinite = 0  # cycles whose state left the finite numbers (`HostRun.cycle_outputs`)
     while active.any() and first < max_cycles:
         count = min(batch, max_cycles - first)
         ids = np.nonzero(active)[0]
@@ -411,7 +413,7 @@ def _record_tail(run):
 
 def _record_specimen(run, d: int, m: int):
     """Stand-ins for `_record`'s arguments after its fixed ones, for `m` slots."""
-    return (_zeros((d, m)), _zeros(m), _zeros(m, np.uint32), _zeros(()), *_record_tail(run))
+    return (stand_in((d, m)), stand_in(m), stand_in(m, np.uint32), stand_in(()), *_record_tail(run))
 
 
 def _recorder(run) -> _compile.Fixed:
@@ -422,11 +424,11 @@ def _recorder(run) -> _compile.Fixed:
 def _record_size(run, fixed, d: int, count: int, most: int, build: bool = False) -> int:
     """The slots of a recording solve for `count` slips (at least 128; `most`: the memory
     bound): that size where it is compiled, else another size of the same program at hand
-    (`_Run._size_at_hand`: a larger one within the bound, padded, or a smaller one, in more
+    (`HostRun._size_at_hand`: a larger one within the bound, padded, or a smaller one, in more
     solves; each slot's noise is its own; the background compiler is asked for the size
     itself, as for the stepping loop), else that size (compiled then, or here with
     `build`)."""
-    want = max(_MIN_RECORD, _next_pow2(count))
+    want = max(_MIN_RECORD, next_pow2(count))
     specimen = functools.partial(_record_specimen, run, d)
     top = max(want, 1 << (most.bit_length() - 1))
     n = run._size_at_hand(fixed, specimen, want, top, smaller=True, ladder=_RECORD_LADDER)

@@ -1,6 +1,6 @@
 """The device scheduler: the first passages of a chunk of paths in one compiled program.
 
-The host scheduler (`driver._Run._chunk`) runs a chunk as a sequence of short compiled calls
+The host scheduler (`driver.HostRun._chunk`) runs a chunk as a sequence of short compiled calls
 with NumPy compaction, sorting and batch cutting in between: cheap on a CPU, where a call's
 results are zero-copy views, but on an accelerator every call and every read of a result is
 a wait (docs/performance.md, "On a GPU"). Here the whole chunk is one program:
@@ -16,7 +16,7 @@ a wait (docs/performance.md, "On a GPU"). Here the whole chunk is one program:
    before, as `driver._smaller_buffer` below `FINE_BUFFER`); once the paths left fit the
    next one, they are gathered into it.
 3. *Refinement*: when the queue cannot take another step's candidates, or no path is left,
-   the whole queue is refined by the bridge detector's level pass (`bridge._refine_levels`)
+   the whole queue is refined by the bridge detector's level pass (`bridge.refine_levels`)
    on a ladder of interval buffers (the open intervals are moved to a smaller buffer when
    they fit, with their owners renumbered; a larger one when a level would overflow).
 4. *Resolution*: each path's stick is in its earliest candidate (in step order) that holds a
@@ -52,7 +52,7 @@ FINE = 8192  # from here up the refinement has a ladder of buffers (`driver.FINE
 MIN_INTERVALS = 256  # smallest interval buffer of the refinement ladder (`bridge.CAPACITIES`)
 MAX_SIZES = 4  # buffers of a ladder (the smallest of a large chunk costs little on a device)
 LADDER = 8  # ratio of consecutive buffer sizes (as `driver._smaller_buffer` below FINE_BUFFER)
-# Refinement status of one span of the queue (besides `bridge._GO` and `bridge._DONE`): a level
+# Refinement status of one span of the queue (besides `bridge.GO` and `bridge.DONE`): a level
 # would overflow the largest interval buffer; the span is then refined in halves.
 _FAIL = 4
 _STATS = ("candidates", "refined_nodes", "unresolved", "path_steps", "refined_miss", "speculated")
@@ -99,7 +99,7 @@ def _step(model, solver, dt, step_key, X, k, p):
 
 
 def _refine_span(rows_t, depths, tol, key, layout, caps, level, queue, lo, n):
-    """Refine the queue's candidates `lo .. lo + n - 1` (`bridge._refine_levels` on the
+    """Refine the queue's candidates `lo .. lo + n - 1` (`bridge.refine_levels` on the
     interval buffers `caps`, largest first: the levels run on the smallest buffer that holds
     `bridge.HEADROOM` times their open intervals, on a larger one where a level would
     overflow it). Returns `(ok, found, frac, state, miss, unres, splits)`, per
@@ -137,7 +137,7 @@ def _refine_span(rows_t, depths, tol, key, layout, caps, level, queue, lo, n):
             local = jnp.cumsum(starts, dtype=jnp.int32) - 1
             who = jnp.zeros(Ci, jnp.int32).at[jnp.where(starts, local, Ci)].set(owner, mode="drop")
             n_owners = jnp.sum(starts, dtype=jnp.int32)
-            out = bridge._refine_levels(
+            out = bridge.refine_levels(
                 rows_t, j, depths, level, tol, key, jnp.int32(shrink), keyed, a, b,
                 jnp.where(valid, local, 0), pos, k0, k1, count, layout,
             )  # fmt: skip
@@ -159,11 +159,11 @@ def _refine_span(rows_t, depths, tol, key, layout, caps, level, queue, lo, n):
                 x.at[..., :Ci].set(y) for x, y in zip(buf, (a, b, owner, pos, k0, k1), strict=True)
             )
             # The next buffer: the smallest that holds `HEADROOM` times the open intervals,
-            # or twice them after a level overflowed (`_GROW`: it was left undone).
-            want = jnp.where(status == bridge._GROW, 2 * count, jnp.ceil(bridge.HEADROOM * count))
+            # or twice them after a level overflowed (`GROW`: it was left undone).
+            want = jnp.where(status == bridge.GROW, 2 * count, jnp.ceil(bridge.HEADROOM * count))
             fits = jnp.sum(caps_arr >= want, dtype=jnp.int32)
             state_ = jnp.where(
-                status == bridge._DONE, bridge._DONE, jnp.where(fits > 0, bridge._GO, _FAIL)
+                status == bridge.DONE, bridge.DONE, jnp.where(fits > 0, bridge.GO, _FAIL)
             ).astype(jnp.int32)
             return (j, jnp.int32(1), count, jnp.maximum(fits - 1, 0), state_, buf, res,
                     splits + split)  # fmt: skip
@@ -172,12 +172,12 @@ def _refine_span(rows_t, depths, tol, key, layout, caps, level, queue, lo, n):
 
     branches = [branch(i) for i in range(len(caps))]
     first = jnp.sum(caps_arr >= jnp.ceil(bridge.HEADROOM * n), dtype=jnp.int32) - 1
-    init = (jnp.int32(0), jnp.int32(0), n, jnp.maximum(first, 0), jnp.int32(bridge._GO), buf,
+    init = (jnp.int32(0), jnp.int32(0), n, jnp.maximum(first, 0), jnp.int32(bridge.GO), buf,
             res, jnp.zeros((), jnp.int32))  # fmt: skip
     out = jax.lax.while_loop(
-        lambda c: c[4] == bridge._GO, lambda c: jax.lax.switch(c[3], branches, c), init
+        lambda c: c[4] == bridge.GO, lambda c: jax.lax.switch(c[3], branches, c), init
     )
-    return (out[4] == bridge._DONE,) + out[6] + (out[7],)
+    return (out[4] == bridge.DONE,) + out[6] + (out[7],)
 
 
 @eqx.filter_jit
@@ -374,7 +374,7 @@ def _program(
 
 
 def first_passages(run, N, paths):
-    """`driver._Run._chunk` on the device scheduler: onset states, stick states, stick times,
+    """`driver.HostRun._chunk` on the device scheduler: onset states, stick states, stick times,
     whether located, miss bounds and onset positions of the paths `paths` (one chunk, at most
     `N` paths: the buffer of the run's program), from one compiled call and one copy to the
     host."""
@@ -383,7 +383,7 @@ def first_passages(run, N, paths):
     path[:count] = paths
     d = len(run.model.state_names)
     program = run.device_program(N)
-    rows_t, _ = bridge._packed(run.solver.bridge)
+    rows_t, _ = bridge.packed(run.solver.bridge)
     keys = run.keys
     flat = program(
         rows_t, np.asarray(run.depths, np.int32), np.asarray(run.tol), np.int32(run.n_steps),
@@ -406,7 +406,7 @@ def first_passages(run, N, paths):
 def program_for(run, N: int) -> _compile.Fixed:
     """The compiled program of a chunk buffer of `N` paths for the run `run` (its model and
     solver fixed; one executable for all runs of a model structure and buffer size)."""
-    _, layout = bridge._packed(run.solver.bridge)
+    _, layout = bridge.packed(run.solver.bridge)
     return _compile.Fixed(
         _program, run.model, run.solver, bool(run.cfg.smooth), layout, stepping_sizes(N),
         interval_sizes(N), timer=run.timer,

@@ -41,7 +41,7 @@ MIN_BUFFER = 128  # smallest buffer; below it a step costs the same whatever the
 # cost milliseconds (measured per step: 48 us at 128, 228 us at 1024, 495 us at 4096).
 FINE_BUFFER = 8192
 LOCATE_BATCH = 4096  # paths located at once (bounds the memory of the dense nodes)
-SPECULATE_BELOW = 16384  # buffers from this size down step past candidates (`_Run._chunk`)
+SPECULATE_BELOW = 16384  # buffers from this size down step past candidates (`HostRun._chunk`)
 PAST_SLOTS = 2  # candidates a path steps past inside one stepping call (`SteppingPastHybrid`)
 DEFAULT_CROSSING_TOL = 1e-5  # bound on the chance of a missed crossing per certified step
 DEFAULT_CHUNK = 2**20  # about 100 bytes of state per path: 100 MB
@@ -49,7 +49,7 @@ DEFAULT_CHUNK = 2**20  # about 100 bytes of state per path: 100 MB
 # the cubic pieces' relative error (h_sub rho)^4 / 384 stays below 1e-10.
 _NODE_SCALE = 0.0125
 _MAX_NODES = 256
-_LOOP_NODES = 2  # the stepping loop's solver: it never interpolates (see `_Run`)
+_LOOP_NODES = 2  # the stepping loop's solver: it never interpolates (see `HostRun`)
 
 
 # -- limits stated up front ------------------------------------------------------------------
@@ -343,13 +343,23 @@ def _set_cols(a, idx, values):
         row[idx] = v
 
 
-def _next_pow2(n: int) -> int:
+def check_exact_step(owner: str, lg, dt: float, *, monitor: str, smooth: bool) -> None:
+    """Refuse, before a run starts, a step `dt` that the exact solver cannot follow for the
+    linear-Gaussian form `lg` (far past the slip's time scale, or too fine for float64), as
+    `simulate` would refuse it; the step's tables it builds are kept for the run."""
+    detect = _detector(lg, "exact", monitor, smooth)
+    config = _Config(solver="exact", monitor=monitor, smooth=smooth, detect=detect)
+    _check_time_scales(owner, lg, dt, detect)
+    _make_solver(lg, config, dt, _LOOP_NODES, owner)
+
+
+def next_pow2(n: int) -> int:
     return 1 << max(0, (int(n) - 1).bit_length())
 
 
 def _buffer_size(n: int) -> int:
     """The smallest buffer size (see `FINE_BUFFER`) that holds `n` paths."""
-    size = max(MIN_BUFFER, _next_pow2(n))
+    size = max(MIN_BUFFER, next_pow2(n))
     if size < FINE_BUFFER:
         size = MIN_BUFFER
         while size < n:
@@ -375,7 +385,7 @@ def _pad_paths(x, size: int):
     return np.concatenate([x, np.repeat(x[..., :1], size - n, axis=-1)], axis=-1)
 
 
-def _zeros(shape, dtype=np.float64):
+def stand_in(shape, dtype=np.float64):
     """A read-only array of zeros of this shape (no memory: a stand-in argument whose shape
     and dtype are all a compiled call's key looks at)."""
     return np.broadcast_to(np.zeros((), dtype), shape)
@@ -425,7 +435,7 @@ def _nodes_for(A, dt: float, warn: bool) -> int:
             f"about {err:.1e} (take dt <= {_MAX_NODES * _NODE_SCALE / rho:.3g} for 1e-10)",
             stacklevel=4,
         )
-    return min(_MAX_NODES, _next_pow2(m))
+    return min(_MAX_NODES, next_pow2(m))
 
 
 def _scheduler(owner: str, scheduler: str, detect: str) -> str:
@@ -441,7 +451,7 @@ def _scheduler(owner: str, scheduler: str, detect: str) -> str:
     return scheduler
 
 
-def _validate(owner, model, n_paths, dt, t_max, seed, solver, monitor, chunk_size):  # noqa: C901
+def validate_args(owner, model, n_paths, dt, t_max, seed, solver, monitor, chunk_size):  # noqa: C901
     """Check the arguments of `owner` (`simulate` or `simulate_cycles`); one-line errors."""
     if not isinstance(model, FrictionModel):
         raise TypeError(f"{owner}: model must be a stickslip.FrictionModel instance, got {model!r}")
@@ -558,7 +568,7 @@ def simulate(
             stick_state=out["stick"], next_onset_state=out["next"],
             state_names=tuple(model.state_names), info=out["info"], stats=out["stats"],
         )  # fmt: skip
-    n_paths, dt, t_max, seed, chunk_size = _validate(
+    n_paths, dt, t_max, seed, chunk_size = validate_args(
         "simulate", model, n_paths, dt, t_max, seed, solver, monitor, chunk_size
     )
     record_upcrossings = check_int("simulate", "record_upcrossings", record_upcrossings, minimum=0)
@@ -605,7 +615,7 @@ def simulate(
 
 def _simulate_block(model, dt, t_max, seed, opts, start, stop, bar=None) -> dict:
     """`simulate` for the paths `start` .. `stop` - 1 (a task of a distributed run)."""
-    run = _Run(
+    run = HostRun(
         "simulate", model, opts["solver"], opts["monitor"], dt, t_max, _rng.seed_key(seed), bar,
         opts["crossing_tol"], scheduler=opts.get("scheduler", "host"),
     )  # fmt: skip
@@ -684,7 +694,7 @@ def _join_blocks(parts, model, wall0, tasks) -> Ensemble:
     )  # fmt: skip
 
 
-class _Run:
+class HostRun:
     """One configured run (model, solver, monitoring, step, horizon, keys): first passages
     for any set of path counters. `owner` names the public function in error messages."""
 
@@ -1006,7 +1016,7 @@ class _Run:
     def _onset_specimen(self, size: int):
         """Stand-ins for `_onset`'s arguments after its fixed ones, for `size` paths."""
         d = len(self.model.state_names)
-        return self.keys["onset"], _zeros(size, np.uint32), np.uint32(0), _zeros((d, size))
+        return self.keys["onset"], stand_in(size, np.uint32), np.uint32(0), stand_in((d, size))
 
     def _size_at_hand(
         self, fixed, specimen, want: int, most: int, smaller: bool = False, ladder=None
@@ -1228,8 +1238,8 @@ class _Run:
 
     def _loop_specimen(self, size: int):
         """Stand-ins for the stepping loop's arguments on a buffer of `size` paths."""
-        X, f = _zeros((len(self.model.state_names), size)), _zeros(size)
-        return self._loop_args(X, X, f, f, _zeros(size, np.uint32), f, 0)
+        X, f = stand_in((len(self.model.state_names), size)), stand_in(size)
+        return self._loop_args(X, X, f, f, stand_in(size, np.uint32), f, 0)
 
     def _compile_here(self, want: int) -> bool:
         """Whether the stepping loop of `want` paths is to be compiled now if it is not at
@@ -1382,7 +1392,7 @@ class _Run:
         d = len(model.state_names)
         batch = self._size_at_hand(
             self._locate,
-            lambda m: (_zeros((d, m)), _zeros((d, m)), _zeros(m), _zeros(m, np.uint32),
+            lambda m: (stand_in((d, m)), stand_in((d, m)), stand_in(m), stand_in(m, np.uint32),
                        self.dt_arr, keys["z"], keys["u"]),
             min(LOCATE_BATCH, _buffer_size(max(done.size, 1))), LOCATE_BATCH, smaller=True,
         )  # fmt: skip

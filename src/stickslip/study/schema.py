@@ -664,17 +664,15 @@ class Study(Base):
         from .._simulate import driver
 
         sim = self.simulation
-        detect = driver._detector(lg, "exact", sim.monitor, smooth)
-        config = driver._Config(solver="exact", monitor=sim.monitor, smooth=smooth, detect=detect)
         for loc, dt in (("simulation.dt", sim.dt), ("simulation.cycles.dt", sim.cycles.dt)):
             if dt is None:
                 continue
             try:
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")  # (refusals only: the run warns)
-                    driver._check_time_scales("simulate", lg, dt, detect)
                     # (the step's tables, kept for the run: ~4 ms)
-                    driver._make_solver(lg, config, dt, driver._LOOP_NODES)
+                    driver.check_exact_step("simulate", lg, dt, monitor=sim.monitor,
+                                            smooth=smooth)  # fmt: skip
             except ParameterError as err:
                 where = "model.params" if err.parameter == "model" else loc
                 raise fail(where, err.reason) from None
