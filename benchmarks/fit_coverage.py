@@ -35,7 +35,7 @@ import warnings
 import numpy as np
 
 import stickslip as ss
-from stickslip._inference.forward import _simulate
+from stickslip._inference.forward import simulate_values
 from stickslip.extract import Cycles
 
 BASE = dict(omega0=1.0, zeta=0.1, v_b=1.0, x0=1.0)
@@ -74,7 +74,7 @@ def measured_data(seed, n_paths=4, t_max=600.0) -> Cycles:
 def per_cycle(seed, n=1500) -> dict[str, np.ndarray]:
     """`n` per-cycle values (slips of positive length that ended; zero sticks kept)."""
     model = ss.get_model("langevin")(**BASE, **TRUTH)
-    sim = _simulate(model, int(n * 1.3) + 100, 0.2, 200.0, seed)
+    sim = simulate_values(model, int(n * 1.3) + 100, 0.2, 200.0, seed)
     return {k: v[:n] for k, v in sim.items()}
 
 

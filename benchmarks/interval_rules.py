@@ -32,8 +32,8 @@ import sys
 import numpy as np
 
 from stickslip._inference import intervals as iv
-from stickslip._inference.likelihood import _jackknife_values, _scored
-from stickslip._inference.surface import _polynomial_vertex, _quadratic_design, _Surface
+from stickslip._inference.likelihood import jackknife_values, scored_samples
+from stickslip._inference.surface import _quadratic_design, _Surface, polynomial_vertex
 
 
 def pieces(path):
@@ -50,22 +50,23 @@ def pieces(path):
     def seed(s):
         scores, values, blocks = [], [], []
         for sim in design["samples"][s]:
-            t = None if sim is None else _scored(r.data, sim, d["bandwidth"], d["measurement"])
+            args = (r.data, sim, d["bandwidth"], d["measurement"])
+            t = None if sim is None else scored_samples(*args)
             scores.append(None if t is None else np.sum([t[k] for k in r.data], axis=0))
             values.append(-np.inf if t is None else float(sum(np.sum(v) for v in t.values())))
-            blocks.append(_jackknife_values(r.data, sim, d["bandwidth"], d["measurement"]))
+            blocks.append(jackknife_values(r.data, sim, d["bandwidth"], d["measurement"]))
         return scores, np.array(values), np.array(blocks)
 
     s1, v1, b1 = seed(0)
     s2, v2, b2 = seed(1)
-    shift, H = _polynomial_vertex(points - centre, v1, steps)
-    shift2, H2 = _polynomial_vertex(points - centre, v2, steps)
+    shift, H = polynomial_vertex(points - centre, v1, steps)
+    shift2, H2 = polynomial_vertex(points - centre, v2, steps)
     surface = _Surface(centre=centre, steps=steps, nominal=_quadratic_design(centre, steps),
                        design=points, values=list(v1), scores=s1, shift=shift, hessian=H,
                        clipped=design["clipped"])  # fmt: skip
-    sandwich, _, _ = iv._sandwich(surface, names, s2, iv.structural_lag(r.model))
+    sandwich, _, _ = iv.sandwich_covariance(surface, names, s2, iv.structural_lag(r.model))
     big = np.full(len(names), 1e9)
-    u_hat, cov, noise = iv._combine_seeds(surface, shift2, sandwich, [b1, b2], -big, big)
+    u_hat, cov, noise = iv.combine_seeds(surface, shift2, sandwich, [b1, b2], -big, big)
     scales = d["scales"]
     truth = np.array([math.log(truth[k]) if scales[k] == "log" else truth[k] for k in names])
     out = dict(names=names, truth=truth, u=u_hat, fits=cov, interval=noise["mc"] is not None
@@ -95,7 +96,8 @@ def timing(path) -> None:
     d = r.diagnostics
     sim = d["design"]["samples"][0][0]
     args = (r.data, sim, d["bandwidth"], d["measurement"])
-    for what, call in (("scored once", _scored), ("the 10 blocks' values", _jackknife_values)):
+    calls = (("scored once", scored_samples), ("the 10 blocks' values", jackknife_values))
+    for what, call in calls:
         call(*args)
         times = []
         for _ in range(7):

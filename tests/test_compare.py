@@ -15,7 +15,7 @@ import pytest
 
 import stickslip as ss
 from stickslip._inference.compare import _named, _polynomial_max, _stream, compare_fits
-from stickslip._inference.likelihood import _simulate
+from stickslip._inference.forward import simulate_values
 
 BASE = dict(omega0=1.0, zeta=0.1, v_b=1.0, tau=0.1)
 COLUMNS = ("slip_time", "stick_time")
@@ -27,7 +27,7 @@ def _data(sd: float, n: int, seed: int) -> dict:
     truth = ss.get_model("random-threshold")(
         **BASE, D=0.4, threshold="normal", threshold_params={"mean": 1.0, "sd": sd}
     )
-    sim = _simulate(truth, int(1.2 * n) + 50, 0.2, 60.0, seed)
+    sim = simulate_values(truth, int(1.2 * n) + 50, 0.2, 60.0, seed)
     assert sim["slip_time"].size >= n
     return {k: sim[k][:n] for k in COLUMNS}
 
@@ -321,7 +321,7 @@ OU_BASE = dict(omega0=1.0, zeta=0.1, v_b=1.0, x0=1.0)
 def _ou_data(tau: float, n: int, seed: int) -> dict:
     """`n` cycles (slip and stick times) of `langevin` with OU noise of this `tau`, D = 0.4."""
     truth = ss.get_model("langevin")(**OU_BASE, D=0.4, tau=tau)
-    sim = _simulate(truth, int(1.2 * n) + 50, 0.2, 60.0, seed)
+    sim = simulate_values(truth, int(1.2 * n) + 50, 0.2, 60.0, seed)
     assert sim["slip_time"].size >= n
     return {k: sim[k][:n] for k in COLUMNS}
 

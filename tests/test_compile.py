@@ -112,8 +112,8 @@ def test_a_repeated_run_passes_its_model_arrays_already_on_the_device(monkeypatc
     assert len(first) > 10 and all(isinstance(x, jax.Array) for x in first + second)
     assert all(a is b for a, b in zip(first, second, strict=True))
     big = np.arange(2.0 * _compile._RESIDENT_BYTES)
-    assert _compile._on_device(big) is not _compile._on_device(big)  # large: not kept
-    np.testing.assert_array_equal(np.asarray(_compile._on_device(big)), big)
+    assert _compile.on_device(big) is not _compile.on_device(big)  # large: not kept
+    np.testing.assert_array_equal(np.asarray(_compile.on_device(big)), big)
 
 
 def test_white_noise_recompiles_only_the_locator_per_node_count():

@@ -312,7 +312,7 @@ def test_compiled_refinement_is_the_depth_first_one(Langevin, dt, monkeypatch):
     monkeypatch.setattr(bridge, "CAPACITIES", (256, 512))
     monkeypatch.setattr(bridge, "BATCH", 256)
     model = Langevin(**PUBLIC)
-    run = driver.HostRun("test", driver._to_arrays(model), "auto", "continuous", dt, 30.0,
+    run = driver.HostRun("test", driver.to_arrays(model), "auto", "continuous", dt, 30.0,
                       ss._rng.seed_key(5))  # fmt: skip
     got, statuses = [], []
     original, call = bridge.Refiner.first_crossing, bridge.Refiner._call
@@ -397,7 +397,7 @@ def test_stepped_past_candidates_are_settled_in_step_order(Langevin, monkeypatch
     the stepping bound at the stick plus the refinements of the candidates up to it."""
     from stickslip._simulate import driver
 
-    run = driver.HostRun("test", driver._to_arrays(Langevin(**PUBLIC)), "exact", "continuous",
+    run = driver.HostRun("test", driver.to_arrays(Langevin(**PUBLIC)), "exact", "continuous",
                       0.5, 30.0, ss._rng.seed_key(1))  # fmt: skip
     below, above = np.array([[0.5], [0.9], [0.0]]), np.array([[0.4], [1.0], [0.0]])
     # Path rows 0 and 1. Row 0: steps 2 (crossing found at 0.25), 5; row 1: steps 3, 4
@@ -437,7 +437,7 @@ def test_refinement_in_two_threads_is_the_one_thread_one(Langevin, monkeypatch):
     # stands in for them)
     monkeypatch.setattr(_compile, "STAND_IN", 0)
     model = Langevin(**PUBLIC)
-    run = driver.HostRun("test", driver._to_arrays(model), "auto", "continuous", 0.8, 30.0,
+    run = driver.HostRun("test", driver.to_arrays(model), "auto", "continuous", 0.8, 30.0,
                       ss._rng.seed_key(7))  # fmt: skip
     got = []
     original = bridge.Refiner.first_crossing

@@ -11,7 +11,7 @@ import pytest
 from conftest import run_cli
 
 import stickslip as ss
-from stickslip._inference.forward import _simulate
+from stickslip._inference.forward import simulate_values
 
 BASE = dict(omega0=1.0, zeta=0.1, v_b=1.0, x0=1.0)
 TRUTH = dict(D=0.4, tau=0.1)
@@ -20,7 +20,7 @@ TRUTH = dict(D=0.4, tau=0.1)
 def slip_times(n, seed, **params):
     """`n` slip times of positive length from the Langevin model (exact stepping)."""
     model = ss.get_model("langevin")(**{**BASE, **TRUTH, **params})
-    sim = _simulate(model, int(n * 1.3) + 100, 0.2, 200.0, seed)
+    sim = simulate_values(model, int(n * 1.3) + 100, 0.2, 200.0, seed)
     assert sim["slip_time"].size >= n
     return sim["slip_time"][:n]
 

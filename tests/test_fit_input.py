@@ -31,7 +31,7 @@ def no_simulation(monkeypatch):
     def refuse(*args, **kwargs):
         raise AssertionError("fit simulated: the bad input was not refused up front")
 
-    monkeypatch.setattr(likelihood, "_simulate", refuse)
+    monkeypatch.setattr(likelihood, "simulate_values", refuse)
 
 
 def refused(cls, data, free=None, fixed=FIXED, **kwargs) -> str:
@@ -70,7 +70,7 @@ def test_distinct_values_are_counted_to_nine_digits():
     x = 1.0 + 1e-12 * np.arange(50)
     assert "1 distinct value" in refused(ss.DataError, {"slip_time": x})
     y = 1.0 + 1e-6 * np.arange(50)
-    np.testing.assert_array_equal(fit_data._check_data({"slip_time": y})["slip_time"], y)
+    np.testing.assert_array_equal(fit_data.check_data({"slip_time": y})["slip_time"], y)
 
 
 def test_a_stick_time_column_of_zeros_has_no_positive_values():

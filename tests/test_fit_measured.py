@@ -19,7 +19,7 @@ import pytest
 
 import stickslip as ss
 from stickslip._inference import likelihood
-from stickslip._inference.forward import _simulate
+from stickslip._inference.forward import simulate_values
 from stickslip._inference.measurement import Measurement
 from stickslip.extract import Cycles
 
@@ -109,7 +109,7 @@ def test_a_dict_and_a_cycles_of_the_same_data_take_different_routes(monkeypatch,
         seen.append((n, measurement))
         raise Stop
 
-    monkeypatch.setattr(likelihood, "_simulate", spy)
+    monkeypatch.setattr(likelihood, "simulate_values", spy)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the dict looks sampled, and is said to
         routes = []
@@ -134,8 +134,8 @@ def test_the_measured_route_joins_cycles():
     m = Measurement(sampling_interval=H, signal="x", noise_sd=NOISE * H / math.sqrt(2.0) * 10,
                     min_stick=2)  # fmt: skip
     n = 3000
-    measured = _simulate(model, n, None, None, 5, m)
-    per_cycle = _simulate(model, n, 0.2, 200.0, 5)
+    measured = simulate_values(model, n, None, None, 5, m)
+    per_cycle = simulate_values(model, n, 0.2, 200.0, 5)
     assert np.mean(per_cycle["stick_time"] == 0) > 0.3
     assert np.all(measured["stick_time"] > 0)
     assert measured["slip_time"].size < 0.8 * n
@@ -150,7 +150,7 @@ def test_a_point_with_no_measured_cycles_scores_minus_infinity(monkeypatch, data
     def nothing(model, n, dt, t_max, seed, measurement=None):
         raise ss.DataError("measured_cycles: the simulated trace shows no cycles")
 
-    monkeypatch.setattr(likelihood, "_simulate", nothing)
+    monkeypatch.setattr(likelihood, "simulate_values", nothing)
     cols = {k: data.table[k] for k in ("slip_time", "stick_time")}
     model = ss.get_model("langevin")(**PARAMS)
     bandwidth = dict(slip_time=0.1, stick_time=0.1)
@@ -160,10 +160,10 @@ def test_a_point_with_no_measured_cycles_scores_minus_infinity(monkeypatch, data
         likelihood._per_cycle(model, cols, bandwidth, 2000, 0.2, 50.0, 0, None)
     # a trace with a handful of cycles has no density to compare with: -inf too
     few = {k: v[: likelihood.MIN_SIMULATED - 1] for k, v in cols.items()}
-    monkeypatch.setattr(likelihood, "_simulate", lambda *args: few)
+    monkeypatch.setattr(likelihood, "simulate_values", lambda *args: few)
     assert likelihood._per_cycle(model, cols, bandwidth, 2000, None, None, 0, m) is None
     enough = {k: v[: likelihood.MIN_SIMULATED] for k, v in cols.items()}
-    monkeypatch.setattr(likelihood, "_simulate", lambda *args: enough)
+    monkeypatch.setattr(likelihood, "simulate_values", lambda *args: enough)
     terms = likelihood._per_cycle(model, cols, bandwidth, 2000, None, None, 0, m)
     assert all(np.all(np.isfinite(t)) for t in terms.values())
 

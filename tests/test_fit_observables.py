@@ -13,7 +13,7 @@ import pytest
 
 import stickslip as ss
 from stickslip._inference import intervals, likelihood, surface
-from stickslip._inference.forward import _simulate
+from stickslip._inference.forward import simulate_values
 from stickslip.extract import Cycles
 
 BASE = dict(omega0=1.0, zeta=0.1, v_b=1.0, x0=1.0)
@@ -26,7 +26,7 @@ N_SIM = 20_000
 def cycles():
     """4000 per-cycle values of the public set (seed 303, not a fit's), zeros kept."""
     model = ss.get_model("langevin")(**BASE, **TRUTH)
-    sim = _simulate(model, 4000, 0.2, 200.0, 303)
+    sim = simulate_values(model, 4000, 0.2, 200.0, 303)
     return {k: sim[k] for k in ("slip_time", "stick_time")}
 
 
@@ -54,7 +54,7 @@ def test_a_zero_datum_contributes_the_log_of_the_simulated_zero_fraction():
     positive = rng.exponential(1.0, 700)
     sim = np.r_[np.zeros(300), positive]
     data = np.r_[0.0, 0.0, rng.exponential(1.0, 200)]
-    h = likelihood._bandwidth(np.log(data[data > 0]), sim.size)
+    h = likelihood.bandwidth_of(np.log(data[data > 0]), sim.size)
     terms = likelihood._log_density("stick_time", data, sim, h)
     alone = likelihood._log_density("stick_time", data, positive, h)
     assert terms.shape == data.shape
@@ -83,7 +83,7 @@ def test_a_datum_where_the_model_puts_no_value_scores_at_the_floor(monkeypatch):
     rng = np.random.default_rng(3)
     sim = rng.standard_normal(1000)
     data = np.r_[12.0, rng.standard_normal(200)]
-    h = likelihood._bandwidth(data[1:], sim.size)
+    h = likelihood.bandwidth_of(data[1:], sim.size)
     floor = -math.log(sim.size * h * math.sqrt(2 * math.pi))
     terms = likelihood._log_density("slip_distance", data, sim, h)
     near = likelihood._log_density("slip_distance", data, np.r_[sim, 12.0], h)
@@ -143,7 +143,7 @@ def test_the_sd_of_a_random_threshold_is_recovered():
     any fit seed; over data seeds 405-410, 0.27-0.35.)"""
     Model = ss.get_model("random-threshold")
     truth = Model(**RT_FIXED, threshold_params={"mean": 1.0, "sd": 0.3})
-    sim = _simulate(truth, 1500, 0.2, 200.0, 404)
+    sim = simulate_values(truth, 1500, 0.2, 200.0, 404)
     data = {k: sim[k] for k in ("slip_time", "stick_time")}
     fixed = RT_FIXED | {"threshold_params": {"mean": 1.0}}
     r = fit_quietly(
@@ -175,7 +175,7 @@ def test_the_sd_of_a_random_threshold_is_recovered():
     ],
 )
 def test_a_bad_nested_name_is_refused_up_front(monkeypatch, free, fixed, says):
-    monkeypatch.setattr(likelihood, "_simulate", _no_simulation)
+    monkeypatch.setattr(likelihood, "simulate_values", _no_simulation)
     x = np.random.default_rng(3).exponential(1.0, 60)
     with pytest.raises(ss.ParameterError, match=says) as err:
         ss.fit("random-threshold", {"slip_time": x}, free, fixed)
@@ -192,7 +192,7 @@ def test_every_entry_of_a_law_free_needs_no_empty_dict(monkeypatch):
         built.append(model)
         raise AssertionError("fit simulated")
 
-    monkeypatch.setattr(likelihood, "_simulate", stop)
+    monkeypatch.setattr(likelihood, "simulate_values", stop)
     x = np.random.default_rng(3).exponential(1.0, 60)
     free = {"threshold_params.mean": (0.5, 2.0), "threshold_params.sd": (0.1, 1.0)}
     fixed = dict(RT_FIXED)
@@ -213,7 +213,7 @@ def _no_simulation(*args, **kwargs):
 # -- no silent failures --------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def small():
-    return {"slip_time": _simulate(ss.get_model("langevin")(**BASE, **TRUTH), 600, 0.2, 200.0,
+    return {"slip_time": simulate_values(ss.get_model("langevin")(**BASE, **TRUTH), 600, 0.2, 200.0,
                                    505)["slip_time"][:300]}  # fmt: skip
 
 
@@ -252,7 +252,7 @@ def test_design_steps_narrow_where_one_step_falls_far():
     axis of curvature 4000 falls by 180 and is narrowed to 0.1, where it falls by exactly
     `MAX_STEP_DROP` (20); an axis of curvature 10 (a fall of 0.45) keeps 0.3. Add a
     quartic term along the strong axis and a coupling: the maximum is at 0 with Hessian
-    [[-4000, -100], [-100, -10]]. From (0.002, 0.05), `_local_surface` on its narrowed
+    [[-4000, -100], [-100, -10]]. From (0.002, 0.05), `local_surface` on its narrowed
     steps finds the vertex and both curvatures within 20 %; on the fixed steps of 0.3 the
     quartic's misfit leaks into the weak axis through the diagonal points: its curvature
     comes out 17 times too large and its vertex barely moves from the start."""
@@ -267,14 +267,14 @@ def test_design_steps_narrow_where_one_step_falls_far():
     np.testing.assert_allclose(steps, [0.1, 0.3], rtol=1e-12)
     assert 0.5 * c0 * steps[0] ** 2 == pytest.approx(surface.MAX_STEP_DROP, rel=1e-12)
     u = np.array([0.002, 0.05])
-    fitted = surface._local_surface(
+    fitted = surface.local_surface(
         lambda v: (quartic(v), {"x": np.zeros(3)}), u, lo, hi, {"x": None}, ["a", "b"], 0.3
     )  # fmt: skip
     assert fitted.steps[0] < 0.1 and fitted.steps[1] == 0.3
     np.testing.assert_allclose(np.diag(fitted.hessian), [-c0, -c1], rtol=0.2)
     np.testing.assert_allclose(fitted.shift, -u, rtol=0.2)
     design = surface._quadratic_design(u, np.full(2, 0.3))
-    shift, wide = surface._polynomial_vertex(
+    shift, wide = surface.polynomial_vertex(
         design - u, np.array([quartic(v) for v in design]), np.full(2, 0.3)
     )  # fmt: skip
     assert wide[1, 1] < -10 * c1 and abs(shift[1]) < 0.5 * u[1]
@@ -282,12 +282,12 @@ def test_design_steps_narrow_where_one_step_falls_far():
 
 def test_a_rejected_surface_vertex_is_said(small, monkeypatch):
     """The polynomial's vertex rejected (forced here): the fit says so and falls back."""
-    real = surface._polynomial_vertex
+    real = surface.polynomial_vertex
 
     def rejected(du, values, steps):
         return None, real(du, values, steps)[1]
 
-    monkeypatch.setattr(surface, "_polynomial_vertex", rejected)
+    monkeypatch.setattr(surface, "polynomial_vertex", rejected)
     with warnings.catch_warnings(record=True) as record:
         warnings.simplefilter("always")
         r = ss.fit("langevin", small, {"D": (0.05, 2.0)}, FIXED, seed=12, n_sim=5000, check=False)
@@ -317,7 +317,7 @@ def first_simulation(monkeypatch):
         seen.update(measurement=measurement, n=n, dt=dt)
         raise Stop
 
-    monkeypatch.setattr(likelihood, "_simulate", stop)
+    monkeypatch.setattr(likelihood, "simulate_values", stop)
     return seen
 
 
@@ -384,7 +384,7 @@ def test_data_with_a_sampling_interval_attribute_are_warned_about(monkeypatch):
 
 
 def test_two_seeds_take_the_simulation_noise_out_of_the_sandwich():
-    """`_sandwich` with a second seed's scores: per-cycle scores are the data's own, g_i
+    """`sandwich_covariance` with a second seed's scores: per-cycle scores are the data's own, g_i
     (sd 1), plus the simulation's noise, independent between seeds (sd 2 over the +-1 step
     difference's width). One seed's J / n estimates 1 + 4; the cross product of the two
     estimates 1. n = 20000: J / n's sampling sd is sqrt(26 / n) = 0.036 for the cross product
@@ -408,8 +408,8 @@ def test_two_seeds_take_the_simulation_noise_out_of_the_sandwich():
         values=[0.0] * 5, scores=scores(), shift=np.zeros(1), hessian=-np.eye(1) * n,
         clipped=[],
     )  # fmt: skip
-    one, _, _ = intervals._sandwich(surf, ["D"])
-    two, _, _ = intervals._sandwich(surf, ["D"], scores())
+    one, _, _ = intervals.sandwich_covariance(surf, ["D"])
+    two, _, _ = intervals.sandwich_covariance(surf, ["D"], scores())
     # cov = H^-1 J H^-1 with H = -n: J / n = cov * n
     assert abs(one[0, 0] * n - 5.0) < 5 * math.sqrt(2 * 25 / n), one
     assert abs(two[0, 0] * n - 1.0) < 5 * math.sqrt(26 / n), two
@@ -427,7 +427,7 @@ def test_stick_time_intervals_cover_the_truth_over_20_sets():
     est, ses, cover = [], [], 0
     model = ss.get_model("langevin")(**BASE, **TRUTH)
     for i in range(n_sets):
-        sim = _simulate(model, 2100, 0.2, 200.0, 7000 + i)
+        sim = simulate_values(model, 2100, 0.2, 200.0, 7000 + i)
         data = {"stick_time": sim["stick_time"][:1500]}
         r = fit_quietly("langevin", data, {"D": (0.05, 2.0)}, FIXED, seed=8000 + i, n_sim=N_SIM)
         lo, hi = r.ci["D"]
@@ -445,7 +445,7 @@ def test_a_second_seed_without_a_maximum_means_no_interval(small, monkeypatch):
     the first seed's curvature is the simulation's noise: no interval, said in one line."""
     from stickslip._inference import estimator
 
-    monkeypatch.setattr(estimator, "_polynomial_vertex", lambda du, values, steps: (None, None))
+    monkeypatch.setattr(estimator, "polynomial_vertex", lambda du, values, steps: (None, None))
     with warnings.catch_warnings(record=True) as record:
         warnings.simplefilter("always")
         r = ss.fit("langevin", small, {"D": (0.1, 3.0)}, FIXED, seed=11, n_sim=2000, check=False)

@@ -33,9 +33,9 @@ def test_the_best_run_wins_on_a_surface_with_two_maxima(monkeypatch):
         return max(ridge, peak), None
 
     free = {"a": 0, "b": 0, "c": 0}
-    u, record, _ = surface._search(loglik, lo, hi, free)
+    u, record, _ = surface.search(loglik, lo, hi, free)
     assert record["starts"] == 3
     assert np.allclose(u, peak_at, atol=0.03), u
     monkeypatch.setattr(surface, "STARTS", 1)
-    one, record, _ = surface._search(loglik, lo, hi, free)
+    one, record, _ = surface.search(loglik, lo, hi, free)
     assert record["starts"] == 1 and np.allclose(one, ridge_at, atol=0.03), one

@@ -11,7 +11,7 @@ from scipy import stats
 
 import stickslip as ss
 from stickslip import AndersonDarling
-from stickslip._inference.forward import _simulate
+from stickslip._inference.forward import simulate_values
 from stickslip._inference.goodness import _pit, goodness_of_fit
 from stickslip._inference.likelihood import cycle_log_likelihood
 
@@ -23,7 +23,7 @@ FIXED = {**BASE, "tau": TRUTH["tau"]}
 def cycles(n, seed, **params):
     """`n` per-cycle values (slips of positive length that ended) of the Langevin model."""
     model = ss.get_model("langevin")(**{**BASE, **TRUTH, **params})
-    sim = _simulate(model, int(n * 1.3) + 100, 0.2, 200.0, seed)
+    sim = simulate_values(model, int(n * 1.3) + 100, 0.2, 200.0, seed)
     assert sim["slip_time"].size >= n
     return {k: v[:n] for k, v in sim.items()}
 
@@ -285,9 +285,9 @@ def test_the_tabulated_one_step_matches_the_kernel_estimate_per_replicate():
 
     data = cycles(200, seed=41)
     r = fit_d({"slip_time": data["slip_time"]})
-    setting = goodness._Setting.of(r)
+    setting = goodness.Setting.of(r)
     shifted = setting.shifted_references(5000, 5)
-    reps = goodness._replicates(setting, 200, 20, 9)
+    reps = goodness.simulate_replicates(setting, 200, 20, 9)
     newton = setting.newton()
 
     def direct(rep):

@@ -225,14 +225,14 @@ def test_a_run_the_fitted_slider_shows_no_cycles_on_is_rejected_not_a_crash(run,
         data=runs.data, model=None,
         diagnostics={"runs": runs.describe(runs.build({"mass": 0.02})), "warnings": []},
     )  # fmt: skip
-    real = forward._simulate
+    real = forward.simulate_values
 
     def second_shows_nothing(model, n, dt, t_max, seed, measurement=None):
         if measurement is runs.measurements[1]:
             raise DataError("measured_cycles: the simulated trace shows no cycles")
         return real(model, n, dt, t_max, seed, measurement)
 
-    monkeypatch.setattr(forward, "_simulate", second_shows_nothing)
+    monkeypatch.setattr(forward, "simulate_values", second_shows_nothing)
     runs.p_values(result, 200, 3)
     first, second = result.diagnostics["runs"]
     assert set(first["p_values"]) == set(runs.columns[0]) and "unresolved" not in first

@@ -6,7 +6,7 @@ not of the code's formula)."""
 import numpy as np
 
 from stickslip._inference import intervals
-from stickslip._inference.surface import _polynomial_vertex, _quadratic_design, _Surface
+from stickslip._inference.surface import _quadratic_design, _Surface, polynomial_vertex
 
 
 def _surface(design, centre, steps):
@@ -35,7 +35,7 @@ def test_jackknife_of_the_vertex_matches_its_spread_over_draws():
         point = rng.normal(0.0, 0.3, (B, len(design)))  # and its rough part
         contrib = tilt @ du.T + point  # (B, points)
         full = truth + contrib.mean(axis=0)
-        x, _ = _polynomial_vertex(du, full, steps)
+        x, _ = polynomial_vertex(du, full, steps)
         loo = np.stack([truth + np.delete(contrib, b, axis=0).mean(axis=0) for b in range(B)], 1)
         C = intervals._jackknife(_surface(design, centre, steps), loo)
         if x is None or C is None:
@@ -59,11 +59,11 @@ def test_without_a_vertex_in_most_replicates_there_is_no_jackknife():
 
 
 def test_block_values_are_the_likelihood_without_each_block():
-    """`_jackknife_values` bins each block once and subtracts it, and convolves by FFT; the
+    """`jackknife_values` bins each block once and subtracts it, and convolves by FFT; the
     same numbers (to rounding: 1e-12 of the value) as the log-likelihood scored on the
     simulated cycles with that block cut out (zero sticks, infinite slips and all)."""
-    from stickslip._inference.data import _transform
-    from stickslip._inference.likelihood import _bandwidth, _jackknife_values, _scored
+    from stickslip._inference.data import to_fit_scale
+    from stickslip._inference.likelihood import bandwidth_of, jackknife_values, scored_samples
 
     rng = np.random.default_rng(3)
     data = {k: rng.lognormal(0, 0.5, 200) for k in ("slip_time", "stick_time", "slip_distance")}
@@ -71,11 +71,11 @@ def test_block_values_are_the_likelihood_without_each_block():
     sim = {k: rng.lognormal(0.1, 0.6, 5003) for k in data}
     sim["stick_time"][:900] = 0
     sim["slip_time"][5:9] = np.inf
-    h = {k: _bandwidth(_transform(k, data[k]), 5003) for k in data}
-    got = _jackknife_values(data, sim, h, None)
+    h = {k: bandwidth_of(to_fit_scale(k, data[k]), 5003) for k in data}
+    got = jackknife_values(data, sim, h, None)
     for b in range(got.size):
         cut = {k: np.concatenate([a[: b * a.size // got.size], a[(b + 1) * a.size // got.size :]])
                for k, a in sim.items()}  # fmt: skip
-        terms = _scored(data, cut, h, None)
+        terms = scored_samples(data, cut, h, None)
         want = sum(np.sum(v) for v in terms.values())
         assert abs(got[b] - want) <= 1e-12 * abs(want)

@@ -496,7 +496,7 @@ def test_interrupts_at_random_moments_end_in_130_with_the_earlier_result(tmp_pat
 def test_an_interrupt_during_the_swap_puts_the_earlier_results_back(tmp_path, monkeypatch):
     """An interrupt that another thread took and Python raised mid-swap (after the earlier
     results were moved aside): they go back in place, and the new ones are not kept."""
-    from stickslip.study.write import _replace
+    from stickslip.study.write import replace_file
 
     out, tmp = tmp_path / "res", tmp_path / ".res.partial-1"
     for folder, text in ((out, "earlier"), (tmp, "new")):
@@ -512,7 +512,7 @@ def test_an_interrupt_during_the_swap_puts_the_earlier_results_back(tmp_path, mo
 
     monkeypatch.setattr(pathlib.Path, "rename", interrupted)
     with pytest.raises(KeyboardInterrupt):
-        _replace(tmp, out, force=True)
+        replace_file(tmp, out, force=True)
     assert (out / "results.nc").read_text() == "earlier"
     assert not list(tmp_path.glob(".res.old-*"))
 

@@ -16,7 +16,7 @@ import pytest
 
 import stickslip as ss
 from stickslip._extract import Cycles
-from stickslip._inference.data import _measurement
+from stickslip._inference.data import measurement_of
 from stickslip.units import Slider
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -49,7 +49,7 @@ def test_a_force_trace_in_si_is_fitted_in_the_model_units():
     stick times in seconds were scored against simulated ones in units of 1/omega0)."""
     slider = Slider(**RIG)
     cycles = _force_cycles()
-    table, measurement = _measurement(cycles, scales=slider)
+    table, measurement = measurement_of(cycles, scales=slider)
     # by hand: omega0 = sqrt(k/m), x0 = (F_s - F_k - c V)/k
     omega0 = math.sqrt(168.0 / 0.0307)
     x0 = (0.098 - 0.093 - 2e-3 * 45e-6) / 168.0
@@ -62,14 +62,14 @@ def test_a_force_trace_in_si_is_fitted_in_the_model_units():
     np.testing.assert_allclose(table["slip_distance"], table["force_drop"], rtol=1e-12)
     assert measurement.sampling_interval == pytest.approx(5e-4 * omega0, rel=1e-12)
     # the same as converting first (Slider.to_model): no second conversion
-    converted, again = _measurement(slider.to_model(cycles), scales=slider)
+    converted, again = measurement_of(slider.to_model(cycles), scales=slider)
     assert again == measurement
     for name, values in converted.items():
         np.testing.assert_allclose(table[name], values, rtol=1e-12, err_msg=name)
     # a study's scales (time and force only): the length from the trace's stiffness; the
     # peak force, which needs the force offset and is not fitted, is left out
     study = types.SimpleNamespace(time=slider.scales.time, force=slider.scales.force)
-    plain, _ = _measurement(cycles, scales=study)
+    plain, _ = measurement_of(cycles, scales=study)
     assert set(plain) == set(table) - {"peak_force"}
     for name, values in plain.items():
         np.testing.assert_allclose(values, table[name], rtol=1e-12, err_msg=name)
@@ -127,11 +127,11 @@ def test_many_measured_cycles_go_in_chunks(monkeypatch):
     meas = Measurement(sampling_interval=0.1, signal="x", noise_sd=1e-3,
                        columns=("slip_time", "stick_time"))  # fmt: skip
     monkeypatch.setattr(forward, "MEASURED_CHUNK", 40)
-    one = forward._simulate(m, 40, None, None, 7, meas)
+    one = forward.simulate_values(m, 40, None, None, 7, meas)
     alone = measured_cycles(m, meas, 40, 7)
     for k in alone:
         np.testing.assert_array_equal(one[k], alone[k])
-    many = forward._simulate(m, 95, None, None, 7, meas)  # chunks of 40, 40 and 15
+    many = forward.simulate_values(m, 95, None, None, 7, meas)  # chunks of 40, 40 and 15
     first = alone["slip_time"].size
     np.testing.assert_array_equal(many["slip_time"][:first], alone["slip_time"])
     rest = many["slip_time"][first:]
@@ -233,8 +233,8 @@ def test_the_measured_sliders_likelihood_is_smooth_between_neighbouring_points()
     went). Measured at seeds 1-4: 0.4-2.5 units about the slope with one path of 1000
     cycles a point, 0.6-3.2 with two of 500 (the steps themselves, slope included, reached
     3.5 and 4.0)."""
-    from stickslip._inference.data import _transform
-    from stickslip._inference.likelihood import _bandwidth, _per_cycle
+    from stickslip._inference.data import to_fit_scale
+    from stickslip._inference.likelihood import _per_cycle, bandwidth_of
     from stickslip._inference.measurement import Measurement
 
     ex = _example()
@@ -247,7 +247,7 @@ def test_the_measured_sliders_likelihood_is_smooth_between_neighbouring_points()
     s = slider.scales
     data = {"slip_time": cycles["slip_time"] / s.time, "stick_time": cycles["stick_time"] / s.time,
             "slip_distance": cycles["force_drop"] / s.force}  # fmt: skip
-    bandwidth = {k: _bandwidth(_transform(k, v), 1000) for k, v in data.items()}  # as fit
+    bandwidth = {k: bandwidth_of(to_fit_scale(k, v), 1000) for k, v in data.items()}  # as fit
     model, _, fixed = ex.candidates(slider)["fixed threshold"]
     Model = ss.get_model(model)
     base = dict(omega0=1.2, D=0.25, x0=1.05)

@@ -11,7 +11,7 @@ from conftest import new_process
 
 from stickslip import EulerMaruyama, ExactGaussian, _rng
 from stickslip._jax import jax, jnp
-from stickslip._model import _to_arrays
+from stickslip._model import to_arrays
 from stickslip._solver import PathwiseBrownian, SlipTerm, exact
 
 # The solvers run as the simulator runs them, inside compiled code: one compilation per
@@ -53,7 +53,7 @@ def test_psd_factor_handles_tiny_and_zero_variances():
 
 
 def _setup(Langevin, solver, n, tau=0.1):
-    model = _to_arrays(Langevin(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=tau))
+    model = to_arrays(Langevin(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=tau))
     key = _rng.stream_key(_rng.seed_key(0), _rng.STEP)
     path = np.arange(n, dtype=np.uint32)
     dt = np.asarray(0.01)

@@ -64,7 +64,7 @@ SHIPPED = pathlib.Path(__file__).parent / "_data" / "traces"  # traces made by `
 seconds = {"trace_seconds": 0.0, "compile_seconds": 0.0, "load_seconds": 0.0}
 requests = [0]
 _cache_hits = [0]  # hits of JAX's own persistent cache (see `_compile`)
-_resident: collections.OrderedDict = collections.OrderedDict()  # `_on_device`, LRU
+_resident: collections.OrderedDict = collections.OrderedDict()  # `on_device`, LRU
 _RESIDENT_ENTRIES = 512
 _RESIDENT_BYTES = 1 << 16
 _keys: dict = {}  # `Fixed` keys, one object per distinct key (`_interned`)
@@ -206,7 +206,7 @@ def executable(fn, *args, timer: Timer | None = None, paths: int | None = None, 
     return entry + (leaves,)
 
 
-def _on_device(x):
+def on_device(x):
     """`x` as a device array if it is a NumPy array (kept by content, so that the runs of one
     model reuse one copy: a compiled call converts every NumPy argument again, ~4 us each,
     and the simulator's model and solver are ~30 of them), else `x`."""
@@ -276,7 +276,7 @@ class Fixed:
         # shared with every `Fixed` of the same structure (the runs of one configuration).
         shapes = tuple((x.shape, x.dtype) for x in leaves)
         self.key = _interned((fn, treedef, shapes, _static_key(static)))
-        self.leaves = [_on_device(x) for x in leaves]
+        self.leaves = [on_device(x) for x in leaves]
         self.entries: dict = {}
         self.traced: set = set()  # the shapes `trace` found traced (or traced)
 

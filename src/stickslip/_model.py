@@ -217,7 +217,7 @@ class FrictionModel(eqx.Module):
         """The pydantic model that checks this model's `params` in a study: unknown names,
         missing required ones and wrong types. The default is built from `parameters()` and
         the field annotations; values are then checked by constructing the model."""
-        from .study.params import default_params_model
+        from ._params_model import default_params_model
 
         return default_params_model(cls)
 
@@ -384,7 +384,7 @@ class CreepingSlider(FrictionModel):
         return np.linalg.eigvals(J[np.ix_(keep, keep)])
 
 
-def _to_arrays(model: FrictionModel) -> FrictionModel:
+def to_arrays(model: FrictionModel) -> FrictionModel:
     """Turn float parameters into float64 0-d arrays, so that jitted code takes them as
     inputs: a new parameter value then reuses the compiled code instead of recompiling.
     NumPy arrays (a JAX array each cost ~50 us to make, 1 ms a run for the Langevin model)."""

@@ -23,7 +23,7 @@ MARKER = ".stickslip-results"
 _MARKER_MAX_BYTES = 1 << 20  # the marker is a small JSON object; a larger file is not ours
 
 
-def _real(path: str | os.PathLike) -> pathlib.Path:
+def real_number(path: str | os.PathLike) -> pathlib.Path:
     return pathlib.Path(os.path.realpath(os.path.abspath(os.fspath(path))))
 
 
@@ -33,7 +33,7 @@ def _inside(path: pathlib.Path, folder: pathlib.Path) -> bool:
 
 
 def _input_paths(inputs: Iterable) -> list[tuple[str, pathlib.Path]]:
-    return [(os.fspath(p), _real(p)) for p in inputs if p is not None]
+    return [(os.fspath(p), real_number(p)) for p in inputs if p is not None]
 
 
 def is_results_folder(path: str | os.PathLike) -> bool:
@@ -135,7 +135,7 @@ def _check_parent(out: pathlib.Path, real: pathlib.Path, what: str):
 
 
 def _check_not_inputs(out: str, real: pathlib.Path, inputs, what: str):
-    cwd = _real(os.getcwd())
+    cwd = real_number(os.getcwd())
     if _inside(cwd, real):
         where = "is the current directory" if real == cwd else "holds the current directory"
         _refuse(what, f"{out} {where}: refusing to write results there")
@@ -159,7 +159,7 @@ def check_output_dir(
     marker file); its parent folder is missing or not writable. An empty folder is fine.
     """
     name = os.fspath(out)
-    real = _real(out)
+    real = real_number(out)
     _check_not_inputs(name, real, inputs, what)
     if os.path.lexists(real) and not real.is_dir():
         _refuse(what, f"{name} exists and is not a directory")
@@ -218,7 +218,7 @@ def check_output_file(
     and `force` is not given; its parent folder is missing or not writable.
     """
     name = os.fspath(out)
-    real = _real(out)
+    real = real_number(out)
     for input_name, path in _input_paths(inputs):
         same = path == real
         if not same and real.exists() and path.exists():

@@ -10,7 +10,7 @@ import numpy as np
 
 from .._errors import ParameterError, check_choice, check_int, check_positive
 from .._jax import jax
-from .._model import CreepingSlider, FrictionModel, _to_arrays, time_scales
+from .._model import CreepingSlider, FrictionModel, time_scales, to_arrays
 from . import gaussian as G
 from . import series
 from .sources import EmpiricalSource, GaussianSource
@@ -192,7 +192,7 @@ class CrossingEstimator:
                 f"{type(model).__name__} has no linear-Gaussian description; pass a simulated "
                 "ensemble (simulate(..., record_upcrossings=K)) for the empirical estimator",
             )  # fmt: skip
-        lg = _to_arrays(model).linear_gaussian()
+        lg = to_arrays(model).linear_gaussian()
         g, B = np.asarray(lg.crossing, float), np.asarray(lg.B, float)
         noise = float(g @ B @ B.T @ g)
         self.exact = bool(model.crossing_is_smooth) and noise == 0.0

@@ -163,7 +163,7 @@ def _full_chunk(a, fill, dtype=np.float64):
     return out
 
 
-def _bucket(n):
+def bucket(n):
     """Table length padded to a power of two (>= 64), so that few shapes get compiled."""
     return max(64, 1 << (int(n) - 1).bit_length())
 

@@ -112,11 +112,11 @@ N1_BLOCK = 1024  # times per evaluation of n1 at arbitrary times
 
 
 def _padded(a):
-    """`a` (1-d) padded with its last entry to a power-of-two length (`kernels._bucket`):
+    """`a` (1-d) padded with its last entry to a power-of-two length (`kernels.bucket`):
     the point evaluations' kernels are compiled per length, and a user's time grids come
     in every length."""
     a = np.asarray(a)
-    size = kernels._bucket(a.size)
+    size = kernels.bucket(a.size)
     return np.pad(a, (0, size - a.size), mode="edge") if 0 < a.size < size else a
 
 
@@ -408,7 +408,7 @@ class GaussianSource:
         # the propagator table: the identity, the short lags (< h), the grid lags j h
         d = self._g.size
         ident = (np.eye(d)[None], np.zeros((1, d, d)), np.zeros((1, d)), np.zeros((1, d, d)))
-        n_rows = max(_SHORT_ROWS, kernels._bucket(pairs.lags.size))
+        n_rows = max(_SHORT_ROWS, kernels.bucket(pairs.lags.size))
         short = kernels.lag_propagators(self.cr, np.pad(pairs.lags, (0, n_rows - pairs.lags.size)))
         table = tuple(
             np.concatenate([i, a, g])

@@ -14,12 +14,12 @@ it. So the null distribution is not taken from asymptotics but simulated:
   ratio $T = 2[\tilde\ell_B(y) - \tilde\ell_A(y)]$, where $\tilde\ell_M(y)$ is the maximum
   near $M$'s estimate of $M$'s own smoothed log-likelihood (its fit's bandwidths,
   observation rule, `dt`, `t_max`, `n_sim` and seed: `likelihood._per_cycle`): evaluated
-  at the fit's own design (`surface._local_surface`: the centre, $\pm 1$ and $\pm 2$
+  at the fit's own design (`surface.local_surface`: the centre, $\pm 1$ and $\pm 2$
   steps along each axis, $\pm 1$ along each diagonal pair, clipped at the box), the fit's
   polynomial through them (quadratic, a cubic term per axis), its largest value over the
   region the design spans (`_polynomial_max`, `_region`). Its null distribution
   is a parametric bootstrap: `n_boot` data sets of the data's size simulated from $A$ at
-  its estimate through the fit's observation rule (`goodness._replicates`), each scored by
+  its estimate through the fit's observation rule (`goodness.simulate_replicates`), each scored by
   the *same* $T$: the same design points and the same simulated samples;
   $p = (1 + \#\{T^* \ge T\}) / (1 + n_{boot})$. With several richer candidates, the
   smallest $p$ times their number (Bonferroni).
@@ -88,12 +88,12 @@ from typing import Any
 import numpy as np
 
 from .._errors import DataError, ParameterError, check_int
-from .forward import _simulate
+from .forward import simulate_values
 from .goodness import ALPHA as GOODNESS_ALPHA
-from .goodness import _replicates, _Setting
-from .likelihood import _sample, _scored
-from .params import _from_fit, model_kwargs
-from .surface import _polynomial_terms
+from .goodness import Setting, simulate_replicates
+from .likelihood import sample, scored_samples
+from .params import from_fit_coords, model_kwargs
+from .surface import polynomial_terms
 
 # The level of each choice: a simpler model is kept unless p < ALPHA. The issue asks that a
 # model which holds be kept in >= 90 % of data sets: at 0.05 a calibrated test keeps it in
@@ -214,7 +214,7 @@ def _drawn(null, n_boot: int, seed: int) -> Replicates:
     sets = []
     for r, (setting, data) in enumerate(zip(null.parts, null.columns, strict=True)):
         n = next(iter(data.values())).size
-        reps = _replicates(setting, n, n_boot, seed if r == 0 else _stream(seed, 1000 + r))
+        reps = simulate_replicates(setting, n, n_boot, seed if r == 0 else _stream(seed, 1000 + r))
         sets.append({k: np.concatenate([x[k] for x in reps]) for k in data})
     return Replicates(fit=_fingerprint(null.result), n_boot=n_boot, seed=seed,
                       sets=tuple(sets))  # fmt: skip
@@ -389,7 +389,7 @@ class _Candidate:
 
     name: str
     result: Any
-    setting: Any  # goodness._Setting: the model at u, the simulation and observation rule
+    setting: Any  # goodness.Setting: the model at u, the simulation and observation rule
     n_free: int
     log_likelihood: float
     seeds: tuple[int, int]
@@ -398,7 +398,7 @@ class _Candidate:
 
     @classmethod
     def of(cls, name, result) -> _Candidate:
-        setting = _Setting.of(result)  # (the constructor's arguments: `model_kwargs`)
+        setting = Setting.of(result)  # (the constructor's arguments: `model_kwargs`)
         design = result.diagnostics.get("design", {})
         if "points" not in design or "seeds" not in design:
             raise ParameterError(
@@ -419,7 +419,7 @@ class _Candidate:
         )  # fmt: skip
 
     def design(self) -> tuple[list, np.ndarray, list]:
-        """The fit's own design (`surface._local_surface`: the centre, +-1 and +-2 steps
+        """The fit's own design (`surface.local_surface`: the centre, +-1 and +-2 steps
         along each axis, +-1 step along each pair's diagonals, clipped at the box) less
         the points where the fit's log-likelihood is not finite at either seed: the models
         there (one per run), their offsets from the centre in steps, and, per seed, the
@@ -459,8 +459,8 @@ class _Candidate:
             for r, (s, m, data) in enumerate(zip(self.parts, per_run, pooled, strict=True)):
                 sim = samples[which][i][r]
                 if sim is None:
-                    sim = _sample(m, s.n_sim, s.dt, s.t_max, seed, s.observe)
-                terms = _scored(data, sim, s.bandwidth, s.observe)
+                    sim = sample(m, s.n_sim, s.dt, s.t_max, seed, s.observe)
+                terms = scored_samples(data, sim, s.bandwidth, s.observe)
                 if terms is None:  # (the fit found cycles there: the same simulation)
                     values[i] = -np.inf
                     break
@@ -472,9 +472,9 @@ class _Candidate:
 
 @dataclasses.dataclass(frozen=True)
 class _RunSetting:
-    """What `_replicates` and a design need of run `index` of a fit of several runs: its
+    """What `simulate_replicates` and a design need of run `index` of a fit of several runs: its
     model at fit coordinates `u` (the SI values mapped into its units: `joint.Runs`), its
-    measurement and bandwidths; `goodness._Setting`'s names."""
+    measurement and bandwidths; `goodness.Setting`'s names."""
 
     runs: Any  # joint.Runs
     index: int
@@ -498,12 +498,12 @@ class _RunSetting:
         )  # fmt: skip
 
     def model(self, u):
-        values = {k: _from_fit(self.scales[k], float(x)) for k, x in zip(self.names, u,
+        values = {k: from_fit_coords(self.scales[k], float(x)) for k, x in zip(self.names, u,
                                                                          strict=True)}  # fmt: skip
         return self.runs.build(values)[self.index]
 
     def simulate(self, u, n, seed) -> dict[str, np.ndarray]:
-        sim = _simulate(self.model(u), n, None, None, seed, self.observe)
+        sim = simulate_values(self.model(u), n, None, None, seed, self.observe)
         return {k: np.asarray(sim[k], float) for k in self.kinds}
 
 
@@ -516,7 +516,7 @@ def _built(setting, u):
 
 def _polynomial_max(offsets: np.ndarray, values: np.ndarray) -> np.ndarray:
     """The largest value, over the region the design's points span (`_region`), of the
-    fit's polynomial (`surface._polynomial_vertex`: quadratic plus a cubic term per axis)
+    fit's polynomial (`surface.polynomial_vertex`: quadratic plus a cubic term per axis)
     fitted to each data set's values at the design points (`values`: points x sets): its
     curvature and cubic terms are fitted once to the sets' mean surface (nearly the same
     for every data set of one size; fitted per set they would carry each set's simulation
@@ -527,12 +527,12 @@ def _polynomial_max(offsets: np.ndarray, values: np.ndarray) -> np.ndarray:
     points and is underrated: the replicates' ratios, and the p-values, would be pulled
     down. A polynomial's maximum does not depend on where in the design it falls."""
     p = offsets.shape[1]
-    terms = _polynomial_terms(offsets)  # 1, linear | curvature, cubic (the fit's own)
+    terms = polynomial_terms(offsets)  # 1, linear | curvature, cubic (the fit's own)
     linear, shape_terms = terms[:, : 1 + p], terms[:, 1 + p :]
     shape = np.linalg.lstsq(terms, values.mean(axis=1), rcond=None)[0][1 + p :]
     ag = np.linalg.lstsq(linear, values - (shape_terms @ shape)[:, None],
                          rcond=None)[0]  # (1 + p) x sets  # fmt: skip
-    x = _polynomial_terms(_region(offsets))
+    x = polynomial_terms(_region(offsets))
     surface = x[:, : 1 + p] @ ag + (x[:, 1 + p :] @ shape)[:, None]
     return surface.max(axis=0)
 

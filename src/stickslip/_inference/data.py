@@ -1,13 +1,13 @@
 """The data `fit` is given, and the measurement they went through.
 
-The columns (`KINDS`) and the scale each is fitted on (`_transform`: durations on a log
+The columns (`KINDS`) and the scale each is fitted on (`to_fit_scale`: durations on a log
 scale).
 
 A dict of per-cycle arrays holds per-cycle values of the model (no measurement); a `Cycles`
-from `extract_cycles` carries its measurement (`_measurement` reads it into a
+from `extract_cycles` carries its measurement (`measurement_of` reads it into a
 `measurement.Measurement`, which the simulated cycles go through). Data that cannot be
-fitted are refused with the evidence (`_check_data`), never silently dropped; a dict that
-looks sampled gets a warning (`_looks_sampled`).
+fitted are refused with the evidence (`check_data`), never silently dropped; a dict that
+looks sampled gets a warning (`looks_sampled`).
 """
 
 from __future__ import annotations
@@ -31,14 +31,14 @@ DISTINCT_DIGITS = 1e-9  # values closer than this (relative, on the fitting scal
 MAX_LINEAR = 1e150  # a slip distance's spread is a sum of squares: it must stay finite
 
 
-def _transform(kind, x):
+def to_fit_scale(kind, x):
     if kind in LOG_KINDS:
         x = x[x > 0]
         return np.log(x)
     return x
 
 
-def _measurement(data, trace=None, sampling=None, scales=None, owner: str = "fit"):
+def measurement_of(data, trace=None, sampling=None, scales=None, owner: str = "fit"):
     """The data as a dict of columns and the measurement they went through: `(data,
     measurement)`, `measurement` a `Measurement` read from a `Cycles` (`None` for a dict:
     per-cycle values of the model). `trace` and `sampling` are the deprecated arguments
@@ -140,7 +140,7 @@ def _same(a, b) -> bool:
         return False
 
 
-def _refuse(cls, parameter: str, reason: str, value: Any = None) -> StickSlipError:
+def refusal(cls, parameter: str, reason: str, value: Any = None) -> StickSlipError:
     """A `DataError` or `ResourceError` about one of fit's arguments, worded as a
     `ParameterError` is; its `parameter`, `reason` and `value` are kept on it, as a
     `ParameterError` keeps them, for callers that re-phrase it (a study's fit)."""
@@ -168,7 +168,7 @@ def _column(name: str, value) -> np.ndarray:
     try:
         x = np.asarray(value)
     except (ValueError, TypeError):  # ragged nested lists
-        raise _refuse(
+        raise refusal(
             DataError,
             where,
             f"must be a 1-D array of numbers, one per cycle (got a ragged {type(value).__name__})",
@@ -180,11 +180,11 @@ def _column(name: str, value) -> np.ndarray:
     if x.dtype.kind not in "iuf":
         what = {"U": "strings", "S": "bytes", "b": "booleans", "c": "complex numbers"}
         got = what.get(x.dtype.kind, type(value).__name__ if x.ndim == 0 else "other objects")
-        raise _refuse(
+        raise refusal(
             DataError, where, f"must hold real numbers, one per cycle (got {got}, shape {x.shape})"
         )
     if x.ndim != 1:
-        raise _refuse(
+        raise refusal(
             DataError,
             where,
             f"must be 1-D, one value per cycle (got shape {x.shape}"
@@ -193,7 +193,7 @@ def _column(name: str, value) -> np.ndarray:
     return x.astype(float)
 
 
-def _check_data(data, measured: bool = False) -> dict[str, np.ndarray]:
+def check_data(data, measured: bool = False) -> dict[str, np.ndarray]:
     """The known columns of a per-cycle table, as float arrays of one length. Unusable data
     are refused with the evidence (counts, shapes, rows), never silently dropped. With
     `measured` (the cycles of a trace), a slip time of 0 is allowed: `extract_cycles` times
@@ -210,7 +210,7 @@ def _check_data(data, measured: bool = False) -> dict[str, np.ndarray]:
         )
     sizes = {k: x.size for k, x in cols.items()}
     if len(set(sizes.values())) > 1:
-        raise _refuse(
+        raise refusal(
             DataError,
             "data",
             "columns must have one length, a row per cycle (the likelihood sums each cycle's "
@@ -220,7 +220,7 @@ def _check_data(data, measured: bool = False) -> dict[str, np.ndarray]:
     for k, x in cols.items():
         bad = np.flatnonzero(~np.isfinite(x))
         if bad.size:
-            raise _refuse(
+            raise refusal(
                 DataError,
                 f"data['{k}']",
                 f"has {_count(bad.size, 'non-finite value')} (nan or inf) among "
@@ -235,7 +235,7 @@ def _check_data(data, measured: bool = False) -> dict[str, np.ndarray]:
         if k in LOG_KINDS and not positive and np.any(x < 0):
             raise ParameterError("fit", f"data['{k}']", "must be >= 0")
         if k not in LOG_KINDS and np.max(np.abs(x), initial=0.0) > MAX_LINEAR:
-            raise _refuse(
+            raise refusal(
                 DataError,
                 f"data['{k}']",
                 f"reaches {np.max(np.abs(x)):.3g}, past {MAX_LINEAR:.0e}: its spread would "
@@ -248,7 +248,7 @@ def _check_data(data, measured: bool = False) -> dict[str, np.ndarray]:
 def _check_spread(kind: str, x: np.ndarray) -> None:
     """At least `MIN_CYCLES` values whose density is fitted (the positive ones, on a log
     scale, for durations) and as many distinct ones (to `DISTINCT_DIGITS`, on that scale)."""
-    y = _transform(kind, x)
+    y = to_fit_scale(kind, x)
     scale = max(float(np.max(np.abs(y), initial=0.0)), 1.0 if kind in LOG_KINDS else 0.0)
     distinct = np.unique(np.round(y / (DISTINCT_DIGITS * scale))).size if scale > 0 else 1
     distinct = min(distinct, y.size)
@@ -264,7 +264,7 @@ def _check_spread(kind: str, x: np.ndarray) -> None:
         what = "has too few positive values"
     else:
         what = "is constant" if distinct == 1 else "has too few distinct values"
-    raise _refuse(
+    raise refusal(
         DataError,
         f"data['{kind}']",
         f"{what}: {evidence}; a density needs at least {MIN_CYCLES} of each (its kernel's "
@@ -272,7 +272,7 @@ def _check_spread(kind: str, x: np.ndarray) -> None:
     )
 
 
-def _looks_sampled(given, cols: dict[str, np.ndarray]) -> str | None:
+def looks_sampled(given, cols: dict[str, np.ndarray]) -> str | None:
     """A warning when data given as per-cycle truths (a dict) look like the cycles of a
     sampled trace, which a trace's measurement would have to model (pass the `Cycles`)."""
     meta = getattr(given, "attrs", None)

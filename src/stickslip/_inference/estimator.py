@@ -2,15 +2,15 @@ r"""The simulated maximum-likelihood estimator behind `fit`, a composition of th
 subpackage's pieces:
 
 1. the data and their measurement (`data`), the parameters, their box and the fit
-   coordinates (`params`), the simulation settings (`forward._simulation_settings`);
+   coordinates (`params`), the simulation settings (`forward.simulation_settings`);
 2. the simulated smoothed likelihood (`likelihood`), maximised by a coarse grid and
-   Nelder-Mead (`surface._search`), then a polynomial fitted around the maximum
-   (`surface._local_surface`): its vertex the estimate, its Hessian the information;
+   Nelder-Mead (`surface.search`), then a polynomial fitted around the maximum
+   (`surface.local_surface`): its vertex the estimate, its Hessian the information;
 3. the sandwich covariance, the Monte Carlo noise check with a second seed, and the Wald
    intervals (`intervals`).
 
 `fit` adds the goodness-of-fit check; a parametric bootstrap's refit (`goodness`) calls
-`_estimate` itself.
+`simulated_mle` itself.
 """
 
 from __future__ import annotations
@@ -21,25 +21,32 @@ import warnings
 import numpy as np
 
 from .._errors import DataError, ParameterError, check_int, check_positive
-from .data import LOG_KINDS, _check_data, _looks_sampled, _measurement, _transform
-from .forward import _simulate, _simulation_settings
-from .intervals import _combine_seeds, _mc_noise, _sandwich, _wald, concave, structural_lag
-from .likelihood import JACKKNIFE_BLOCKS, _bandwidth, _jackknife_values, _sample, _scored
+from .data import LOG_KINDS, check_data, looks_sampled, measurement_of, to_fit_scale
+from .forward import simulate_values, simulation_settings
+from .intervals import (
+    combine_seeds,
+    concave,
+    mc_noise_report,
+    sandwich_covariance,
+    structural_lag,
+    wald,
+)
+from .likelihood import JACKKNIFE_BLOCKS, bandwidth_of, jackknife_values, sample, scored_samples
 from .params import (
     ToFit,
-    _check_box,
-    _check_fixed,
-    _check_free,
-    _check_memory,
-    _from_fit,
-    _kwargs,
-    _model_class,
-    _to_fit,
+    check_box,
+    check_fixed,
+    check_free,
+    check_n_sim_memory,
+    from_fit_coords,
+    kwargs_of,
+    model_class,
+    to_fit_coords,
 )
 from .result import FitResult
-from .surface import DESIGN_STEP, _evaluate, _local_surface, _polynomial_vertex, _search
+from .surface import DESIGN_STEP, evaluate, local_surface, polynomial_vertex, search
 
-# warnings point at the line that called `fit` (fit -> _estimate -> warnings.warn)
+# warnings point at the line that called `fit` (fit -> simulated_mle -> warnings.warn)
 STACKLEVEL = 3
 # Simulated cycles per evaluated point. Per-cycle values: 10^5 (about 0.3 s on 2 cores). A
 # measured trace costs ~40 times more a cycle (recorded slips, sampling, extraction: 0.15-0.2
@@ -61,7 +68,7 @@ N_SIM_MEASURED = 4000
 MEASURED_DESIGN_STEP = 0.3
 
 
-def _estimate(
+def simulated_mle(
     model, data, free, fixed=None, *, seed=0, n_sim=None, dt=None, t_max=None, scales=None,
     trace=None, sampling=None, progress=False, measurement=None, runs=None,
 ) -> FitResult:  # fmt: skip
@@ -72,13 +79,13 @@ def _estimate(
     wall0 = time.perf_counter()
     owner = "fit"
     units = scales  # (a Slider or Scales; `scales` names the fit coordinates below)
-    Model = _model_class(model)
+    Model = model_class(model)
     if runs is None:
-        data, measured = _measurement(data, trace, sampling, scales, owner)
+        data, measured = measurement_of(data, trace, sampling, scales, owner)
         if measurement is not None:
             measured = measurement
-        fixed = _check_fixed(fixed, Model)
-        free = _check_free(free, fixed, Model)
+        fixed = check_fixed(fixed, Model)
+        free = check_free(free, fixed, Model)
     else:
         fixed, free = runs.checked(fixed, free)
         data, measured = runs.data, runs.measurements[0]
@@ -98,30 +105,30 @@ def _estimate(
         )  # fmt: skip
     names = list(free)
     scales = {k: "log" if free[k][0] > 0 else "linear" for k in names}
-    lo = np.array([_to_fit(scales[k], free[k][0]) for k in names])
-    hi = np.array([_to_fit(scales[k], free[k][1]) for k in names])
+    lo = np.array([to_fit_coords(scales[k], free[k][0]) for k in names])
+    hi = np.array([to_fit_coords(scales[k], free[k][1]) for k in names])
 
     def params(u):
-        return {k: _from_fit(scales[k], float(x)) for k, x in zip(names, u, strict=True)}
+        return {k: from_fit_coords(scales[k], float(x)) for k, x in zip(names, u, strict=True)}
 
     if runs is None:
         # The model at the box's centre and at each end of each axis: a value the model
         # refuses is the box's fault, said here in one line rather than as points that
         # quietly fail.
-        centre = _check_box(Model, fixed, free, params(0.5 * (lo + hi)))
+        centre = check_box(Model, fixed, free, params(0.5 * (lo + hi)))
     else:
         centre = runs.check_box(free, params(0.5 * (lo + hi)))
-    _check_memory(n_sim, centre)
+    check_n_sim_memory(n_sim, centre)
     if runs is None:
         given = data
-        data = _check_data(data, measured=measured is not None)
-        sampled = None if measured is not None else _looks_sampled(given, data)
+        data = check_data(data, measured=measured is not None)
+        sampled = None if measured is not None else looks_sampled(given, data)
         if sampled is not None:  # said now: the fit may take minutes
             warnings.warn(f"fit: {sampled}", stacklevel=STACKLEVEL)
     else:
         sampled = None
     if measured is None:
-        dt, t_max = _simulation_settings(centre, data, dt, t_max, owner)
+        dt, t_max = simulation_settings(centre, data, dt, t_max, owner)
     else:
         missing = [k for k in data if k not in measured.columns]
         if missing:
@@ -130,12 +137,12 @@ def _estimate(
                 f"{', '.join(missing)}", sorted(data),
             )  # fmt: skip
     if runs is None:
-        parts = [(data, measured, {k: _bandwidth(_transform(k, data[k]), n_sim) for k in data})]
+        parts = [(data, measured, {k: bandwidth_of(to_fit_scale(k, data[k]), n_sim) for k in data})]
 
         def build(values):
-            return [Model(**_kwargs(fixed, values))]
+            return [Model(**kwargs_of(fixed, values))]
     else:
-        parts = [(d, m, {k: _bandwidth(_transform(k, d[k]), n_sim) for k in d})
+        parts = [(d, m, {k: bandwidth_of(to_fit_scale(k, d[k]), n_sim) for k in d})
                  for d, m in zip(runs.columns, runs.measurements, strict=True)]  # fmt: skip
         build = runs.build
     bandwidth = parts[0][2] if runs is None else [b for _, _, b in parts]
@@ -151,7 +158,7 @@ def _estimate(
     keep = runs is None and _keeps_samples(n_sim, len(data), len(names))
     recording: dict | None = None
     # The design's points, each with its log-likelihood with a block of its simulated
-    # cycles left out in turn (`likelihood._jackknife_values`), for the simulation's noise
+    # cycles left out in turn (`likelihood.jackknife_values`), for the simulation's noise
     # in the estimate (`intervals._jackknife`); `None` outside the design.
     blocks: dict | None = None
 
@@ -179,15 +186,15 @@ def _estimate(
         per_run, sim, left_out = [], None, 0.0
         for m, (d, measure, h) in zip(models, parts, strict=True):
             try:
-                sim = None if m is None else _sample(m, n_sim, dt, t_max, at_seed, measure)
+                sim = None if m is None else sample(m, n_sim, dt, t_max, at_seed, measure)
             except ParameterError as err:  # simulate's names are fit's arguments
                 name = {"n_paths": "n_sim"}.get(err.parameter, err.parameter)
                 raise ParameterError(owner, name, err.reason, err.value) from None
-            per_run.append(_scored(d, sim, h, measure))
+            per_run.append(scored_samples(d, sim, h, measure))
             if per_run[-1] is None:
                 break
             if blocks is not None:  # (several runs: their blocks' values add up)
-                left_out = left_out + _jackknife_values(d, sim, h, measure)
+                left_out = left_out + jackknife_values(d, sim, h, measure)
         if blocks is not None:
             whole = all(t is not None for t in per_run)
             blocks[u.tobytes(), at_seed] = left_out if whole else np.full(JACKKNIFE_BLOCKS, -np.inf)
@@ -210,7 +217,7 @@ def _estimate(
         return value, terms, sim
 
     # 1. a coarse grid over the box, Nelder-Mead from its best point
-    u_best, optimizer, caught = _search(loglik, lo, hi, free)
+    u_best, optimizer, caught = search(loglik, lo, hi, free)
     _check_informative(points, names, data, centre, n_sim, dt, t_max, seed, measured)
     # 2. a polynomial around it: the vertex and the Hessian
     step = DESIGN_STEP if measured is None else MEASURED_DESIGN_STEP
@@ -221,18 +228,18 @@ def _estimate(
         step = np.minimum(step, (hi - lo) / 8)
     recording = {} if keep else None
     blocks = {}
-    surface = _local_surface(loglik, u_best, lo, hi, data, names, step)
+    surface = local_surface(loglik, u_best, lo, hi, data, names, step)
     caught += surface.warnings
     # 3. the simulation's own noise: the same design with a second, independent seed. The
-    # simulator's draws move with the parameters (see `surface._search`), so the surface
+    # simulator's draws move with the parameters (see `surface.search`), so the surface
     # carries Monte Carlo noise that common random numbers do not cancel: measured, the two
     # seeds' vertices differed by 1-1.5 standard errors at n_sim = 2e4 for two columns, far
     # above the sqrt(n / n_sim) widening alone assumes. The estimate's Monte Carlo
     # covariance is a jackknife over each seed's simulated cycles (`blocks`), checked by the
-    # two seeds' difference (`intervals._combine_seeds`). The two seeds' per-cycle scores
-    # also give the sandwich's J without the simulation's noise (`_sandwich`).
+    # two seeds' difference (`intervals.combine_seeds`). The two seeds' per-cycle scores
+    # also give the sandwich's J without the simulation's noise (`sandwich_covariance`).
     seed2 = (seed + 0x9E3779B97F4A7C15) % 2**64  # far from seed: an independent stream
-    values2, scores2 = _evaluate(surface.design, lambda u: loglik(u, seed2), data)
+    values2, scores2 = evaluate(surface.design, lambda u: loglik(u, seed2), data)
     samples = None
     if recording is not None:
         samples = _DesignSamples(
@@ -244,13 +251,13 @@ def _estimate(
                     for at in (seed, seed2)]  # fmt: skip
     blocks = None
     # successive rows share a draw where the onset is random (`intervals.structural_lag`)
-    cov, said, dependence = _sandwich(surface, names, scores2, structural_lag(centre))
+    cov, said, dependence = sandwich_covariance(surface, names, scores2, structural_lag(centre))
     caught += said
-    shift2, _ = _polynomial_vertex(surface.design - surface.centre, np.array(values2),
+    shift2, _ = polynomial_vertex(surface.design - surface.centre, np.array(values2),
                                    surface.steps)  # fmt: skip
     se = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    u_hat, cov, noise = _combine_seeds(surface, shift2, cov, block_values, lo, hi)
-    mc_noise = _mc_noise(names, noise, se, n_sim)
+    u_hat, cov, noise = combine_seeds(surface, shift2, cov, block_values, lo, hi)
+    mc_noise = mc_noise_report(names, noise, se, n_sim)
     mc_noise.update(
         seed=seed2, log_likelihood_difference=float(surface.values[0] - values2[0])
     )  # fmt: skip
@@ -268,7 +275,7 @@ def _estimate(
     # 4. the estimate, its intervals
     ll_hat, _ = loglik(u_hat)
     estimate = params(u_hat)
-    ci, said = _wald(u_hat, cov, names, scales, lo, hi, free,
+    ci, said = wald(u_hat, cov, names, scales, lo, hi, free,
                      concave(surface.hessian) and not lost)  # fmt: skip
     caught += said
     for text in caught:
@@ -355,7 +362,7 @@ def _check_informative(points, names, data, centre, n_sim, dt, t_max, seed, meas
     values = np.array([v for _, v in points if np.isfinite(v)])
     if values.size < 3 or np.ptp(values) > 1e-9 * max(1.0, float(np.abs(values).max())):
         return
-    sim = _simulate(centre, n_sim, dt, t_max, seed, measured)
+    sim = simulate_values(centre, n_sim, dt, t_max, seed, measured)
     none = [k for k in data if k in LOG_KINDS and np.any(data[k] > 0)
             and not np.any(np.asarray(sim[k]) > 0)]  # fmt: skip
     why = (

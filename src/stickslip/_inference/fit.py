@@ -1,7 +1,7 @@
 r"""`fit`: friction-noise parameters from measured per-cycle statistics, and whether the
 model reproduces the data at all.
 
-`fit` is the simulated maximum-likelihood estimator (`estimator._estimate`: the data and
+`fit` is the simulated maximum-likelihood estimator (`estimator.simulated_mle`: the data and
 their measurement, the parameters and their box, the simulated likelihood, its maximum and
 curvature, the intervals) followed, with `check=True`, by a simulation-calibrated
 goodness-of-fit test (`goodness`).
@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .._errors import ParameterError
-from .estimator import _estimate
+from .estimator import simulated_mle
 from .goodness import ALPHA, MIN_VERDICT_REP, goodness_of_fit
 from .result import FitResult
 
@@ -147,7 +147,7 @@ def fit(
     loading = _loading_speed_mismatch(data, fixed, scales)
     if loading is not None:  # said now: the fit may take minutes
         warnings.warn(f"fit: {loading}", stacklevel=2)
-    result = _estimate(
+    result = simulated_mle(
         model, data, free, fixed, seed=seed, n_sim=n_sim, dt=dt, t_max=t_max, scales=scales,
         trace=trace, sampling=sampling, progress=progress,
     )  # fmt: skip
@@ -159,15 +159,15 @@ def fit(
 def _joint(model, data, free, fixed, *, seed, n_sim, dt, scales, check, progress, wall0):
     """`fit` of one SI parameter set to several runs (`joint`)."""
     from .joint import Runs
-    from .params import _model_class
+    from .params import model_class
 
     if scales is not None:
         raise ParameterError(
             "fit", "scales", "applies to one run: with several, each run's reference Slider "
             "sets its units (a Run's own, or the Slider of a (Cycles, Slider) pair)",
         )  # fmt: skip
-    runs = Runs(_model_class(model), data)
-    result = _estimate(model, None, free, fixed, seed=seed, n_sim=n_sim, dt=dt,
+    runs = Runs(model_class(model), data)
+    result = simulated_mle(model, None, free, fixed, seed=seed, n_sim=n_sim, dt=dt,
                        progress=progress, runs=runs)  # fmt: skip
     if check:
         d = result.diagnostics

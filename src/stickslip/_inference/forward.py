@@ -1,11 +1,11 @@
-"""The forward model: simulated cycles as the data see them (`_simulate`).
+"""The forward model: simulated cycles as the data see them (`simulate_values`).
 
 Per-cycle values of the model are the slips of positive length that ended; the cycles of a
 measured trace are the model's own trace passed through the data's measurement
 (`measurement.measured_cycles`: sampled at the data's interval, with the data's noise,
 through `extract_cycles` with the data's settings). The per-cycle simulation's settings
 (`dt`, `t_max`) default from the model's slowest time scale and the data
-(`_simulation_settings`).
+(`simulation_settings`).
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ MAX_STEPS = 2**30  # the simulator's limit on t_max / dt
 MEASURED_CHUNK = 4000
 
 
-def _simulation_settings(centre, data, dt, t_max, owner: str = "fit") -> tuple[float, float]:
+def simulation_settings(centre, data, dt, t_max, owner: str = "fit") -> tuple[float, float]:
     """The simulation step and longest slip: given, or by default a fifth of the model's
     slowest time scale (at the box's centre) and three times the data's longest slip or
     period, at least 50 slow time scales; refused past the simulator's 2**30 steps."""
@@ -65,7 +65,7 @@ def _slow_scale(model) -> float:
     return 1.0 if scales is None else scales[1]
 
 
-def _simulate(model, n, dt, t_max, seed, measurement=None) -> dict[str, np.ndarray]:
+def simulate_values(model, n, dt, t_max, seed, measurement=None) -> dict[str, np.ndarray]:
     """Simulated cycles as the data see them: `n` independent cycles, of which the slips of
     positive length that ended (per-cycle values, step `dt`, longest slip `t_max`), or, with
     a `measurement`, about `n` successive model cycles as that measurement shows them

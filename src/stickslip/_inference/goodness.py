@@ -48,11 +48,11 @@ import numpy as np
 from .._errors import DataError, ParameterError, check_int
 from .._memory import check_memory
 from ..quantities import get
-from .data import _transform
-from .forward import _simulate
+from .data import to_fit_scale
+from .forward import simulate_values
 from .intervals import concave
-from .likelihood import KDE_BINS, _density_table, _log_density_at
-from .params import SIM_BYTES_PER_STATE, _from_fit, _to_fit, model_kwargs
+from .likelihood import KDE_BINS, density_table, log_density_at
+from .params import SIM_BYTES_PER_STATE, from_fit_coords, model_kwargs, to_fit_coords
 from .statistics import AndersonDarling, Statistic
 
 ALPHA = 0.01  # below this p-value the data reject the model (the issue's verdict level)
@@ -224,7 +224,7 @@ def goodness_of_fit(
     factor = REF_FACTOR if d.get("measurement") is None else MEASURED_REF_FACTOR
     n_ref = max(d["n_sim"], factor * n) if n_ref is None else n_ref
     n_ref = check_int(owner, "n_ref", n_ref, minimum=1000)
-    setting = _Setting.of(result)
+    setting = Setting.of(result)
     _check_memory(setting, n, n_rep, n_ref)
     rng = np.random.default_rng([seed, 0])
     ref_seed = int(rng.integers(2**62))
@@ -235,7 +235,7 @@ def goodness_of_fit(
     shifted = None if refit else setting.shifted_references(n_ref, ref_seed)
     observed = {k: statistic(_pit(data[k], [reference[k]], [1.0], rng)) for k in kinds}
 
-    reps = _replicates(setting, n, n_rep, int(rng.integers(2**62)))
+    reps = simulate_replicates(setting, n, n_rep, int(rng.integers(2**62)))
     stats = {k: np.empty(n_rep) for k in kinds}
     if refit:
         for r, rep in enumerate(reps):
@@ -321,7 +321,7 @@ def goodness_of_fit(
 
 # -- pieces -----------------------------------------------------------------------------
 @dataclasses.dataclass(frozen=True)
-class _Setting:
+class Setting:
     """What a replicate needs from the fit: the model at fit coordinates `u` (log for
     positive parameters), the simulation settings and observation rule, the estimator's
     Hessian, bandwidths and covariance."""
@@ -344,11 +344,11 @@ class _Setting:
     diagnostics: dict
 
     @classmethod
-    def of(cls, result) -> _Setting:
+    def of(cls, result) -> Setting:
         d = result.diagnostics
         names = list(result.estimate)
         scales = dict(d["scales"])
-        u_hat = np.array([_to_fit(scales[k], result.estimate[k]) for k in names])
+        u_hat = np.array([to_fit_coords(scales[k], result.estimate[k]) for k in names])
         return cls(
             Model=type(result.model), params=model_kwargs(result.model), names=names,
             scales=scales, u_hat=u_hat, hessian=np.atleast_2d(np.asarray(d["hessian"], float)),
@@ -363,12 +363,12 @@ class _Setting:
         kwargs = dict(self.params)
         for k, x in zip(self.names, u, strict=True):
             head, _, entry = k.partition(".")  # "threshold_params.sd": an entry of a dict
-            value = _from_fit(self.scales[k], x)
+            value = from_fit_coords(self.scales[k], x)
             kwargs[head] = {**kwargs[head], entry: value} if entry else value
         return self.Model(**kwargs)
 
     def simulate(self, u, n, seed) -> dict[str, np.ndarray]:
-        sim = _simulate(self.model(u), n, self.dt, self.t_max, seed, self.observe)
+        sim = simulate_values(self.model(u), n, self.dt, self.t_max, seed, self.observe)
         return {k: np.asarray(sim[k], float) for k in self.kinds}
 
     def shifted_references(self, n_ref, seed):
@@ -415,7 +415,7 @@ class _Setting:
         return (v / w) @ v.T
 
     def gradient_tables(self, shifted, reps, data) -> list:
-        """The shifted references' smoothed log-densities (`likelihood._density_table`),
+        """The shifted references' smoothed log-densities (`likelihood.density_table`),
         tabulated once for all replicates: on a grid over every replicate's values and the
         data's (8 bandwidths beyond), its bins no wider than those `_log_density` takes for
         the narrowest replicate alone, the defensive normal the data's. Per replicate and
@@ -426,14 +426,14 @@ class _Setting:
             tables = {}
             for k in self.kinds:
                 h = self.bandwidth[k]
-                ys = [_transform(k, r[k]) for r in reps] + [_transform(k, data[k])]
+                ys = [to_fit_scale(k, r[k]) for r in reps] + [to_fit_scale(k, data[k])]
                 lo = min(float(y.min()) for y in ys) - 8 * h
                 hi = max(float(y.max()) for y in ys) + 8 * h
                 narrowest = min(float(y.max() - y.min()) for y in ys) + 16 * h
                 bins = int(math.ceil(KDE_BINS * (hi - lo) / narrowest))
                 y0 = ys[-1]
                 mu, sd = float(np.mean(y0)), 3.0 * max(float(np.std(y0)), h)
-                tables[k] = tuple(_density_table(k, side[k], h, lo, hi, bins, mu, sd)
+                tables[k] = tuple(density_table(k, side[k], h, lo, hi, bins, mu, sd)
                                   for side in (plus, minus))  # fmt: skip
             out.append((tables, step))
         return out
@@ -447,8 +447,8 @@ class _Setting:
         for j, (table, step) in enumerate(tables):
             for k in self.kinds:
                 plus, minus = table[k]
-                up = np.sum(_log_density_at(k, rep[k], plus))
-                down = np.sum(_log_density_at(k, rep[k], minus))
+                up = np.sum(log_density_at(k, rep[k], plus))
+                down = np.sum(log_density_at(k, rep[k], minus))
                 g[j] += (up - down) / step
         return newton @ g
 
@@ -467,7 +467,7 @@ class _Setting:
 
     def refit(self, rep, seed) -> np.ndarray:
         """The replicate refitted as the data were; returns its estimate (fit coordinates)."""
-        from .estimator import _estimate
+        from .estimator import simulated_mle
 
         d = self.diagnostics
         free = d.get("free") or self._box()
@@ -478,12 +478,12 @@ class _Setting:
                 fixed[head] = {j: v for j, v in fixed[head].items() if f"{head}.{j}" not in free}
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            r = _estimate(
+            r = simulated_mle(
                 self.Model, rep, free, fixed, seed=seed % 2**63, n_sim=self.n_sim, dt=self.dt,
                 t_max=None if self.observe is not None else self.t_max,
                 measurement=self.observe,
             )  # fmt: skip
-        return np.array([_to_fit(self.scales[k], r.estimate[k]) for k in self.names])
+        return np.array([to_fit_coords(self.scales[k], r.estimate[k]) for k in self.names])
 
     def _box(self) -> dict:
         """A search box for a refit (the fit does not record its own): 8 standard errors
@@ -500,7 +500,7 @@ class _Setting:
         return out
 
 
-def _check_memory(setting: _Setting, n: int, n_rep: int, n_ref: int) -> None:
+def _check_memory(setting: Setting, n: int, n_rep: int, n_ref: int) -> None:
     """The replicates (8 B a value, a column each, held at once) and one reference
     simulation (the fit's 160 B a cycle and state component) against the fit's limit."""
     dim = setting.model(setting.u_hat).state_dim
@@ -511,7 +511,7 @@ def _check_memory(setting: _Setting, n: int, n_rep: int, n_ref: int) -> None:
         check_memory("goodness_of_fit", f"parameter '{name}'", need, f"take fewer (got {value})")
 
 
-def _replicates(setting: _Setting, n: int, n_rep: int, seed: int) -> list[dict]:
+def simulate_replicates(setting: Setting, n: int, n_rep: int, seed: int) -> list[dict]:
     """`n_rep` data sets of `n` cycles each at the estimate, through the fit's observation
     rule: consecutive cycles of batches of simulated ones (a trace's visible cycles are
     fewer than those simulated; batches grow until there are enough)."""

@@ -1,12 +1,12 @@
 r"""The estimate's uncertainty: 95 % Wald intervals in fit coordinates (so asymmetric in the
-parameter) with the sandwich covariance $H^{-1} J H^{-1}$ (`_sandwich`: per-cycle scores
+parameter) with the sandwich covariance $H^{-1} J H^{-1}$ (`sandwich_covariance`: per-cycle scores
 summed over the columns, `_score_matrix`; the smoothed likelihood is not a likelihood, and
 the columns of one cycle are dependent), plus the simulation's own noise in the estimate
-(`_combine_seeds`): the surface's design evaluated again with a second seed, the estimate
+(`combine_seeds`): the surface's design evaluated again with a second seed, the estimate
 the mean of the two vertices, its Monte Carlo covariance a jackknife over the cycles
 simulated at the design points (`_jackknife`), which the two seeds' half difference checks
-(`_mc_noise` says what it found). The two seeds' per-cycle scores also give $J$ free of
-the simulation's noise (their cross product, `_sandwich`).
+(`mc_noise_report` says what it found). The two seeds' per-cycle scores also give $J$ free of
+the simulation's noise (their cross product, `sandwich_covariance`).
 
 Successive cycles are not independent where one draw reaches two rows: a row is a slip
 and the stick that follows it, and a random static threshold ends that stick and starts
@@ -24,8 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from .params import _from_fit
-from .surface import _polynomial_vertex
+from .params import from_fit_coords
+from .surface import polynomial_vertex
 
 Z95 = 1.959963984540054
 # The Monte Carlo noise check: a warning when the estimate's Monte Carlo sd (from two seeds)
@@ -55,7 +55,7 @@ def concave(hessian) -> bool:
     return bool(np.all(np.linalg.eigvalsh(-0.5 * (H + H.T)) > 0))
 
 
-def _sandwich(surface, names, scores2=None, lag=0) -> tuple[np.ndarray, list[str], dict]:
+def sandwich_covariance(surface, names, scores2=None, lag=0) -> tuple[np.ndarray, list[str], dict]:
     r"""The sandwich covariance $H^{-1} J H^{-1}$ from the surface's Hessian and per-cycle
     scores (the Hessian's inverse alone if a design point failed), with its warnings and
     what was found of the rows' dependence (`_dependence`).
@@ -203,7 +203,7 @@ def _jackknife(surface, block_values) -> np.ndarray | None:
     du = surface.design - surface.centre
     shifts = []
     for column in np.asarray(block_values, float).T:
-        x, _ = _polynomial_vertex(du, column, surface.steps)
+        x, _ = polynomial_vertex(du, column, surface.steps)
         if x is not None:
             shifts.append(x)
     B = np.shape(block_values)[1]
@@ -213,7 +213,7 @@ def _jackknife(surface, block_values) -> np.ndarray | None:
     return (B - 1) / len(shifts) * (dev.T @ dev)  # (B-1)/B times the sum, over those kept
 
 
-def _combine_seeds(surface, shift2, cov, blocks, lo, hi):
+def combine_seeds(surface, shift2, cov, blocks, lo, hi):
     """The estimate (the mean of two seeds' vertices) and its covariance: the sandwich's plus
     the simulation's, and what was found of the simulation's noise. The simulation's is the
     jackknife's over each seed's simulated cycles (`_jackknife`; a quarter of the two
@@ -223,7 +223,7 @@ def _combine_seeds(surface, shift2, cov, blocks, lo, hi):
     of the cycles themselves; what moves all of a simulated trace's cycles together (the
     statistics its extraction takes over the whole trace) only a second seed sees. Without
     both vertices or a jackknife the covariance is the sandwich's alone, with the reason
-    (`_wald` then gives no interval)."""
+    (`wald` then gives no interval)."""
     u_hat = surface.vertex(lo, hi)
     shift = surface.shift
     noise: dict[str, Any] = dict(mc=None, reason=None, check=None)
@@ -251,7 +251,7 @@ def _combine_seeds(surface, shift2, cov, blocks, lo, hi):
     return u_hat, cov + mc, noise
 
 
-def _wald(u_hat, cov, names, scales, lo, hi, free, concave=True) -> tuple[dict, list[str]]:
+def wald(u_hat, cov, names, scales, lo, hi, free, concave=True) -> tuple[dict, list[str]]:
     """95 % Wald intervals in fit coordinates, and a warning for each estimate on an edge
     of its box. Where the surface is not `concave` there is no interval: `(nan, nan)`
     (its regularised inverse gave (0, inf) or +-1e10, which read as intervals)."""
@@ -259,13 +259,13 @@ def _wald(u_hat, cov, names, scales, lo, hi, free, concave=True) -> tuple[dict, 
     for i, k in enumerate(names):
         half = Z95 * math.sqrt(max(cov[i, i], 0.0))
         if concave:
-            ci[k] = (_from_fit(scales[k], u_hat[i] - half),
-                     _from_fit(scales[k], u_hat[i] + half))  # fmt: skip
+            ci[k] = (from_fit_coords(scales[k], u_hat[i] - half),
+                     from_fit_coords(scales[k], u_hat[i] + half))  # fmt: skip
         else:
             ci[k] = (math.nan, math.nan)
         edge = min(u_hat[i] - lo[i], hi[i] - u_hat[i]) < 0.01 * (hi[i] - lo[i])
         if edge:
-            value = _from_fit(scales[k], u_hat[i])
+            value = from_fit_coords(scales[k], u_hat[i])
             said.append(f"{k} = {value:.4g} is on the edge of its box {free[k]}: widen it")
     return ci, said
 
@@ -291,8 +291,8 @@ def _score_matrix(nominal, design, u_hat, scores):
     return G - G.mean(axis=0)
 
 
-def _mc_noise(names, noise, se, n_sim) -> dict[str, Any]:
-    """The Monte Carlo sd of the estimate (`_combine_seeds`' jackknife) against the standard
+def mc_noise_report(names, noise, se, n_sim) -> dict[str, Any]:
+    """The Monte Carlo sd of the estimate (`combine_seeds`' jackknife) against the standard
     error; a warning when it passes MC_RATIO_WARN of it, with the n_sim that would bring it
     to MC_RATIO_GOAL (its variance falls as 1/n_sim), and one where there is no interval
     for the simulation's noise."""

@@ -80,7 +80,7 @@ class Runs:
 
     def __init__(self, Model, runs):
         from ..units import MODEL_SI_NAMES
-        from .data import _check_data, _measurement
+        from .data import check_data, measurement_of
 
         self.Model = Model
         known = Model.parameters()
@@ -98,12 +98,12 @@ class Runs:
         self.columns, self.measurements = [], []
         for i, run in enumerate(runs):
             cycles, slider, label = _reference(run, i)
-            d, measured = _measurement(cycles, None, None, slider, OWNER)
+            d, measured = measurement_of(cycles, None, None, slider, OWNER)
             if measured is None:
                 raise ParameterError(OWNER, f"data[{i}]", "must be the cycles of a force trace")
             self.labels.append(label)
             self.sliders.append(slider)
-            self.columns.append(_check_data(d, measured=True))
+            self.columns.append(check_data(d, measured=True))
             self.measurements.append(measured)
         first = list(self.columns[0])
         for i, d in enumerate(self.columns):
@@ -215,13 +215,13 @@ class Runs:
         from scipy import stats
 
         from .._errors import DataError
-        from .forward import _simulate
+        from .forward import simulate_values
 
         models = self.build(result.estimate)
         for row, m, d, measured in zip(result.diagnostics["runs"], models, self.columns,
                                        self.measurements, strict=True):  # fmt: skip
             try:
-                sim = _simulate(m, n_sim, None, None, seed, measured)
+                sim = simulate_values(m, n_sim, None, None, seed, measured)
             except DataError as err:  # the fitted slider shows no cycles on this run
                 row["p_values"] = dict.fromkeys(d, 0.0)
                 row["unresolved"] = str(err).splitlines()[0]

@@ -2,11 +2,11 @@ r"""The likelihood `fit` maximises: a *simulated likelihood with common random n
 
 - At a parameter value $\theta$ the model is simulated (`simulate`, exact in law for
   linear-Gaussian slips at any step) for `n_sim` cycles with one fixed seed, through the
-  data's measurement where they have one (`forward._simulate`).
+  data's measurement where they have one (`forward.simulate_values`).
 - Each observed quantity's density is a Gaussian kernel estimate of the simulated values
-  (slip times, periods and positive stick times on a log scale, `_transform`; slip
+  (slip times, periods and positive stick times on a log scale, `to_fit_scale`; slip
   distances on their own scale), one bandwidth per quantity fixed from the data
-  (`_bandwidth`), the same at every $\theta$; a duration's atom at zero (a stick of zero
+  (`bandwidth_of`), the same at every $\theta$; a duration's atom at zero (a stick of zero
   length) is a point mass (`_zero_fraction`).
 - The data are smoothed by the same kernel as the model (`_log_density`); the columns of
   one cycle add up (a composite likelihood; rows are cycles): `cycle_log_likelihood` gives
@@ -21,8 +21,8 @@ import numpy as np
 
 from .._errors import DataError, ParameterError, check_int
 from .data import KINDS as KINDS  # the columns, here too: they are the likelihood's terms
-from .data import LOG_KINDS, _check_data, _transform
-from .forward import _simulate
+from .data import LOG_KINDS, check_data, to_fit_scale
+from .forward import simulate_values
 from .params import model_kwargs
 from .result import FitResult
 
@@ -39,7 +39,7 @@ MIN_SIMULATED = 50
 # measured model makes only rarely) the log-likelihood jumped 5-15 units between points
 # 0.5 % apart in omega0 or D, and the fit's surface was not concave; with the floor (and the
 # force noise keyed by cycle), steps of 0.1-2.5 units around a clear maximum
-# (`_density_table`). The floor lies below the density wherever the model puts more than a
+# (`density_table`). The floor lies below the density wherever the model puts more than a
 # value per bandwidth, which is where the data fall when the model holds (a datum beyond it
 # is scored alike at every parameter: it no longer pulls the estimate), and it vanishes as
 # n_sim grows.
@@ -77,7 +77,7 @@ def cycle_log_likelihood(
     if data is None:
         cols = result.data
     else:
-        cols = _check_data(data, measured=d["measurement"] is not None)
+        cols = check_data(data, measured=d["measurement"] is not None)
         if set(cols) != set(result.data):
             raise ParameterError(
                 owner, "data", f"must have the fit's columns ({', '.join(result.data)})",
@@ -117,22 +117,22 @@ def _per_cycle(model, data, bandwidth, n_sim, dt, t_max, seed, measurement) -> d
     (a log-likelihood of -inf) where the measured trace shows no cycles, or fewer than
     `MIN_SIMULATED`: a model whose trace the measurement cannot resolve does not make the
     data."""
-    return _scored(data, _sample(model, n_sim, dt, t_max, seed, measurement), bandwidth,
+    return scored_samples(data, sample(model, n_sim, dt, t_max, seed, measurement), bandwidth,
                    measurement)  # fmt: skip
 
 
-def _sample(model, n_sim, dt, t_max, seed, measurement) -> dict | None:
+def sample(model, n_sim, dt, t_max, seed, measurement) -> dict | None:
     """`_per_cycle`'s simulated cycles (`None` where the measured trace shows none)."""
     try:
-        return _simulate(model, n_sim, dt, t_max, seed, measurement)
+        return simulate_values(model, n_sim, dt, t_max, seed, measurement)
     except DataError:
         if measurement is None:
             raise
         return None
 
 
-def _scored(data, sim, bandwidth, measurement) -> dict | None:
-    """`_per_cycle`'s terms of `data` against the simulated cycles `sim` (`_sample`)."""
+def scored_samples(data, sim, bandwidth, measurement) -> dict | None:
+    """`_per_cycle`'s terms of `data` against the simulated cycles `sim` (`sample`)."""
     if sim is None:
         return None
     if measurement is not None and min(np.size(sim[k]) for k in data) < MIN_SIMULATED:
@@ -147,7 +147,7 @@ def _scored(data, sim, bandwidth, measurement) -> dict | None:
 JACKKNIFE_BLOCKS = 10
 
 
-def _jackknife_values(data, sim, bandwidth, measurement, blocks=JACKKNIFE_BLOCKS):
+def jackknife_values(data, sim, bandwidth, measurement, blocks=JACKKNIFE_BLOCKS):
     """The log-likelihood of `data` against the simulated cycles `sim` with each of
     `blocks` contiguous blocks of them left out in turn (`-inf` where too few are left,
     or `sim` is `None`): one value a block. Each block is binned once (`_binned`); a
@@ -170,11 +170,11 @@ def _jackknife_values(data, sim, bandwidth, measurement, blocks=JACKKNIFE_BLOCKS
                 total[b] = -np.inf
                 continue
             table = _table(k, counts, n, zeros, finite, h, lo, hi, mu, sd, fft=True)
-            total[b] += float(np.sum(_log_density_at(k, x, table)))
+            total[b] += float(np.sum(log_density_at(k, x, table)))
     return total
 
 
-def _bandwidth(y, n_sim) -> float:
+def bandwidth_of(y, n_sim) -> float:
     iqr = np.subtract(*np.percentile(y, [75, 25])) / 1.349
     spread = min(np.std(y), iqr) if iqr > 0 else np.std(y)
     return float(0.9 * max(spread, 1e-12) * n_sim ** (-0.2))
@@ -207,35 +207,35 @@ def _log_density(kind, x, sim, h):
     Dropping the zeros instead biased D to 0.227 for a truth of 0.4 from stick times."""
     x = np.asarray(x, float)
     lo, hi, mu, sd = _grid(kind, x, h)
-    table = _density_table(kind, sim, h, lo, hi, KDE_BINS, mu, sd)
-    return _log_density_at(kind, x, table)
+    table = density_table(kind, sim, h, lo, hi, KDE_BINS, mu, sd)
+    return log_density_at(kind, x, table)
 
 
 def _grid(kind, x, h):
     """The table's span for data `x` (their range on the kind's scale, 8 bandwidths on
     either side) and its defensive normal's centre and sd: `(lo, hi, mu, sd)`."""
-    y = _transform(kind, x)
+    y = to_fit_scale(kind, x)
     return y.min() - 8 * h, y.max() + 8 * h, np.mean(y), 3.0 * max(np.std(y), h)
 
 
-def _density_table(kind, sim, h, lo, hi, bins, mu, sd):
+def density_table(kind, sim, h, lo, hi, bins, mu, sd):
     """The smoothed log-density of `sim` (`_log_density`) tabulated on `bins` bins over
     `[lo, hi]` (the kind's scale), its defensive normal of centre `mu` and sd `sd`, and the
-    zero fraction: `(centres, smoothed log-density, p0)`, for `_log_density_at`. One table
+    zero fraction: `(centres, smoothed log-density, p0)`, for `log_density_at`. One table
     serves any data inside `[lo + 8h, hi - 8h]` (the goodness check's replicates)."""
     return _table(kind, *_binned(kind, sim, lo, hi, bins), h, lo, hi, mu, sd)
 
 
 def _binned(kind, sim, lo, hi, bins):
     """`sim`'s counts on the table's bins (the kind's scale), its finite values' number and
-    its zeros' (`_density_table`)."""
+    its zeros' (`density_table`)."""
     finite = sim[np.isfinite(sim)]
     # The grid spans the data (fixed for every theta): simulated values past it count in n
     # but add no density there (they lie over 8 bandwidths from every datum). A grid that
     # spanned the simulated values moved with the smallest of them (a stick of 1e-6 is -14
     # on the log scale) and the binning with it: the surface jumped ~10 units between
     # parameters 1e-4 apart, and Nelder-Mead ran into its cap.
-    s = _transform(kind, finite)
+    s = to_fit_scale(kind, finite)
     # equal bins by range: numpy bins them arithmetically (given the edges it sorts the
     # sample, twice the time; the counts are the same)
     counts = np.histogram(s, bins, range=(lo, hi))[0].astype(float)
@@ -243,7 +243,7 @@ def _binned(kind, sim, lo, hi, bins):
 
 
 def _table(kind, counts, n_scaled, n_zero, n_finite, h, lo, hi, mu, sd, fft=False):
-    """`_density_table` from `_binned`'s counts: of the `n_scaled` values on the kind's
+    """`density_table` from `_binned`'s counts: of the `n_scaled` values on the kind's
     scale (a duration's positive ones), and of the `n_zero` zeros among `n_finite`.
     `fft`: the kernel's convolutions by FFT (the jackknife's many tables: the same
     numbers to ~1e-12, a tenth of the time for a kernel of hundreds of bins)."""
@@ -276,13 +276,13 @@ def _fft_convolve(x, kernel, mode="same"):
     return full[start : start + x.size]
 
 
-def _log_density_at(kind, x, table) -> np.ndarray:
-    """Per-datum terms of `_log_density` from a `_density_table`."""
+def log_density_at(kind, x, table) -> np.ndarray:
+    """Per-datum terms of `_log_density` from a `density_table`."""
     centres, smoothed_log, p0 = table
     x = np.asarray(x, float)
     out = np.empty(x.size)
     positive = x > 0 if kind in LOG_KINDS else np.ones(x.size, bool)
-    y = _transform(kind, x)
+    y = to_fit_scale(kind, x)
     logf = np.interp(y, centres, smoothed_log)
     if kind in LOG_KINDS:
         logf = logf - y + math.log1p(-p0)  # the density of x = exp(y), given x > 0

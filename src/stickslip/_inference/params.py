@@ -14,7 +14,7 @@ import numpy as np
 
 from .._errors import ParameterError, ResourceError
 from .._memory import memory_limit, past_limit
-from .data import _refuse
+from .data import refusal
 
 # Peak memory of one evaluation, per simulated cycle and state component: measured 475 B a
 # cycle for langevin (3 components) at 2e6 cycles, plain and as a trace (peak RSS).
@@ -22,7 +22,7 @@ SIM_BYTES_PER_STATE = 160
 MAX_SIM_PATHS = 2**32 - 1  # the simulator numbers its paths with 32 bits
 
 
-def _model_class(model):
+def model_class(model):
     from .._model import ChainModel, FrictionModel
     from .._registry import get_model
 
@@ -39,7 +39,7 @@ def _model_class(model):
     return Model
 
 
-def _check_fixed(fixed, Model) -> dict[str, Any]:
+def check_fixed(fixed, Model) -> dict[str, Any]:
     if fixed is None:
         return {}
     if not hasattr(fixed, "items"):
@@ -55,7 +55,7 @@ def _check_fixed(fixed, Model) -> dict[str, Any]:
     return dict(fixed)
 
 
-def _check_free(free, fixed, Model) -> dict[str, tuple[float, float]]:
+def check_free(free, fixed, Model) -> dict[str, tuple[float, float]]:
     """The boxes, checked; a dotted name (`"threshold_params.sd"`) is an entry of a dict
     parameter, whose other entries `fixed` holds (a value `fixed` gives it too is replaced:
     a study's `model.params` names a complete model). With every entry free, `fixed` may
@@ -95,7 +95,7 @@ def _check_free(free, fixed, Model) -> dict[str, tuple[float, float]]:
     return out
 
 
-def _kwargs(fixed: dict, values: dict) -> dict[str, Any]:
+def kwargs_of(fixed: dict, values: dict) -> dict[str, Any]:
     """The model's keyword arguments: `fixed` with the free `values` set, a dotted name
     into its dict parameter (copied, so `fixed` is left as given)."""
     out = dict(fixed)
@@ -108,13 +108,13 @@ def _kwargs(fixed: dict, values: dict) -> dict[str, Any]:
     return out
 
 
-def _check_box(Model, fixed, free, centre: dict):
+def check_box(Model, fixed, free, centre: dict):
     """The model at the box's centre, after building it there and at both ends of each
     axis: a value it refuses is a `ParameterError` naming the free parameter's box."""
     trials = [(None, centre)] + [(k, {**centre, k: b}) for k in free for b in free[k]]
     for name, values in trials:
         try:
-            model = Model(**_kwargs(fixed, values))
+            model = Model(**kwargs_of(fixed, values))
         except TypeError as err:  # a required parameter neither fixed nor free
             raise ParameterError(
                 "fit",
@@ -145,13 +145,13 @@ def _check_box(Model, fixed, free, centre: dict):
     return built
 
 
-def _check_memory(n_sim: int, model) -> None:
+def check_n_sim_memory(n_sim: int, model) -> None:
     """The simulator's memory limit (`stickslip`'s one: half this machine's memory, or
     `STICKSLIP_MEMORY_LIMIT`), so that a fit and a plain simulation refuse alike."""
     per_cycle = SIM_BYTES_PER_STATE * model.state_dim
     words = past_limit(n_sim * per_cycle, f" per evaluated point ({per_cycle} B a simulated cycle)")
     if words is not None:
-        raise _refuse(
+        raise refusal(
             ResourceError, "n_sim", f"{words}: take at most {memory_limit() // per_cycle:.3g}",
             n_sim,
         )  # fmt: skip
@@ -161,7 +161,7 @@ def _check_memory(n_sim: int, model) -> None:
         )
 
 
-def _to_fit(scale, x):
+def to_fit_coords(scale, x):
     return np.log(x) if scale == "log" else x
 
 
@@ -174,10 +174,10 @@ class ToFit:
     scales: dict[str, str]
 
     def __call__(self, name: str, x):
-        return _to_fit(self.scales[name], np.asarray(x))
+        return to_fit_coords(self.scales[name], np.asarray(x))
 
 
-def _from_fit(scale, u):
+def from_fit_coords(scale, u):
     return float(np.exp(u)) if scale == "log" else float(u)
 
 

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from .forward import _simulate
+from .forward import simulate_values
 from .surface import DESIGN_STEP
 
 
@@ -109,7 +109,7 @@ class FitResult:
         fit's) their seed: for a predictive check take one other than the fit's, so that
         the comparison does not reuse the draws the estimate was tuned on."""
         d = self.diagnostics
-        sim = _simulate(self.model, d["n_sim"] if n_sim is None else int(n_sim), d["dt"],
+        sim = simulate_values(self.model, d["n_sim"] if n_sim is None else int(n_sim), d["dt"],
                         d["t_max"], d["seed"] if seed is None else int(seed),
                         d["measurement"])  # fmt: skip
         return {k: np.asarray(sim[k], float) for k in self.data}

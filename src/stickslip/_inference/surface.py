@@ -1,9 +1,9 @@
 """Where the likelihood is largest, and its curvature there.
 
 The maximum is found by a coarse grid over the `free` box (`_design`) and Nelder-Mead from
-its best point (`_search`), in fit coordinates (log for positive parameters); then a
+its best point (`search`), in fit coordinates (log for positive parameters); then a
 quadratic plus a cubic term per axis is fitted by least squares on a design of steps
-`DESIGN_STEP` around it (`_local_surface`: the cubic terms keep the surface's skew out of
+`DESIGN_STEP` around it (`local_surface`: the cubic terms keep the surface's skew out of
 the vertex): the vertex is the estimate, its Hessian the information.
 """
 
@@ -37,7 +37,7 @@ MAX_STEP_DROP = 20.0
 STARTS, START_APART = 3, 0.25
 
 
-def _search(loglik, lo, hi, free) -> tuple[np.ndarray, dict, list[str]]:
+def search(loglik, lo, hi, free) -> tuple[np.ndarray, dict, list[str]]:
     """The coarse grid over the box, then Nelder-Mead from its best point. Returns the best
     point (fit coordinates, inside the box), the optimiser's record and its warnings."""
     start = _design(lo, hi)
@@ -134,12 +134,12 @@ class _Surface:
         return self.centre if self.shift is None else np.clip(self.centre + self.shift, lo, hi)
 
 
-def _local_surface(loglik, u_hat, lo, hi, data, names, step=DESIGN_STEP) -> _Surface:
+def local_surface(loglik, u_hat, lo, hi, data, names, step=DESIGN_STEP) -> _Surface:
     """The maximum and the observed information from a polynomial fitted to the surface
     around `u_hat`: quadratic, plus a cubic term along each axis, on steps of DESIGN_STEP
     (wide against the surface's Monte Carlo roughness; on steps of one standard error it
     drowned the curvature, and what it leaves is measured by the second seed, see
-    `intervals._mc_noise`), each narrowed where one step falls by more than
+    `intervals.mc_noise_report`), each narrowed where one step falls by more than
     `MAX_STEP_DROP` (`_narrowed`). The cubic terms take the surface's skew out of the vertex: a
     quadratic alone put it 3-4 % low. Points past the box are evaluated at the box (`loglik`
     clips) and so regressed where they were evaluated."""
@@ -156,8 +156,8 @@ def _local_surface(loglik, u_hat, lo, hi, data, names, step=DESIGN_STEP) -> _Sur
         design_steps = _narrowed(evaluated, u_hat, design_steps, lo, hi)
         nominal = _quadratic_design(u_hat, design_steps)
         design = np.clip(nominal, lo, hi)
-        values, scores = _evaluate(design, evaluated, data)
-        shift, H = _polynomial_vertex(design - u_hat, np.array(values), design_steps)
+        values, scores = evaluate(design, evaluated, data)
+        shift, H = polynomial_vertex(design - u_hat, np.array(values), design_steps)
         best_point = int(np.argmax(values))
         if shift is not None or attempt == 1 or best_point == 0:
             break
@@ -230,14 +230,14 @@ def _quadratic_design(u, steps):
     return np.array(pts)
 
 
-def _polynomial_vertex(du, values, steps):
+def polynomial_vertex(du, values, steps):
     """Fit c + g.du + du.Q.du / 2 + sum_i k_i du_i^3 by least squares; return the vertex
     nearest the centre (Newton from 0, `None` if it leaves two steps) and the Hessian there
     (the quadratic's alone if there is no vertex)."""
     p = du.shape[1]
     ok = np.isfinite(values)
     pairs = _pairs(p)
-    coef = np.linalg.lstsq(_polynomial_terms(du)[ok], values[ok], rcond=None)[0]
+    coef = np.linalg.lstsq(polynomial_terms(du)[ok], values[ok], rcond=None)[0]
     g = coef[1 : 1 + p]
     Q = np.zeros((p, p))
     for (i, j), v in zip(pairs, coef[1 + p : 1 + p + len(pairs)], strict=True):
@@ -260,14 +260,14 @@ def _polynomial_vertex(du, values, steps):
 
 
 def _pairs(p: int) -> list[tuple[int, int]]:
-    """The curvature's index pairs (i <= j), in `_polynomial_terms`' column order."""
+    """The curvature's index pairs (i <= j), in `polynomial_terms`' column order."""
     return [(i, j) for i in range(p) for j in range(i, p)]
 
 
-def _polynomial_terms(du: np.ndarray) -> np.ndarray:
+def polynomial_terms(du: np.ndarray) -> np.ndarray:
     """The columns of the surface's polynomial at offsets `du` (points x p): 1, du_i, the
     curvature's du_i du_j (halved on the diagonal, `_pairs`' order) and du_i^3; shared by
-    `_polynomial_vertex` and `compare._polynomial_max`."""
+    `polynomial_vertex` and `compare._polynomial_max`."""
     p = du.shape[1]
     cols = [np.ones(len(du))] + [du[:, i] for i in range(p)]
     cols += [du[:, i] * du[:, j] * (0.5 if i == j else 1.0) for i, j in _pairs(p)]
@@ -275,7 +275,7 @@ def _polynomial_terms(du: np.ndarray) -> np.ndarray:
     return np.stack(cols, axis=1)
 
 
-def _evaluate(design, loglik, data):
+def evaluate(design, loglik, data):
     """The log-likelihood at each design point and its per-cycle terms summed over the
     columns (a cycle's score: the columns of one cycle are dependent)."""
     values, scores = [], []

@@ -568,7 +568,7 @@ class Refiner:
         # The arguments every call shares, on the device once (not copied at every call; the
         # tables of a model and step, and the small values, kept across runs by content).
         self.fixed = (rows_t,) + tuple(
-            _compile._on_device(np.asarray(x, dtype))
+            _compile.on_device(np.asarray(x, dtype))
             for x, dtype in (
                 (depths, np.int32), (level, np.float64), (tol, np.float64), (key, np.uint32),
             )

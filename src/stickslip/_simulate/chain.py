@@ -51,7 +51,7 @@ from .. import _compile, _rng
 from .._errors import ParameterError, check_int, check_positive
 from .._jax import jax, jnp
 from .._memory import check_memory
-from .._model import ChainModel, _to_arrays
+from .._model import ChainModel, to_arrays
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -501,7 +501,7 @@ def _chain_block(model, dt, seed, opts, start, stop, progress=False) -> ChainRun
     dropped = 0  # releases beyond a segment's buffer
     rec_cap = _series_slots(stride)
     solver_args = dict(
-        model=_to_arrays(model), noise_key=keys[_rng.STEP], strength_key=keys[_rng.THRESHOLD],
+        model=to_arrays(model), noise_key=keys[_rng.STEP], strength_key=keys[_rng.THRESHOLD],
         dt=np.asarray(dt), stride=np.asarray(float(stride)), path0=np.uint32(start), n_paths=P,
         record_blocks=record_blocks, record_releases=record_releases,
     )  # fmt: skip

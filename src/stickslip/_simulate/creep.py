@@ -29,7 +29,7 @@ import optimistix as optx
 from .. import _rng
 from .._errors import ParameterError, check_choice, check_int, check_positive
 from .._jax import jax, jnp
-from .._model import CreepingSlider, _to_arrays
+from .._model import CreepingSlider, to_arrays
 
 _NOISE_STREAM = 8  # the noise grid's stream (beside the hybrid simulator's, `_rng`)
 # Relative and absolute tolerances of the integration, of the state in the model's own
@@ -182,7 +182,7 @@ class Motion:
     keys, and the solves that advance them (with what they cost, `stats`)."""
 
     def __init__(self, model: CreepingSlider, dt: float, t_max: float, seed: int):
-        self.model = _to_arrays(model)
+        self.model = to_arrays(model)
         self.noisy = _noisy(model)
         self.dt, self.t_max, self.seed = dt, t_max, seed
         self.stats = {"segments": 0, "steps": 0, "failed": 0}

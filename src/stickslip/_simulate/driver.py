@@ -18,7 +18,7 @@ from .. import _background, _compile, _rng
 from .._errors import ParameterError, check_choice, check_int, check_positive
 from .._jax import jax, jnp
 from .._memory import check_memory
-from .._model import CreepingSlider, FrictionModel, LinearGaussian, _to_arrays
+from .._model import CreepingSlider, FrictionModel, LinearGaussian, to_arrays
 from .._model_check import check_shapes, explain, structure_key, warn_nonfinite
 from .._solver import EulerMaruyama, ExactGaussian
 from .._solver.base import over_paths
@@ -712,11 +712,11 @@ class HostRun:
         # first non-finite states, to say where (`_model_check.explain`).
         self.nonfinite, self.nonfinite_at, self.onsets = None, None, None
         self._count_lock = threading.Lock()
-        self.model = _to_arrays(model)
+        self.model = to_arrays(model)
         # What the compiled slip-phase code (stepping, in-step location, upcrossings) is
         # given: `FrictionModel.slip_phase` (models that differ only at release share it).
         slip = model.slip_phase()
-        self.slip = self.model if slip is model else _to_arrays(slip)
+        self.slip = self.model if slip is model else to_arrays(slip)
         self._fixed: dict = {}  # `call`'s executables with the model as first argument
         # The slip's linear-Gaussian description on the host: as it is where it computes in
         # NumPy (nothing to trace: the built-in models), else by one compiled call (evaluated

@@ -181,10 +181,10 @@ def _ours(path: str) -> bool:
 def _check_figure(figure: str, out: str, trace: str, replace: bool) -> None:
     """The figure beside the table: never the table itself, and an existing file there is
     replaced (with --force) only if it is a figure this command wrote."""
-    from .._output import _real
+    from .._output import real_number
     from ..study import StudyError
 
-    if _real(figure) == _real(out):
+    if real_number(figure) == real_number(out):
         why = "the figure goes beside the table as NAME.png: name the table .csv"
         raise StudyError("--out", None, f"{out} would be both the table and its figure ({why})")
     if os.path.lexists(figure) and not _ours(figure):

@@ -59,9 +59,9 @@ def sweep(study, params, zipped, out, overrides, force, quiet, dask):
             reason = f"values {short(text)} are not valid YAML ({str(err).splitlines()[0]})"
             raise StudyError("--param", key, reason) from None
     block = {"parameters": values, "mode": "zip" if zipped else "product"}
-    from ..study.load import _sweep_override
+    from ..study.load import sweep_override
 
-    overrides = [*overrides, _sweep_override(block)]
+    overrides = [*overrides, sweep_override(block)]
     if dask is not None:  # a bad study or --out is reported before any cluster starts
         load_study(study, overrides)
         check_output_dir(out, inputs=[study], force=force)

@@ -178,7 +178,7 @@ class Campaign:
         a scratch folder and put in place at once (an existing results folder of stickslip's
         is replaced with `force`, never a folder of other files); returns the paths."""
         from .._output import check_output_dir, partial_dir
-        from .write import _replace
+        from .write import replace_file
 
         out = check_output_dir(out, inputs=[self.source] if self.source else [], force=force,
                                what="--out")  # fmt: skip
@@ -189,7 +189,7 @@ class Campaign:
             self.to_dataset().to_netcdf(tmp / names[1])
             self.regime_map(tmp / names[2], model=model if model is not None else self.model)
             self.panels(tmp / names[3])
-            _replace(tmp, out, force, "campaign")
+            replace_file(tmp, out, force, "campaign")
         finally:
             if tmp.exists():
                 import shutil

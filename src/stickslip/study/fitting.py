@@ -224,7 +224,7 @@ def _fit_field(err, data_path, loc: str = "model") -> tuple[str, str]:
     `data['slip_time']` -> the data file's column). `loc` is where the fitted model's
     settings lie (`Fit.models`): `model` for a single fit, a candidate's otherwise (its
     `free` at `fit.candidates.N.free`)."""
-    # DataError and ResourceError carry these only when `fit` raised them (`data._refuse`)
+    # DataError and ResourceError carry these only when `fit` raised them (`data.refusal`)
     parameter = getattr(err, "parameter", None)
     if getattr(err, "owner", None) != "fit" or parameter is None:
         return "fit" if loc == "model" else loc.removesuffix(".model"), str(err)
@@ -250,7 +250,7 @@ def run_fit(study, out=None, *, overrides=None, force: bool = False, progress: b
     from .._errors import DataError, ParameterError, ResourceError
     from .._inference.compare import compare_fits
     from .._inference.fit import fit
-    from .run import _check_out
+    from .run import check_out
 
     base = pathlib.Path(study).parent if isinstance(study, (str, os.PathLike)) else pathlib.Path()
     source = str(study) if isinstance(study, (str, os.PathLike)) else None
@@ -261,7 +261,7 @@ def run_fit(study, out=None, *, overrides=None, force: bool = False, progress: b
     path = pathlib.Path(spec.data)
     # the results may not replace or hold the study or its data: checked before any work
     inputs = [source, path if path.is_absolute() else base / path]
-    out_dir = None if out is None else _check_out(out, force, inputs)
+    out_dir = None if out is None else check_out(out, force, inputs)
     data_path = path if path.is_absolute() else base / path
     data = read_fit_data(data_path, spec.columns, source)
     measured = not isinstance(data, dict)
@@ -461,7 +461,7 @@ def _fit_lines(result, scales) -> list[str]:
 
 def write_fit(result, study, out: pathlib.Path, force: bool, scales=None):
     from .._output import partial_dir
-    from .write import _replace
+    from .write import replace_file
 
     tmp = partial_dir(out)
     try:
@@ -473,7 +473,7 @@ def write_fit(result, study, out: pathlib.Path, force: bool, scales=None):
         lines += [f"- warning: {w}" for w in result.diagnostics["warnings"]]
         lines += ["", "![fit](fit.png)", ""]
         (tmp / "summary.md").write_text("\n".join(lines))
-        _replace(tmp, out, force)
+        replace_file(tmp, out, force)
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
@@ -520,7 +520,7 @@ def write_comparison(comparison, study, out: pathlib.Path, force: bool, scales=N
     model, its parameters with their intervals, in SI for a force trace with `scales`, its
     p-values and verdict, the comparison's table, and every warning)."""
     from .._output import partial_dir
-    from .write import _replace
+    from .write import replace_file
 
     specs = {name: model for name, model, _, _ in study.fit.models(study.model)}
     chosen = comparison.chosen_name
@@ -580,7 +580,7 @@ def write_comparison(comparison, study, out: pathlib.Path, force: bool, scales=N
         lines += [f"![{name}](fit_{name}.png)" for name in comparison.fits if name != chosen]
         lines += [""]
         (tmp / "summary.md").write_text("\n".join(lines))
-        _replace(tmp, out, force)
+        replace_file(tmp, out, force)
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)

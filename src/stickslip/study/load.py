@@ -18,7 +18,7 @@ import yaml
 from pydantic import ValidationError
 
 from .._errors import StickSlipError
-from .schema import Study, _yaml_type, first_error, locate, set_path, short
+from .schema import Study, first_error, locate, set_path, short, yaml_type
 
 
 class StudyError(StickSlipError, ValueError):
@@ -206,7 +206,7 @@ def read_yaml(text: str, source: str | None = None) -> dict:
         raise StudyError(source, None, "the study is empty")
     if not isinstance(data, dict):
         raise StudyError(
-            source, None, f"a study must be a mapping of keys to values (got {_yaml_type(data)})"
+            source, None, f"a study must be a mapping of keys to values (got {yaml_type(data)})"
         )
     return data
 
@@ -294,7 +294,7 @@ def load_study(source: str | os.PathLike | dict | Study, overrides=None) -> Stud
     return validate(apply_overrides(data, overrides, name), name, overrides)
 
 
-def _sweep_override(block: dict) -> tuple[str, str]:
+def sweep_override(block: dict) -> tuple[str, str]:
     """An override that replaces the sweep block (for `stickslip sweep --param`)."""
     import json
 

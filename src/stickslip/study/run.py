@@ -71,7 +71,7 @@ def run_study(
 
     inputs = [study] if isinstance(study, (str, os.PathLike)) else []
     study = load_study(study, overrides)
-    out_dir = None if out is None else _check_out(out, force, inputs)
+    out_dir = None if out is None else check_out(out, force, inputs)
     # Bars on a terminal; elsewhere (a log file, a batch job's output) `"lines"` gives the
     # stage messages alone, one line each, which a file keeps readable.
     say = _Progress(
@@ -166,7 +166,7 @@ def _common_run(mc, tolerance) -> dict:
     return max(mc, key=lambda c: c.chosen.seconds).settings
 
 
-def _check_out(out, force: bool, inputs=()) -> pathlib.Path:
+def check_out(out, force: bool, inputs=()) -> pathlib.Path:
     """The output folder, checked before any work (`stickslip._output.check_output_dir`)."""
     from .._output import check_output_dir
 

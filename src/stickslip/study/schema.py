@@ -837,9 +837,9 @@ def describe_error(e: dict) -> str:
     ):  # fmt: skip
         msg = msg.replace(f"must be {words}", f"must be {sym}")
     if e["type"] in ("model_type", "dict_type"):
-        msg = f"must be a mapping of keys to values (got {_yaml_type(e.get('input'))})"
+        msg = f"must be a mapping of keys to values (got {yaml_type(e.get('input'))})"
     elif e["type"] == "list_type":
-        msg = f"must be a list (got {_yaml_type(e.get('input'))})"
+        msg = f"must be a list (got {yaml_type(e.get('input'))})"
     elif e["type"] == "too_short":
         msg = "must not be empty"
     elif e["type"] == "string_pattern_mismatch" and e["ctx"]["pattern"] == CANDIDATE_NAME:
@@ -854,7 +854,7 @@ def describe_error(e: dict) -> str:
     return msg
 
 
-def _yaml_type(value) -> str:
+def yaml_type(value) -> str:
     names = {dict: "a mapping", list: "a list", str: "a string", bool: "a boolean",
              int: "an integer", float: "a number", type(None): "null"}  # fmt: skip
     return names.get(type(value), type(value).__name__)

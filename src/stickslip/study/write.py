@@ -43,14 +43,14 @@ def write_results(ds: xr.Dataset, study: Study, out: pathlib.Path, *, force, fig
         timings["netcdf"] = time.perf_counter() - t0
         (tmp / "summary.md").write_text(summary(ds, study, timings), encoding="utf-8")
         (tmp / "study.yaml").write_text(ds.attrs["study"], encoding="utf-8")
-        _replace(tmp, out, force, "run")
+        replace_file(tmp, out, force, "run")
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     say(f"wrote {out}/: {', '.join(sorted(p.name for p in out.iterdir()))}")
 
 
-def _replace(tmp: pathlib.Path, out: pathlib.Path, force: bool, contents: str | None = None):
+def replace_file(tmp: pathlib.Path, out: pathlib.Path, force: bool, contents: str | None = None):
     """Move the finished results `tmp` to `out`, with the marker that makes `out` a results
     folder (`contents`: 'run' or 'fit'; by default read from the files). The swap happens
     whole or not at all: an interrupt before it (or one a library swallowed earlier) leaves
