@@ -15,6 +15,7 @@ subpackage's pieces:
 
 from __future__ import annotations
 
+import dataclasses
 import time
 import warnings
 
@@ -68,17 +69,61 @@ N_SIM_MEASURED = 4000
 MEASURED_DESIGN_STEP = 0.3
 
 
-def simulated_mle(
+@dataclasses.dataclass
+class Problem:
+    """A fit's checked arguments, in the form its pieces use.
+
+    - `Model`, `fixed`, `free`: the model class, the known values and the boxes;
+    - `names`, `coords` (`"log"` or `"linear"` per free parameter), `lo`, `hi`: the fit
+      coordinates and the box in them;
+    - `data`, `measured`: the columns in the model's units and their `Measurement` (None
+      for per-cycle values); `parts`: per run, (its columns, its measurement, its kernel
+      bandwidths) (one run unless `runs`);
+    - `seed`, `n_sim`, `dt`, `t_max`: the simulation's settings; `centre`: the model at the
+      box's centre; `build(values)`: the models (one a run) at parameter values;
+    - `sampled`: what was said of data that look sampled (or None); `units`: the SI
+      mapping given; `runs`: a joint fit's `joint.Runs` (or None).
+    """
+
+    Model: type
+    fixed: dict
+    free: dict
+    names: list
+    coords: dict
+    lo: np.ndarray
+    hi: np.ndarray
+    data: dict
+    measured: object
+    parts: list
+    seed: int
+    n_sim: int
+    dt: float | None
+    t_max: float | None
+    centre: object
+    build: object
+    sampled: str | None
+    units: object
+    runs: object
+
+    def params(self, u) -> dict:
+        """The free parameters' values at fit coordinates `u`."""
+        return {k: from_fit_coords(self.coords[k], float(x))
+                for k, x in zip(self.names, u, strict=True)}  # fmt: skip
+
+    @property
+    def bandwidth(self):
+        """The kernel bandwidths: one dict (a list of them, one a run, for a joint fit)."""
+        return self.parts[0][2] if self.runs is None else [b for _, _, b in self.parts]
+
+
+def problem(
     model, data, free, fixed=None, *, seed=0, n_sim=None, dt=None, t_max=None, scales=None,
-    trace=None, sampling=None, progress=False, measurement=None, runs=None,
-) -> FitResult:  # fmt: skip
-    """`fit` without its goodness-of-fit check: the arguments and result are `fit`'s.
-    `measurement` (private: a bootstrap replicate's refit) fits a dict of cycles as if they
-    came with that measurement. `runs` (a `joint.Runs`, with `data` None): one parameter
-    set fitted to several runs, each through its own measurement and units."""
-    wall0 = time.perf_counter()
+    trace=None, sampling=None, measurement=None, runs=None,
+) -> Problem:  # fmt: skip
+    """`fit`'s arguments checked, each refusal one line naming the argument (see
+    `simulated_mle`)."""
     owner = "fit"
-    units = scales  # (a Slider or Scales; `scales` names the fit coordinates below)
+    units = scales  # (a Slider or Scales)
     Model = model_class(model)
     if runs is None:
         data, measured = measurement_of(data, trace, sampling, scales, owner)
@@ -104,12 +149,12 @@ def simulated_mle(
             "length follows from n_sim", t_max,
         )  # fmt: skip
     names = list(free)
-    scales = {k: "log" if free[k][0] > 0 else "linear" for k in names}
-    lo = np.array([to_fit_coords(scales[k], free[k][0]) for k in names])
-    hi = np.array([to_fit_coords(scales[k], free[k][1]) for k in names])
+    coords = {k: "log" if free[k][0] > 0 else "linear" for k in names}
+    lo = np.array([to_fit_coords(coords[k], free[k][0]) for k in names])
+    hi = np.array([to_fit_coords(coords[k], free[k][1]) for k in names])
 
     def params(u):
-        return {k: from_fit_coords(scales[k], float(x)) for k, x in zip(names, u, strict=True)}
+        return {k: from_fit_coords(coords[k], float(x)) for k, x in zip(names, u, strict=True)}
 
     if runs is None:
         # The model at the box's centre and at each end of each axis: a value the model
@@ -119,14 +164,13 @@ def simulated_mle(
     else:
         centre = runs.check_box(free, params(0.5 * (lo + hi)))
     check_n_sim_memory(n_sim, centre)
+    sampled = None
     if runs is None:
         given = data
         data = check_data(data, measured=measured is not None)
         sampled = None if measured is not None else looks_sampled(given, data)
         if sampled is not None:  # said now: the fit may take minutes
-            warnings.warn(f"fit: {sampled}", stacklevel=STACKLEVEL)
-    else:
-        sampled = None
+            warnings.warn(f"fit: {sampled}", stacklevel=STACKLEVEL + 1)
     if measured is None:
         dt, t_max = simulation_settings(centre, data, dt, t_max, owner)
     else:
@@ -145,119 +189,168 @@ def simulated_mle(
         parts = [(d, m, {k: bandwidth_of(to_fit_scale(k, d[k]), n_sim) for k in d})
                  for d, m in zip(runs.columns, runs.measurements, strict=True)]  # fmt: skip
         build = runs.build
-    bandwidth = parts[0][2] if runs is None else [b for _, _, b in parts]
-    points: list = []
-    # The best point so far is kept, not simulated again: Nelder-Mead starts at the best
-    # grid point, the surface's design at Nelder-Mead's best point (the same simulation:
-    # common random numbers make the value a function of the point and the seed; only the
-    # best, for memory: its per-cycle terms are a data set's size).
-    best: dict = {}
-    # The simulated cycles at the surface's design points, both seeds, kept for the model
-    # comparison (`compare_fits` scores its bootstrap replicates against them) where they
-    # fit in KEEP_SAMPLES_BYTES; `recording` holds them while the design is evaluated.
-    keep = runs is None and _keeps_samples(n_sim, len(data), len(names))
-    recording: dict | None = None
-    # The design's points, each with its log-likelihood with a block of its simulated
-    # cycles left out in turn (`likelihood.jackknife_values`), for the simulation's noise
-    # in the estimate (`intervals._jackknife`); `None` outside the design.
-    blocks: dict | None = None
+    return Problem(
+        Model=Model, fixed=fixed, free=free, names=names, coords=coords, lo=lo, hi=hi,
+        data=data, measured=measured, parts=parts, seed=seed, n_sim=n_sim, dt=dt,
+        t_max=t_max, centre=centre, build=build, sampled=sampled, units=units, runs=runs,
+    )  # fmt: skip
 
-    def loglik(u, at_seed=seed):
-        """The log-likelihood at `u` (clipped to the box) and its per-cycle terms (`None`
-        where the model refuses `u`: a joint constraint inside the box)."""
-        u = np.clip(u, lo, hi)
+
+class Likelihood:
+    """The simulated log-likelihood of a `Problem` at fit coordinates `u` (clipped to the
+    box): `likelihood(u, at_seed=problem.seed)` is `(value, per-cycle terms)`, terms
+    `None` where the model refuses `u` (a joint constraint inside the box).
+
+    - `points`: every point evaluated at the fit's seed, with its value;
+    - the best point so far is kept per seed, not simulated again (Nelder-Mead starts at
+      the best grid point, the surface's design at Nelder-Mead's best point: common random
+      numbers make the value a function of the point and the seed; only the best, for
+      memory: its per-cycle terms are a data set's size);
+    - during the surface's design (`design()`): each point's log-likelihood with a block of
+      its simulated cycles left out in turn (`likelihood.jackknife_values`, for the
+      simulation's noise in the estimate) and, where `keep`, the simulated cycles (for
+      `compare_fits`, which scores its bootstrap replicates against them).
+    """
+
+    def __init__(self, problem: Problem, *, progress: bool = False, keep: bool = False):
+        self.p, self.progress, self.keep = problem, progress, keep
+        self.points: list = []
+        self.best: dict = {}
+        self.recording: dict | None = None
+        self.blocks: dict | None = None
+
+    def design(self) -> None:
+        """From here on, record the design's blocks (and cycles, where kept)."""
+        self.recording = {} if self.keep else None
+        self.blocks = {}
+
+    def design_records(self, design, seeds):
+        """The design's cycles (`_DesignSamples`, or None where not kept) and, per seed, the
+        jackknife's block values at each design point; the recording stops."""
+        lo, hi = self.p.lo, self.p.hi
+        samples = None
+        if self.recording is not None:
+            samples = _DesignSamples(
+                [self.recording[np.clip(u, lo, hi).tobytes(), at] for u in design]
+                for at in seeds
+            )  # fmt: skip
+            self.recording = None
+        block_values = [np.array([self.blocks[np.clip(u, lo, hi).tobytes(), at] for u in design])
+                        for at in seeds]  # fmt: skip
+        self.blocks = None
+        return samples, block_values
+
+    def __call__(self, u, at_seed=None):
+        at_seed = self.p.seed if at_seed is None else at_seed
+        u = np.clip(u, self.p.lo, self.p.hi)
         key = u.tobytes()
-        kept = best.get(at_seed)
-        if kept is not None and kept[0] == key and (blocks is None or (key, at_seed) in blocks):
+        kept = self.best.get(at_seed)
+        if (
+            kept is not None
+            and kept[0] == key
+            and (self.blocks is None or (key, at_seed) in self.blocks)
+        ):
             out = kept[1]
         else:
-            out = _loglik(u, at_seed)
+            out = self._evaluate(u, at_seed)
             if kept is None or out[0] > kept[1][0]:
-                best[at_seed] = (key, out)
-        if recording is not None:
-            recording[key, at_seed] = out[2]
+                self.best[at_seed] = (key, out)
+        if self.recording is not None:
+            self.recording[key, at_seed] = out[2]
         return out[:2]
 
-    def _loglik(u, at_seed):
+    def _evaluate(self, u, at_seed):
+        p = self.p
         try:
-            models = build(params(u))
+            models = p.build(p.params(u))
         except (ValueError, ArithmeticError):
-            models = [None] * len(parts)
+            models = [None] * len(p.parts)
         per_run, sim, left_out = [], None, 0.0
-        for m, (d, measure, h) in zip(models, parts, strict=True):
+        for m, (d, measure, h) in zip(models, p.parts, strict=True):
             try:
-                sim = None if m is None else sample(m, n_sim, dt, t_max, at_seed, measure)
+                sim = None if m is None else sample(m, p.n_sim, p.dt, p.t_max, at_seed, measure)
             except ParameterError as err:  # simulate's names are fit's arguments
                 name = {"n_paths": "n_sim"}.get(err.parameter, err.parameter)
-                raise ParameterError(owner, name, err.reason, err.value) from None
+                raise ParameterError("fit", name, err.reason, err.value) from None
             per_run.append(scored_samples(d, sim, h, measure))
             if per_run[-1] is None:
                 break
-            if blocks is not None:  # (several runs: their blocks' values add up)
+            if self.blocks is not None:  # (several runs: their blocks' values add up)
                 left_out = left_out + jackknife_values(d, sim, h, measure)
-        if blocks is not None:
+        if self.blocks is not None:
             whole = all(t is not None for t in per_run)
-            blocks[u.tobytes(), at_seed] = left_out if whole else np.full(JACKKNIFE_BLOCKS, -np.inf)
+            self.blocks[u.tobytes(), at_seed] = (
+                left_out if whole else np.full(JACKKNIFE_BLOCKS, -np.inf)
+            )  # fmt: skip
         # (several runs: each column's terms one run after the other, the rows of `data`)
         if any(t is None for t in per_run):
             terms = None
         elif len(per_run) == 1:
             terms = per_run[0]
         else:
-            terms = {k: np.concatenate([t[k] for t in per_run]) for k in data}
-        sim = None if sim is None or not keep else {k: np.asarray(sim[k], float) for k in data}
+            terms = {k: np.concatenate([t[k] for t in per_run]) for k in p.data}
+        sim = None if sim is None or not self.keep else {k: np.asarray(sim[k], float)
+                                                         for k in p.data}  # fmt: skip
         value = -np.inf if terms is None else float(sum(np.sum(v) for v in terms.values()))
-        if at_seed == seed:  # the surface's points (the second seed's are in mc_noise)
-            points.append((np.array([params(u)[k] for k in names]), value))
-        if progress:
+        if at_seed == p.seed:  # the surface's points (the second seed's are in mc_noise)
+            self.points.append((np.array([p.params(u)[k] for k in p.names]), value))
+        if self.progress:
             import sys
 
-            shown = ", ".join(f"{k}={v:.4g}" for k, v in params(u).items())
+            shown = ", ".join(f"{k}={v:.4g}" for k, v in p.params(u).items())
             print(f"fit: {shown}: log-likelihood {value:.2f}", file=sys.stderr, flush=True)
         return value, terms, sim
 
+
+def simulated_mle(
+    model, data, free, fixed=None, *, seed=0, n_sim=None, dt=None, t_max=None, scales=None,
+    trace=None, sampling=None, progress=False, measurement=None, runs=None,
+) -> FitResult:  # fmt: skip
+    """`fit` without its goodness-of-fit check: the arguments and result are `fit`'s.
+    `measurement` (private: a bootstrap replicate's refit) fits a dict of cycles as if they
+    came with that measurement. `runs` (a `joint.Runs`, with `data` None): one parameter
+    set fitted to several runs, each through its own measurement and units."""
+    wall0 = time.perf_counter()
+    p = problem(model, data, free, fixed, seed=seed, n_sim=n_sim, dt=dt, t_max=t_max,
+                scales=scales, trace=trace, sampling=sampling, measurement=measurement,
+                runs=runs)  # fmt: skip
+    keep = p.runs is None and _keeps_samples(p.n_sim, len(p.data), len(p.names))
+    loglik = Likelihood(p, progress=progress, keep=keep)
     # 1. a coarse grid over the box, Nelder-Mead from its best point
-    u_best, optimizer, caught = search(loglik, lo, hi, free)
-    _check_informative(points, names, data, centre, n_sim, dt, t_max, seed, measured)
+    u_best, optimizer, caught = search(loglik, p.lo, p.hi, p.free)
+    _check_informative(loglik.points, p.names, p.data, p.centre, p.n_sim, p.dt, p.t_max,
+                       p.seed, p.measured)  # fmt: skip
     # 2. a polynomial around it: the vertex and the Hessian
-    step = DESIGN_STEP if measured is None else MEASURED_DESIGN_STEP
-    if runs is not None:
+    step = DESIGN_STEP if p.measured is None else MEASURED_DESIGN_STEP
+    if p.runs is not None:
         # SI boxes can be narrow in fit coordinates (a static friction of 93-99 mN is 0.06
         # in log): the design's +-2 steps kept within an eighth of the box each, where a
         # step of 0.3 put the design past both ends (a one-sided fit at the box)
-        step = np.minimum(step, (hi - lo) / 8)
-    recording = {} if keep else None
-    blocks = {}
-    surface = local_surface(loglik, u_best, lo, hi, data, names, step)
+        step = np.minimum(step, (p.hi - p.lo) / 8)
+    loglik.design()
+    surface = local_surface(loglik, u_best, p.lo, p.hi, p.data, p.names, step)
     caught += surface.warnings
     # 3. the simulation's own noise: the same design with a second, independent seed. The
     # simulator's draws move with the parameters (see `surface.search`), so the surface
     # carries Monte Carlo noise that common random numbers do not cancel: measured, the two
     # seeds' vertices differed by 1-1.5 standard errors at n_sim = 2e4 for two columns, far
     # above the sqrt(n / n_sim) widening alone assumes. The estimate's Monte Carlo
-    # covariance is a jackknife over each seed's simulated cycles (`blocks`), checked by the
-    # two seeds' difference (`intervals.combine_seeds`). The two seeds' per-cycle scores
-    # also give the sandwich's J without the simulation's noise (`sandwich_covariance`).
-    seed2 = (seed + 0x9E3779B97F4A7C15) % 2**64  # far from seed: an independent stream
-    values2, scores2 = evaluate(surface.design, lambda u: loglik(u, seed2), data)
-    samples = None
-    if recording is not None:
-        samples = _DesignSamples(
-            [recording[np.clip(u, lo, hi).tobytes(), at] for u in surface.design]
-            for at in (seed, seed2)
-        )  # fmt: skip
-        recording = None
-    block_values = [np.array([blocks[np.clip(u, lo, hi).tobytes(), at] for u in surface.design])
-                    for at in (seed, seed2)]  # fmt: skip
-    blocks = None
+    # covariance is a jackknife over each seed's simulated cycles (the design's blocks),
+    # checked by the two seeds' difference (`intervals.combine_seeds`). The two seeds'
+    # per-cycle scores also give the sandwich's J without the simulation's noise
+    # (`sandwich_covariance`).
+    seed2 = (p.seed + 0x9E3779B97F4A7C15) % 2**64  # far from seed: an independent stream
+    values2, scores2 = evaluate(surface.design, lambda u: loglik(u, seed2), p.data)
+    samples, block_values = loglik.design_records(surface.design, (p.seed, seed2))
     # successive rows share a draw where the onset is random (`intervals.structural_lag`)
-    cov, said, dependence = sandwich_covariance(surface, names, scores2, structural_lag(centre))
+    cov, said, dependence = sandwich_covariance(surface, p.names, scores2,
+                                                structural_lag(p.centre))  # fmt: skip
     caught += said
     shift2, _ = polynomial_vertex(surface.design - surface.centre, np.array(values2),
                                    surface.steps)  # fmt: skip
     se = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    u_hat, cov, noise = combine_seeds(surface, shift2, cov, block_values, lo, hi)
-    mc_noise = mc_noise_report(names, noise, se, n_sim)
+    u_hat, cov, noise = combine_seeds(surface, shift2, cov, block_values, p.lo, p.hi)
+    mc_noise = mc_noise_report(p.names, noise, se, p.n_sim)
     mc_noise.update(
         seed=seed2, log_likelihood_difference=float(surface.values[0] - values2[0])
     )  # fmt: skip
@@ -274,39 +367,43 @@ def simulated_mle(
         caught.append(mc_noise["warning"])
     # 4. the estimate, its intervals
     ll_hat, _ = loglik(u_hat)
-    estimate = params(u_hat)
-    ci, said = wald(u_hat, cov, names, scales, lo, hi, free,
-                     concave(surface.hessian) and not lost)  # fmt: skip
+    estimate = p.params(u_hat)
+    ci, said = wald(u_hat, cov, p.names, p.coords, p.lo, p.hi, p.free,
+                    concave(surface.hessian) and not lost)  # fmt: skip
     caught += said
     for text in caught:
         warnings.warn(f"fit: {text}", stacklevel=STACKLEVEL)
-    through = (
-        f", through the data's measurement (a {measured.signal} trace sampled every "
-        f"{measured.sampling_interval:.4g}, its noise, extract_cycles' settings)"
-        if measured is not None
-        else ""
-    )
-    method = (
-        f"simulated maximum likelihood ({n_sim} cycles per point{through}, common random "
-        "numbers, "
-        f"smoothed kernel likelihood of {', '.join(data)}, zero durations as a point mass); "
-        "95 % Wald intervals from the sandwich covariance of per-cycle scores"
-        + (f" (rows dependent: their scores' cross products up to lag {dependence['lag']})"
-           if dependence["lag"] else "")
-    )  # fmt: skip
-    diagnostics = dict(
-        n_sim=n_sim, dt=dt, t_max=t_max, seed=seed, measurement=measured,
-        # `trace`, `sampling`, `observe`: the measurement as the model comparison reads it
-        trace=measured is not None,
-        sampling=None if measured is None else measured.sampling_interval, observe=measured,
-        n_data={k: int(v.size) for k, v in data.items()},
-        zero_fraction={k: float(np.mean(v == 0)) for k, v in data.items() if k in LOG_KINDS},
-        bandwidth=bandwidth, scales=scales, covariance=cov.tolist(),
-        hessian=surface.hessian.tolist(), evaluations=len(points), points=points,
+    diagnostics = _diagnostics(
+        p, loglik, surface, cov, optimizer=optimizer, caught=caught, values2=values2,
+        seed2=seed2, samples=samples, mc_noise=mc_noise, dependence=dependence,
         seconds=time.perf_counter() - wall0,
-        warnings=([sampled] if sampled else []) + caught,
-        to_fit=ToFit(scales),
-        optimizer=optimizer,
+    )  # fmt: skip
+    fitted = p.build(estimate)
+    if p.runs is not None:
+        diagnostics["runs"] = p.runs.describe(fitted)
+        diagnostics["joint"] = p.runs  # the map to each run's model (`compare_fits`)
+    return FitResult(
+        estimate=estimate, ci=ci, log_likelihood=ll_hat, method=_method(p, dependence),
+        diagnostics=diagnostics, data=p.data, model=fitted[0],
+    )  # fmt: skip
+
+
+def _diagnostics(p: Problem, loglik: Likelihood, surface, cov, *, optimizer, caught, values2,
+                 seed2, samples, mc_noise, dependence, seconds) -> dict:  # fmt: skip
+    """A fit's diagnostics (`FitResult.diagnostics`): its settings, the surface's design,
+    both seeds' values, the simulation's noise, the rows' dependence, the warnings."""
+    return dict(
+        n_sim=p.n_sim, dt=p.dt, t_max=p.t_max, seed=p.seed, measurement=p.measured,
+        # `trace`, `sampling`, `observe`: the measurement as the model comparison reads it
+        trace=p.measured is not None,
+        sampling=None if p.measured is None else p.measured.sampling_interval,
+        observe=p.measured, n_data={k: int(v.size) for k, v in p.data.items()},
+        zero_fraction={k: float(np.mean(v == 0)) for k, v in p.data.items() if k in LOG_KINDS},
+        bandwidth=p.bandwidth, scales=p.coords, covariance=cov.tolist(),
+        hessian=surface.hessian.tolist(), evaluations=len(loglik.points),
+        points=loglik.points, seconds=seconds,
+        warnings=([p.sampled] if p.sampled else []) + caught,
+        to_fit=ToFit(p.coords), optimizer=optimizer,
         # the surface's design (fit coordinates), its values at both seeds and, where kept,
         # the cycles simulated there: the model comparison's design (`compare_fits`)
         design=dict(
@@ -314,19 +411,29 @@ def simulated_mle(
             centre=surface.centre.tolist(), steps=surface.steps.tolist(),
             points=surface.design.tolist(), values=[list(map(float, surface.values)),
                                                     list(map(float, values2))],
-            seeds=[seed, seed2], samples=samples,
+            seeds=[p.seed, seed2], samples=samples,
         ),
-        mc_noise=mc_noise,
-        dependence=dependence,
-        units=units,  # the SI mapping given (`FitResult.predict`)
+        mc_noise=mc_noise, dependence=dependence,
+        units=p.units,  # the SI mapping given (`FitResult.predict`)
     )  # fmt: skip
-    fitted = build(estimate)
-    if runs is not None:
-        diagnostics["runs"] = runs.describe(fitted)
-        diagnostics["joint"] = runs  # the map to each run's model (`compare_fits`)
-    return FitResult(
-        estimate=estimate, ci=ci, log_likelihood=ll_hat, method=method,
-        diagnostics=diagnostics, data=data, model=fitted[0],
+
+
+def _method(p: Problem, dependence: dict) -> str:
+    """What the fit did, in words."""
+    measured = p.measured
+    through = (
+        f", through the data's measurement (a {measured.signal} trace sampled every "
+        f"{measured.sampling_interval:.4g}, its noise, extract_cycles' settings)"
+        if measured is not None
+        else ""
+    )
+    return (
+        f"simulated maximum likelihood ({p.n_sim} cycles per point{through}, common random "
+        "numbers, "
+        f"smoothed kernel likelihood of {', '.join(p.data)}, zero durations as a point mass); "
+        "95 % Wald intervals from the sandwich covariance of per-cycle scores"
+        + (f" (rows dependent: their scores' cross products up to lag {dependence['lag']})"
+           if dependence["lag"] else "")
     )  # fmt: skip
 
 
