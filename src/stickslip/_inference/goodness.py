@@ -236,50 +236,11 @@ def goodness_of_fit(
     observed = {k: statistic(_pit(data[k], [reference[k]], [1.0], rng)) for k in kinds}
 
     reps = simulate_replicates(setting, n, n_rep, int(rng.integers(2**62)))
-    stats = {k: np.empty(n_rep) for k in kinds}
     if refit:
-        for r, rep in enumerate(reps):
-            u_star = setting.refit(rep, seed=int(rng.integers(2**62)))
-            ref = setting.simulate(u_star, n_ref, ref_seed)
-            for k in kinds:
-                stats[k][r] = statistic(_pit(rep[k], [_sorted(ref[k])], [1.0], rng))
+        stats = _refitted_statistics(setting, reps, n_ref, ref_seed, statistic, rng)
     else:
-        newton = setting.newton()
-        p = len(setting.names)
-        if newton is None:
-            said.append(
-                "the fit's log-likelihood has no finite curvature at the estimate: replicates "
-                "are compared with the model at the estimate itself, without their own fit, so "
-                "these p-values are conservative (too large); refit=True is exact"
-            )
-            steps = np.zeros((n_rep, p))
-        else:
-            tables = setting.gradient_tables(shifted, reps, data)
-            steps = np.array([setting.one_step(rep, tables, newton) for rep in reps])
-        if concave(setting.hessian):
-            noise = setting.simulation_noise(steps)
-        else:
-            # the fit's covariance is then a regularised inverse (sds of 1e5-1e10): as the
-            # simulation noise it threw every replicate to MAX_STEP, and every p-value to 1
-            noise = np.zeros((p, p))
-            said.append(
-                "the fit's log-likelihood is not concave at the estimate: the replicates "
-                "leave out the fit's own simulation noise (its covariance is not usable), "
-                "so these p-values are rough, somewhat small"
-            )
-        steps = steps + rng.multivariate_normal(np.zeros(p), noise, size=n_rep)
-        # sorted once, not per replicate (a quarter of the time at 3000 cycles, 2 free)
-        ordered = [({k: _sorted(plus[k]) for k in kinds}, {k: _sorted(minus[k]) for k in kinds},
-                    step) for (plus, minus), step in shifted]  # fmt: skip
-        for r, rep in enumerate(reps):
-            du = np.clip(steps[r], -MAX_STEP, MAX_STEP)
-            for k in kinds:
-                samples, weights = [reference[k]], [1.0]
-                for j, (plus, minus, step) in enumerate(ordered):
-                    c = du[j] / step
-                    samples += [plus[k], minus[k]]
-                    weights += [c, -c]
-                stats[k][r] = statistic(_pit(rep[k], samples, weights, rng))
+        stats = _linearised_statistics(setting, reps, data, reference, shifted, statistic, rng,
+                                       said)  # fmt: skip
 
     p_values = {k: float((1 + np.sum(stats[k] >= observed[k])) / (1 + n_rep)) for k in kinds}
     p_value = _joint_p(observed, stats, p_values) if len(kinds) > 1 else p_values[kinds[0]]
@@ -317,6 +278,66 @@ def goodness_of_fit(
         warnings=said, method=method, n_rep=n_rep, data=data, reference=reference,
         statistic=statistic,
     )  # fmt: skip
+
+
+def _refitted_statistics(setting, reps, n_ref, ref_seed, statistic, rng) -> dict:
+    """Each replicate's statistic against the model at its own refitted estimate (the exact
+    parametric bootstrap)."""
+    kinds = list(setting.kinds)
+    stats = {k: np.empty(len(reps)) for k in kinds}
+    for r, rep in enumerate(reps):
+        u_star = setting.refit(rep, seed=int(rng.integers(2**62)))
+        ref = setting.simulate(u_star, n_ref, ref_seed)
+        for k in kinds:
+            stats[k][r] = statistic(_pit(rep[k], [_sorted(ref[k])], [1.0], rng))
+    return stats
+
+
+def _linearised_statistics(setting, reps, data, reference, shifted, statistic, rng,
+                           said) -> dict:  # fmt: skip
+    """Each replicate's statistic against the model at its linearised estimate (one Newton
+    step of the fit's likelihood, plus the fit's simulation noise), the model's distribution
+    function linear in the step (the references either side of the estimate); what limits
+    it is said in `said`."""
+    kinds, n_rep = list(data), len(reps)
+    stats = {k: np.empty(n_rep) for k in kinds}
+    newton = setting.newton()
+    p = len(setting.names)
+    if newton is None:
+        said.append(
+            "the fit's log-likelihood has no finite curvature at the estimate: replicates "
+            "are compared with the model at the estimate itself, without their own fit, so "
+            "these p-values are conservative (too large); refit=True is exact"
+        )
+        steps = np.zeros((n_rep, p))
+    else:
+        tables = setting.gradient_tables(shifted, reps, data)
+        steps = np.array([setting.one_step(rep, tables, newton) for rep in reps])
+    if concave(setting.hessian):
+        noise = setting.simulation_noise(steps)
+    else:
+        # the fit's covariance is then a regularised inverse (sds of 1e5-1e10): as the
+        # simulation noise it threw every replicate to MAX_STEP, and every p-value to 1
+        noise = np.zeros((p, p))
+        said.append(
+            "the fit's log-likelihood is not concave at the estimate: the replicates "
+            "leave out the fit's own simulation noise (its covariance is not usable), "
+            "so these p-values are rough, somewhat small"
+        )
+    steps = steps + rng.multivariate_normal(np.zeros(p), noise, size=n_rep)
+    # sorted once, not per replicate (a quarter of the time at 3000 cycles, 2 free)
+    ordered = [({k: _sorted(plus[k]) for k in kinds}, {k: _sorted(minus[k]) for k in kinds},
+                step) for (plus, minus), step in shifted]  # fmt: skip
+    for r, rep in enumerate(reps):
+        du = np.clip(steps[r], -MAX_STEP, MAX_STEP)
+        for k in kinds:
+            samples, weights = [reference[k]], [1.0]
+            for j, (plus, minus, step) in enumerate(ordered):
+                c = du[j] / step
+                samples += [plus[k], minus[k]]
+                weights += [c, -c]
+            stats[k][r] = statistic(_pit(rep[k], samples, weights, rng))
+    return stats
 
 
 # -- pieces -----------------------------------------------------------------------------
