@@ -1032,34 +1032,39 @@ class HostRun:
             return want
         return _stand_in_size(ready, want, most, smaller, ladder) or want
 
-    def _chunk(self, paths, onsets=None):
-        """First passages of one chunk of paths (from `onsets` `(d, count)` where given);
-        see `simulate`. Also returns each path's miss bound (bridge detector; zeros
-        otherwise)."""
-        cfg = self.cfg
-        refine = cfg.detect == "bridge"
-        count = paths.size
-        want = _buffer_size(count)
-        size, past = self._first_buffer(want)
-        path = np.zeros(size, dtype=np.uint32)
-        path[:count] = paths
+    def _chunk_onsets(self, path, count: int, size: int, onsets):
+        """A chunk's onset states (on the device, and read here), their crossing variable,
+        which paths stick at once, and the paths' first modes (padding inactive)."""
         # On the device for the calls below (a NumPy argument is copied at every call: the
         # states twice, ~2.5 ms at 131072 paths); read here through a zero-copy view.
         if onsets is None:
             X0_dev, x_start, rate = self._onset_states(path, exact=True)[:3]
         else:
             X0_dev = _pad_paths(onsets, size)
-            x_start, rate = self.call(_at_onset, self.model, cfg.smooth, X0_dev, paths=size)
+            x_start, rate = self.call(_at_onset, self.model, self.cfg.smooth, X0_dev, paths=size)
         X0, x_start, rate = np.asarray(X0_dev), np.asarray(x_start), np.asarray(rate)
         k_stick = np.full(size, INACTIVE)
         k_stick[:count] = SLIPPING
         immediate = np.zeros(size, dtype=bool)
-        if cfg.smooth:
+        if self.cfg.smooth:
             # A crossing variable already rising at onset ends the slip at once (T_sl = 0).
             immediate[:count] = rate[:count] >= 0.0
             k_stick[immediate] = INACTIVE
         if self.bar is not None:
             self.bar.update(int(np.sum(immediate)))
+        return X0_dev, X0, x_start, immediate, k_stick
+
+    def _chunk(self, paths, onsets=None):
+        """First passages of one chunk of paths (from `onsets` `(d, count)` where given);
+        see `simulate`. Also returns each path's miss bound (bridge detector; zeros
+        otherwise)."""
+        refine = self.cfg.detect == "bridge"
+        count = paths.size
+        want = _buffer_size(count)
+        size, past = self._first_buffer(want)
+        path = np.zeros(size, dtype=np.uint32)
+        path[:count] = paths
+        X0_dev, X0, x_start, immediate, k_stick = self._chunk_onsets(path, count, size, onsets)
         # Chunk-level results; buffers are written back into them by `slot` (-1: padding).
         if not refine:  # (the bridge detector writes sticks as it refines them)
             X_end, X_prev_end, k_end = X0.copy(), X0.copy(), k_stick.copy()
@@ -1094,83 +1099,28 @@ class HostRun:
             )
             loop = self._loop(past)
             if first and refine:
-                # The refinement's first buffer compiles in a thread while the stepping loop
-                # compiles: started once the loop is traced (tracing holds Python's lock,
-                # XLA's compiling does not). A speculating loop holds up to 1 + PAST_SLOTS
-                # candidates a path for the end.
-                loop.trace(*args, paths=size)
-                self.refiner().prefetch(
-                    count * (1 + PAST_SLOTS if past else 1), X0.shape[0], exact=not past
-                )
+                # (a speculating loop holds up to 1 + PAST_SLOTS candidates a path for the end)
+                self._prefetch_refiner(loop, args, size, count * (1 + PAST_SLOTS if past else 1),
+                                       X0.shape[0], exact=not past)  # fmt: skip
             first = False
             slipping = ks == SLIPPING
-            start = time.perf_counter()
-            out = self._counted(loop(*args, paths=size))
+            out, taken = self._step_buffer(loop, args, size, want)
             # The states stay where the loop left them for its next call (read here through
             # zero-copy views; copying them in and out cost ~3 ms a call at 131072 paths).
             X_dev, X_prev_dev, miss_dev = out[0], out[1], out[3]
             X, X_prev, miss = np.asarray(X_dev), np.asarray(X_prev_dev), np.asarray(miss_dev)
             ks = np.array(out[2])  # a copy: the host sets modes in it
-            taken = int(round(float(out[4])))
-            if size > want:  # the rent of the size wanted (`_compile.rent`; the call is done)
-                wasted = (time.perf_counter() - start) * (1.0 - want / size)
-                _compile.rent(self._want_key(want), wasted)
-            self.stats["path_steps"] += size * taken
-            self.stats["buffers"] += 1
             passing = ks == PASSED
             ks[passing] = SLIPPING
-            # A slipping path whose state left the finite numbers (a model's drift that is
-            # nan somewhere) never sticks: its crossing variable compares false. It is
-            # stopped here and counted apart (`cycle_outputs`), not run on to t_max.
-            gone = np.flatnonzero(~np.isfinite(X).all(axis=0) & slipping & (slot >= 0))
-            if gone.size:
-                nonfinite[slot.take(gone)] = True
-                ks[gone] = INACTIVE
-                if self.nonfinite_at is None or not np.isfinite(self.nonfinite_at[0]).all():
-                    # (one that left in the call's last step: its step's start is finite)
-                    last = np.isfinite(X_prev[:, gone]).all(axis=0)
-                    g = gone[np.argmax(last)]
-                    self.nonfinite_at = (X_prev[:, g].copy(), X[:, g].copy(), X0[:, slot[g]])
+            self._stop_nonfinite(X, X_prev, X0, ks, slipping, slot, nonfinite)
             # (+ 0.0 elsewhere: the same numbers as a select, without its branches; 2x faster)
             offset = offset + (ks == SLIPPING) * float(taken)
             real = slot >= 0
             if past:
-                # Left to the end: step on past the candidates that end below the level. The
-                # loop stepped past up to PAST_SLOTS of them per path (its record, and the
-                # paths that stepped past one in their last step); a candidate beyond them
-                # ended the path's stepping and is stepped past here.
-                # (which paths, their candidate's step, miss bound before it, both ends)
-                held = [(passing, offset - 1.0, miss, X_prev, X), (ks >= 0, ks, miss, X_prev, X)]
-                if len(out) > 5:  # the loop's record (PAST_SLOTS > 0)
-                    held_n, rec_step, rec_miss, rec_a, rec_b = (np.asarray(a) for a in out[5:])
-                    held += [
-                        (held_n > r, rec_step[r], rec_miss[r], rec_a[r], rec_b[r])
-                        for r in range(rec_step.shape[0])
-                    ]
-                for mask, step, miss_at, Xa, Xb in held:
-                    i = np.nonzero(real & mask)[0]
-                    if i.size:
-                        ends = _cols(Xa, i), _cols(Xb, i)
-                        pending.append((slot[i], step[i], miss_at[i], p[i], *ends))
-                cand = np.nonzero(real & (ks >= 0))[0]
-                below = self.crossing @ _cols(X, cand) < self.model_level
-                back = np.compress(below, cand)
-                offset[back] = ks.take(back) + 1.0
-                ks[back] = SLIPPING
-                ks[np.compress(~below, cand)] = INACTIVE
+                self._step_past(out, real, passing, ks, offset, miss, X_prev, X, p, slot, pending)
             elif refine:
-                cand = np.nonzero(real & (ks >= 0))[0]
-                found, frac, state, refined = self._refine(cand, X_prev, X, ks, p)
-                self.refined_miss += float(np.sum(refined))
-                f = np.flatnonzero(found)  # integer indices: ~2x faster than the mask here
-                # (`take` and `compress`: 1.5x and 4x faster than fancy and mask indexing)
-                hit, back = cand.take(f), np.compress(~found, cand)
-                rows = slot.take(hit)
-                t_stick[rows] = (ks.take(hit) + frac.take(f)) * self.dt
-                _set_cols(stick_state, rows, _cols(state, f))
-                offset[back] = ks.take(back) + 1.0  # refuted: resume at the next step
-                ks[back] = SLIPPING
-                ks[hit] = INACTIVE
+                self._refine_candidates(real, ks, offset, X_prev, X, p, slot, t_stick,
+                                        stick_state)  # fmt: skip
             else:
                 X_end[:, slot[real]] = X[:, real]
                 X_prev_end[:, slot[real]] = X_prev[:, real]
@@ -1201,6 +1151,86 @@ class HostRun:
         t_stick[imm] = 0.0
         return (X0[:, :count], stick_state, t_stick, located, miss_end[:count], x_start[:count],
                 nonfinite)  # fmt: skip
+
+    def _prefetch_refiner(self, loop, args, size: int, candidates: int, d: int, exact: bool):
+        """The refinement's first buffer compiles in a thread while the stepping loop
+        compiles: started once the loop is traced (tracing holds Python's lock, XLA's
+        compiling does not)."""
+        loop.trace(*args, paths=size)
+        self.refiner().prefetch(candidates, d, exact=exact)
+
+    def _step_buffer(self, loop, args, size: int, want: int):
+        """One call of the stepping loop on a buffer of `size` paths: its outputs and the
+        steps it took; the rent of the size wanted where it ran on a larger one
+        (`_compile.rent`: the call is done) and the run's counts."""
+        start = time.perf_counter()
+        out = self._counted(loop(*args, paths=size))
+        taken = int(round(float(out[4])))
+        if size > want:
+            wasted = (time.perf_counter() - start) * (1.0 - want / size)
+            _compile.rent(self._want_key(want), wasted)
+        self.stats["path_steps"] += size * taken
+        self.stats["buffers"] += 1
+        return out, taken
+
+    def _stop_nonfinite(self, X, X_prev, X0, ks, slipping, slot, nonfinite) -> None:
+        """A slipping path whose state left the finite numbers (a model's drift that is
+        nan somewhere) never sticks: its crossing variable compares false. It is stopped
+        here (its mode set inactive in `ks`) and counted apart (`nonfinite`, by chunk row;
+        `cycle_outputs`), not run on to t_max."""
+        gone = np.flatnonzero(~np.isfinite(X).all(axis=0) & slipping & (slot >= 0))
+        if gone.size:
+            nonfinite[slot.take(gone)] = True
+            ks[gone] = INACTIVE
+            if self.nonfinite_at is None or not np.isfinite(self.nonfinite_at[0]).all():
+                # (one that left in the call's last step: its step's start is finite)
+                last = np.isfinite(X_prev[:, gone]).all(axis=0)
+                g = gone[np.argmax(last)]
+                self.nonfinite_at = (X_prev[:, g].copy(), X[:, g].copy(), X0[:, slot[g]])
+
+    def _step_past(self, out, real, passing, ks, offset, miss, X_prev, X, p, slot, pending):
+        """Candidates left to the end (a speculating loop): step on past those that end
+        below the level. The loop stepped past up to PAST_SLOTS of them per path (its
+        record, and the paths that stepped past one in their last step); a candidate beyond
+        them ended the path's stepping and is stepped past here. Each is held in `pending`
+        (its chunk row, step, miss bound before it, path, both ends); `ks` and `offset` are
+        updated in place."""
+        # (which paths, their candidate's step, miss bound before it, both ends)
+        held = [(passing, offset - 1.0, miss, X_prev, X), (ks >= 0, ks, miss, X_prev, X)]
+        if len(out) > 5:  # the loop's record (PAST_SLOTS > 0)
+            held_n, rec_step, rec_miss, rec_a, rec_b = (np.asarray(a) for a in out[5:])
+            held += [
+                (held_n > r, rec_step[r], rec_miss[r], rec_a[r], rec_b[r])
+                for r in range(rec_step.shape[0])
+            ]
+        for mask, step, miss_at, Xa, Xb in held:
+            i = np.nonzero(real & mask)[0]
+            if i.size:
+                ends = _cols(Xa, i), _cols(Xb, i)
+                pending.append((slot[i], step[i], miss_at[i], p[i], *ends))
+        cand = np.nonzero(real & (ks >= 0))[0]
+        below = self.crossing @ _cols(X, cand) < self.model_level
+        back = np.compress(below, cand)
+        offset[back] = ks.take(back) + 1.0
+        ks[back] = SLIPPING
+        ks[np.compress(~below, cand)] = INACTIVE
+
+    def _refine_candidates(self, real, ks, offset, X_prev, X, p, slot, t_stick, stick_state):
+        """The bridge detector: refine this round's candidate steps now; a found stick's
+        time and state go to its chunk row, a refuted candidate's path resumes at the next
+        step (`ks`, `offset`, `t_stick`, `stick_state` updated in place)."""
+        cand = np.nonzero(real & (ks >= 0))[0]
+        found, frac, state, refined = self._refine(cand, X_prev, X, ks, p)
+        self.refined_miss += float(np.sum(refined))
+        f = np.flatnonzero(found)  # integer indices: ~2x faster than the mask here
+        # (`take` and `compress`: 1.5x and 4x faster than fancy and mask indexing)
+        hit, back = cand.take(f), np.compress(~found, cand)
+        rows = slot.take(hit)
+        t_stick[rows] = (ks.take(hit) + frac.take(f)) * self.dt
+        _set_cols(stick_state, rows, _cols(state, f))
+        offset[back] = ks.take(back) + 1.0  # refuted: resume at the next step
+        ks[back] = SLIPPING
+        ks[hit] = INACTIVE
 
     def _speculates(self, size: int) -> bool:
         """Whether a buffer of `size` paths steps past candidates (leaves them for the end;
