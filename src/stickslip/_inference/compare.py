@@ -316,11 +316,32 @@ def compare_fits(
             f"{math.ceil(rivals_max / alpha)}",
             n_boot,
         )  # fmt: skip
+    chosen, tests, rejected = _tested(order, cands, given, n_boot, seed, names, alpha)
+    said = _cautions(tests, alpha, chosen, named[chosen].p_values)
+    table = _table(order, cands, chosen, rejected, tests, alpha)
+    method = (
+        f"simplest of {len(names)} candidates not rejected at alpha = {alpha:g}: likelihood "
+        "ratios of the fits' smoothed simulated log-likelihoods (each the maximum of the "
+        "fit's polynomial through its design, +-2 steps around the estimate), calibrated by "
+        f"{n_boot} parametric-bootstrap replicates from the simpler model; rejected only if "
+        "rejected with both of the fits' seeds; Bonferroni over richer rivals"
+    )
+    for text in said:
+        warnings.warn(f"compare_fits: {text}", stacklevel=2)
+    return Comparison(
+        chosen=named[chosen], table=table, tests=list(tests.values()), alpha=float(alpha),
+        n_boot=n_boot, method=method, warnings=said, fits=named,
+    )  # fmt: skip
+
+
+def _tested(order, cands, given, n_boot, seed, names, alpha):
+    """The sequence of tests: from the simplest candidate up, each against its richer
+    rivals, until one is not rejected (Bonferroni over its rivals). Returns the chosen
+    name, the tests by (null, alternative) and the rejected ones (name -> (by whom, p))."""
     tests: dict[tuple[str, str], dict] = {}
     designs: dict[str, tuple] = {}
     drawn: dict[str, Replicates] = {}
-    said: list[str] = []
-    rejected: dict[str, tuple[str, float]] = {}  # name -> (by whom, Bonferroni p)
+    rejected: dict[str, tuple[str, float]] = {}
     # the loop stops at the latest at the first of the richest: no richer rival rejects it
     chosen = order[-1]
     for i, a in enumerate(order):
@@ -336,6 +357,14 @@ def compare_fits(
             chosen = a
             break
         rejected[a] = (rivals[int(np.argmin(p))], p_adj)
+    return chosen, tests, rejected
+
+
+def _cautions(tests, alpha, chosen, goodness) -> list[str]:
+    """What a comparison says besides its choice: a nested model scored above the model
+    that holds it, a decision that hangs on the seed, a chosen model its own goodness of fit
+    rejects (`goodness`: its p-values)."""
+    said: list[str] = []
     for t in tests.values():
         below = min(t["raw_statistic"])
         if t["nested"] and below < -NESTED_SLACK:
@@ -354,7 +383,6 @@ def compare_fits(
                 f"of alpha = {alpha:g}: the choice hangs on the simulation; refit with a "
                 "larger n_sim"
             )
-    goodness = named[chosen].p_values
     if goodness:
         low = {k: p for k, p in goodness.items() if p < GOODNESS_ALPHA}
         if low:
@@ -363,20 +391,7 @@ def compare_fits(
                 f"the chosen model, {chosen}, is itself rejected by its goodness of fit "
                 f"({shown} < {GOODNESS_ALPHA}): no candidate reproduces the data"
             )
-    table = _table(order, cands, chosen, rejected, tests, alpha)
-    method = (
-        f"simplest of {len(names)} candidates not rejected at alpha = {alpha:g}: likelihood "
-        "ratios of the fits' smoothed simulated log-likelihoods (each the maximum of the "
-        "fit's polynomial through its design, +-2 steps around the estimate), calibrated by "
-        f"{n_boot} parametric-bootstrap replicates from the simpler model; rejected only if "
-        "rejected with both of the fits' seeds; Bonferroni over richer rivals"
-    )
-    for text in said:
-        warnings.warn(f"compare_fits: {text}", stacklevel=2)
-    return Comparison(
-        chosen=named[chosen], table=table, tests=list(tests.values()), alpha=float(alpha),
-        n_boot=n_boot, method=method, warnings=said, fits=named,
-    )  # fmt: skip
+    return said
 
 
 # -- pieces -----------------------------------------------------------------------------
