@@ -328,26 +328,10 @@ def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
     made noisy as `measurement` says; see `measured_cycles`. `sticks="cut"` (a force trace
     with a given `window`): the middles of the long sticks left out (`_cut_grid`), each
     trace's `cut` saying which samples of the whole trace were kept."""
-    from .._model import CreepingSlider, FrictionModel, time_scales
-    from .._simulate import simulate, simulate_cycles
-    from .._simulate.cycles import counted_cycles
+    from .._model import CreepingSlider, time_scales
 
     owner = "measured_cycles"
-    if not isinstance(model, FrictionModel):
-        raise ParameterError(owner, "model", "must be a FrictionModel instance")
-    names = tuple(model.state_names)
-    if "x" not in names or "v" not in names:
-        raise ParameterError(
-            owner, "model", "must have states x and v (a single-block model): the trace "
-            f"records them (states: {', '.join(names)})",
-        )  # fmt: skip
-    if not isinstance(measurement, Measurement):
-        raise ParameterError(owner, "measurement", "must be a Measurement")
-    n_cycles = check_int(owner, "n_cycles", n_cycles, minimum=10)
-    seed = check_int(owner, "seed", seed, minimum=0)
-    if sticks not in STICKS:
-        raise ParameterError(owner, "sticks", f"must be one of {', '.join(map(repr, STICKS))}",
-                             sticks)  # fmt: skip
+    names, n_cycles, seed = _checked(owner, model, measurement, n_cycles, seed, sticks)
     cut = sticks == "cut" and measurement.signal == "force" and measurement.window is not None
     h = measurement.sampling_interval
     scales = time_scales(model)
@@ -359,37 +343,7 @@ def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
     per_path = _CYCLES_PER_PATH_MEMORY if short else _CYCLES_PER_PATH
     n_paths = int(min(_MAX_PATHS, max(1, round(n_cycles / per_path))))
     horizon = max(_PILOT_HORIZON * slow, 2 * dt)
-    if isinstance(model, CreepingSlider):
-        # one integrated motion: each path's duration, its share of the cycles times the
-        # mean period of pilot cycles
-        pilot = simulate(model, _PILOT_PATHS, dt, horizon, seed)
-        period = np.asarray(pilot.period, float)
-        period = period[np.isfinite(period)]
-        if period.size < _PILOT_PATHS // 2 or not np.mean(period) > 0:
-            raise DataError(
-                f"{owner}: the model sticks again within {_PILOT_HORIZON:g} slow time scales "
-                f"in {period.size} of {_PILOT_PATHS} cycles: no stick-slip trace to measure"
-            )  # fmt: skip
-        t_max = math.ceil(n_cycles / n_paths) * float(np.mean(period))
-        _check_trace(owner, n_paths * t_max, n_cycles, h)
-        series = simulate_cycles(model, n_paths, dt, t_max, seed, record=True)
-    else:
-        # each path's share of the cycles, counted (`counted_cycles`), their trace's size
-        # checked before their slips are recorded
-        count = math.ceil(n_cycles / n_paths)
-
-        def check(cycles):
-            stuck = int(np.sum(np.isfinite(cycles["period"])))
-            if stuck < n_paths * count // 2:
-                raise DataError(
-                    f"{owner}: the model sticks again within {_PILOT_HORIZON:g} slow time "
-                    f"scales in {stuck} of {n_paths * count} successive cycles: no stick-slip "
-                    "trace to measure"
-                )  # fmt: skip
-            period = cycles["period"]
-            _check_trace(owner, float(np.sum(period[np.isfinite(period)])), n_cycles, h)
-
-        series = counted_cycles(model, n_paths, dt, horizon, seed, count, check=check)
+    series = _series(owner, model, n_cycles, n_paths, dt, horizon, seed, h)
     ix, iv = names.index("x"), names.index("v")
     table = series.cycles
     if measurement.signal != "force":
@@ -437,6 +391,67 @@ def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
 
     traces = on_two_threads(path_signals, n_paths)
     return MeasuredTrace(tuple(traces), dict(series.cycles), measurement, dt)
+
+
+def _checked(owner, model, measurement, n_cycles, seed, sticks):
+    """`measured_trace`'s arguments checked: the model's state names, `n_cycles`, `seed`."""
+    from .._model import FrictionModel
+
+    if not isinstance(model, FrictionModel):
+        raise ParameterError(owner, "model", "must be a FrictionModel instance")
+    names = tuple(model.state_names)
+    if "x" not in names or "v" not in names:
+        raise ParameterError(
+            owner, "model", "must have states x and v (a single-block model): the trace "
+            f"records them (states: {', '.join(names)})",
+        )  # fmt: skip
+    if not isinstance(measurement, Measurement):
+        raise ParameterError(owner, "measurement", "must be a Measurement")
+    n_cycles = check_int(owner, "n_cycles", n_cycles, minimum=10)
+    seed = check_int(owner, "seed", seed, minimum=0)
+    if sticks not in STICKS:
+        raise ParameterError(owner, "sticks", f"must be one of {', '.join(map(repr, STICKS))}",
+                             sticks)  # fmt: skip
+    return names, n_cycles, seed
+
+
+def _series(owner, model, n_cycles, n_paths, dt, horizon, seed, h):
+    """The model's successive cycles on `n_paths` paths, their slips recorded (a creeping
+    slider's whole motion), each path's trace checked against the memory limit first."""
+    from .._model import CreepingSlider
+    from .._simulate import simulate, simulate_cycles
+    from .._simulate.cycles import counted_cycles
+
+    if isinstance(model, CreepingSlider):
+        # one integrated motion: each path's duration, its share of the cycles times the
+        # mean period of pilot cycles
+        pilot = simulate(model, _PILOT_PATHS, dt, horizon, seed)
+        period = np.asarray(pilot.period, float)
+        period = period[np.isfinite(period)]
+        if period.size < _PILOT_PATHS // 2 or not np.mean(period) > 0:
+            raise DataError(
+                f"{owner}: the model sticks again within {_PILOT_HORIZON:g} slow time scales "
+                f"in {period.size} of {_PILOT_PATHS} cycles: no stick-slip trace to measure"
+            )  # fmt: skip
+        t_max = math.ceil(n_cycles / n_paths) * float(np.mean(period))
+        _check_trace(owner, n_paths * t_max, n_cycles, h)
+        return simulate_cycles(model, n_paths, dt, t_max, seed, record=True)
+    # each path's share of the cycles, counted (`counted_cycles`), their trace's size
+    # checked before their slips are recorded
+    count = math.ceil(n_cycles / n_paths)
+
+    def check(cycles):
+        stuck = int(np.sum(np.isfinite(cycles["period"])))
+        if stuck < n_paths * count // 2:
+            raise DataError(
+                f"{owner}: the model sticks again within {_PILOT_HORIZON:g} slow time "
+                f"scales in {stuck} of {n_paths * count} successive cycles: no stick-slip "
+                "trace to measure"
+            )  # fmt: skip
+        period = cycles["period"]
+        _check_trace(owner, float(np.sum(period[np.isfinite(period)])), n_cycles, h)
+
+    return counted_cycles(model, n_paths, dt, horizon, seed, count, check=check)
 
 
 def _check_trace(owner: str, duration: float, n_cycles: int, h: float) -> None:
