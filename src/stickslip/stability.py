@@ -473,6 +473,42 @@ def stability_report(
     diagnostics: dict[str, dict[str, Any]] = {}
 
     # Monte Carlo: p_miss and the mass of the slips ending in (0, t_max].
+    window, window_se, p_miss, p_miss_se = _monte_carlo(
+        model, n_paths, seed, t_max, t_det, omega_d, slow, noiseless, white
+    )
+    p0, window = _check_methods(model, methods, t_max, fast, white, noiseless, window,
+                                window_se, failures, diagnostics)  # fmt: skip
+    if white:
+        for key in MONTE_CARLO_METHODS:
+            failures[key].append(NO_CONVERGENCE)
+
+    if math.isinf(t_det):
+        regime = "sliding"
+    elif p_miss > MULTIPERIODIC_P_MISS:
+        regime = "multiperiodic"
+    else:
+        regime = "stick-slip"
+    return StabilityReport(
+        model=_describe(model),
+        t_max=float(t_max),
+        exact=bool(model.crossing_is_smooth),
+        critical_speed=float(v_c),
+        deterministic_slip_time=float(t_det),
+        regime=regime,
+        p_miss=p_miss,
+        p_miss_se=p_miss_se,
+        window_mass=float(window),
+        window_mass_se=window_se,
+        immediate_probability=float(p0),
+        failures=MappingProxyType({k: tuple(v) for k, v in failures.items()}),
+        diagnostics=MappingProxyType(diagnostics),
+    )
+
+
+def _monte_carlo(model, n_paths, seed, t_max, t_det, omega_d, slow, noiseless, white):
+    """The Monte Carlo's mass of the slips ending in (0, t_max] (nan for white noise, whose
+    slips end at once) and the probability that a path misses the first stick opportunity,
+    each with its standard error."""
     p_miss = p_miss_se = math.nan
     if noiseless:
         window, window_se = (1.0 if 0 < t_det <= t_max else 0.0), 0.0
@@ -493,7 +529,15 @@ def stability_report(
         if miss_at is not None:
             p_miss = float(np.mean(T > miss_at))
             p_miss_se = math.sqrt(p_miss * (1 - p_miss) / n_paths)
+    return window, window_se, p_miss, p_miss_se
 
+
+def _check_methods(model, methods, t_max, fast, white, noiseless, window, window_se,
+                   failures, diagnostics):  # fmt: skip
+    """Each analytic method's first-passage density on the window, checked (negative, not
+    normalised, ...): its reasons appended to `failures[key]`, its numbers to
+    `diagnostics[key]`. Returns the probability of an immediate stick and the window's mass
+    (the estimator's, `1 - p0`, for white noise)."""
     if methods:
         from ._estimate import ApproximationWarning, CrossingEstimator
 
@@ -529,31 +573,7 @@ def stability_report(
                     reasons.append(CLOSURE)
     else:
         p0 = math.nan
-    if white:
-        for key in MONTE_CARLO_METHODS:
-            failures[key].append(NO_CONVERGENCE)
-
-    if math.isinf(t_det):
-        regime = "sliding"
-    elif p_miss > MULTIPERIODIC_P_MISS:
-        regime = "multiperiodic"
-    else:
-        regime = "stick-slip"
-    return StabilityReport(
-        model=_describe(model),
-        t_max=float(t_max),
-        exact=bool(model.crossing_is_smooth),
-        critical_speed=float(v_c),
-        deterministic_slip_time=float(t_det),
-        regime=regime,
-        p_miss=p_miss,
-        p_miss_se=p_miss_se,
-        window_mass=float(window),
-        window_mass_se=window_se,
-        immediate_probability=float(p0),
-        failures=MappingProxyType({k: tuple(v) for k, v in failures.items()}),
-        diagnostics=MappingProxyType(diagnostics),
-    )
+    return p0, window
 
 
 def _noise_free(model) -> bool:
