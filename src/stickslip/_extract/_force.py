@@ -202,17 +202,7 @@ def extract_slips(t, f, h, k, v_b, window, thr, lines, cut: Cut | None = None):
     if window is None:
         if cut is not None:
             raise ParameterError(OWNER, "window", "must be given for a cut trace")
-        # the median length of the stretches weighted by the drop each carries: the big
-        # slips set the scale, not the many short stretches of small noise bumps
-        lengths = regions[1] - regions[0] + 1
-        guess = _FIRST_WINDOW
-        if lengths.size:
-            cum = np.concatenate([[0.0], np.cumsum(rate - g)])
-            weight = np.maximum(cum[regions[0]] - cum[regions[1] + 1], 0.0)
-            order = np.argsort(lengths)
-            share = np.cumsum(weight[order])
-            guess = int(lengths[order][np.searchsorted(share, 0.5 * share[-1])]) // 2
-        window = _odd_window(min(max(guess, 5), 101))
+        window = _odd_window(min(max(_first_guess(rate, g, regions), 5), 101))
         # ... then wider while the sticks still hide force drops (`_choose_window`)
         window, search = _choose_window(s, window, sigma, thr, regions)
         if window != first:
@@ -250,26 +240,7 @@ def extract_slips(t, f, h, k, v_b, window, thr, lines, cut: Cut | None = None):
     v_b_est = g * s_f / h / k
     hidden = None if search is None else search[-1]["hidden"]
     if v_b is not None:
-        ratio = v_b_est / v_b
-        if not 1 / _VB_UNITS < ratio < _VB_UNITS:
-            why = (
-                f"but {hidden} force drops lie hidden in the sticks even at a window of "
-                f"{window} samples: the slips are too small against the noise (sd "
-                f"{sigma * s_f:.3g}) to be found, and the missed drops bend the loading "
-                "line; give a larger window (or check the units)"
-                if hidden else "check the units of force, stiffness and v_b"
-            )  # fmt: skip
-            raise DataError(
-                f"extract_cycles: the sticks load the force at {g * s_f / h:.4g} per s, which "
-                f"with stiffness={k:.6g} means v_b = {v_b_est:.4g}, {ratio:.3g} times the "
-                f"given v_b={v_b:.6g}: {why}"
-            )
-        if abs(ratio - 1) > _VB_WARN:
-            warnings.warn(
-                f"extract_cycles: the sticks' loading slope gives v_b = {v_b_est:.4g}, "
-                f"{100 * (ratio - 1):+.2g}% from the given v_b = {v_b:.6g}; the slope is used",
-                stacklevel=3,
-            )
+        _check_loading(g * s_f / h, k, v_b, hidden, window, sigma * s_f)
     y = s - g * idx  # flat in a stick
     drop_sd = _drop_sd(y, window, sigma, far, weight)
     lo_lim, hi_lim, drops = _stretch_drops(y, regions, window)
@@ -279,22 +250,7 @@ def extract_slips(t, f, h, k, v_b, window, thr, lines, cut: Cut | None = None):
     # coloured noise inflates a chi^2 gain over a slip's few window lengths by the rate's
     # variance ratio; white noise: 1
     split_gain = thr["split"] * (rate_sd / white_sd) ** 2
-    n_split = 0
-    if len(fits):
-        long = np.flatnonzero(fits[:, 1] > _LONG * float(np.median(fits[:, 1])))
-        pairs = dict(
-            zip(
-                long.tolist(),
-                _fit_doubles(y, fits[long], sigma, split_gain, thr["drop"] * drop_sd),
-                strict=True,
-            )
-        )
-        rows = []
-        for j, fit in enumerate(fits):
-            pair = pairs.get(j)
-            rows.extend(pair or [fit])
-            n_split += pair is not None
-        fits = np.array(rows).reshape(-1, fits.shape[1])
+    fits, n_split = _split_doubles(y, fits, sigma, split_gain, thr["drop"] * drop_sd)
     if len(fits) < 2:
         raise DataError(
             f"extract_cycles: no stick-slip: {len(fits)} force drop(s) above {thr['drop']:g} "
@@ -324,9 +280,81 @@ def extract_slips(t, f, h, k, v_b, window, thr, lines, cut: Cut | None = None):
         peak_force=((y0 + g * i0) * s_f + _shift(cut, i0))[:-1][keep],
         force_drop=drop_f[keep],
     )
+    info = _info(
+        fits, k=k, v_b=v_b, v_b_est=v_b_est, h=h, thr=thr, lines=lines, line_rule=line_rule,
+        res_sd=res_sd, s_f=s_f, spikes=spikes, sigma=sigma, window=window, search=search,
+        hidden=hidden, rate_sd=rate_sd, white_sd=white_sd, skew=skew, drop_sd=drop_sd,
+        split_gain=split_gain, n_split=n_split,
+        n_samples=s.size if cut is None else int(cut.index[-1] - cut.index[0] + 1),
+    )  # fmt: skip
+    return table, info
+
+
+def _first_guess(rate, g, regions) -> int:
+    """A first window: half the median length of the slip stretches weighted by the drop
+    each carries (the big slips set the scale, not the many short stretches of small noise
+    bumps)."""
+    lengths = regions[1] - regions[0] + 1
+    guess = _FIRST_WINDOW
+    if lengths.size:
+        cum = np.concatenate([[0.0], np.cumsum(rate - g)])
+        weight = np.maximum(cum[regions[0]] - cum[regions[1] + 1], 0.0)
+        order = np.argsort(lengths)
+        share = np.cumsum(weight[order])
+        guess = int(lengths[order][np.searchsorted(share, 0.5 * share[-1])]) // 2
+    return guess
+
+
+def _check_loading(rate, k, v_b, hidden, window, noise_sd) -> None:
+    """The sticks' loading `rate` (force per s) against the given `v_b`: refused far from
+    it (units, or drops hidden in the sticks that bend the loading line), a warning when
+    it differs by more than a few per cent (the slope is used)."""
+    v_b_est = rate / k
+    ratio = v_b_est / v_b
+    if not 1 / _VB_UNITS < ratio < _VB_UNITS:
+        why = (
+            f"but {hidden} force drops lie hidden in the sticks even at a window of "
+            f"{window} samples: the slips are too small against the noise (sd "
+            f"{noise_sd:.3g}) to be found, and the missed drops bend the loading "
+            "line; give a larger window (or check the units)"
+            if hidden else "check the units of force, stiffness and v_b"
+        )  # fmt: skip
+        raise DataError(
+            f"extract_cycles: the sticks load the force at {rate:.4g} per s, which "
+            f"with stiffness={k:.6g} means v_b = {v_b_est:.4g}, {ratio:.3g} times the "
+            f"given v_b={v_b:.6g}: {why}"
+        )
+    if abs(ratio - 1) > _VB_WARN:
+        warnings.warn(
+            f"extract_cycles: the sticks' loading slope gives v_b = {v_b_est:.4g}, "
+            f"{100 * (ratio - 1):+.2g}% from the given v_b = {v_b:.6g}; the slope is used",
+            stacklevel=4,
+        )
+
+
+def _split_doubles(y, fits, sigma, split_gain, drop_min):
+    """The long slips (past `_LONG` times the median) that two slips fit better (by more
+    than `split_gain` in chi^2) replaced by those two: the fits and how many were split."""
+    n_split = 0
+    if len(fits):
+        long = np.flatnonzero(fits[:, 1] > _LONG * float(np.median(fits[:, 1])))
+        pairs = dict(zip(long.tolist(), _fit_doubles(y, fits[long], sigma, split_gain, drop_min),
+                         strict=True))  # fmt: skip
+        rows = []
+        for j, fit in enumerate(fits):
+            pair = pairs.get(j)
+            rows.extend(pair or [fit])
+            n_split += pair is not None
+        fits = np.array(rows).reshape(-1, fits.shape[1])
+    return fits, n_split
+
+
+def _info(fits, *, k, v_b, v_b_est, h, thr, lines, line_rule, res_sd, s_f, spikes, sigma,
+          window, search, hidden, rate_sd, white_sd, skew, drop_sd, split_gain, n_split,
+          n_samples) -> dict:  # fmt: skip
+    """How a force trace's cycles were found: every setting, threshold and rule."""
     ok = fits[:, 7].astype(bool)
-    n_samples = s.size if cut is None else int(cut.index[-1] - cut.index[0] + 1)
-    info = dict(
+    return dict(
         input="force", units="force in the units given (N), time in s, lengths in m",
         stiffness=k, v_b=v_b, v_b_estimated=float(v_b_est),
         v_b_rule="loading slope of the sticks (pooled least squares between slips) / stiffness",
@@ -374,7 +402,6 @@ def extract_slips(t, f, h, k, v_b, window, thr, lines, cut: Cut | None = None):
         n_slips=int(len(fits)), n_fit_failed=int((~ok).sum()), n_split=n_split,
         tol=float(thr["drop"] * sigma * s_f),
     )  # fmt: skip
-    return table, info
 
 
 def _shift(cut, i) -> np.ndarray | float:
