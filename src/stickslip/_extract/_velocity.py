@@ -39,44 +39,15 @@ _MIN_WINDOW, _MAX_WINDOW = 5, 101
 
 
 def extract_velocity(t, x, v, v_b, tol, min_stick) -> Cycles:
+    """The cycles of a position (`x`) or velocity (`v`) trace: its sticks are the runs
+    that move with the drive (within `tol` of the sticks' own speed, flat in x - v_b t)."""
     v_b = check_positive(OWNER, "v_b", v_b)
     min_stick = check_int(OWNER, "min_stick", 2 if min_stick is None else min_stick, minimum=1)
     if tol is not None:
         tol = check_positive(OWNER, "tol", tol)
-    if x is None and v is None:
-        raise ParameterError(OWNER, "x", "or 'v' is required: give a position or a velocity")
-    t = as_series("t", t, required=True)
-    x, v = as_series("x", x), as_series("v", v)
-    check_times(t)
-    check_length("x", x, t.size)
-    check_length("v", v, t.size)
-    # work in units where t spans ~1 and v_b ~ 1 (powers of 2: exact), so that a trace
-    # scaled by 1e307 neither overflows nor finds other cycles
-    t0, s_t, s_v = t[0], power_of_two(t[-1] - t[0]), power_of_two(v_b)
-    with np.errstate(all="ignore"):  # overflow is checked below, with its reason
-        tt = (t - t0) / s_t
-        xx = None if x is None else x / s_v / s_t  # in two steps: s_v * s_t may overflow
-        vv = None if v is None else v / s_v
-        vb = v_b / s_v
-        if vv is not None:
-            r, kind = vv - vb, "point"
-        else:
-            r, kind = np.diff(xx) / np.diff(tt) - vb, "mean"
-    for name, a in (("t", tt), ("x", xx), ("v", vv), ("x" if v is None else "v", r)):
-        if a is not None and not np.all(np.isfinite(a)):
-            raise ParameterError(
-                OWNER, name, f"overflows in units of v_b={v_b:.3g} and the trace's duration: "
-                "the values and v_b differ by more than the float range; rescale them",
-            )  # fmt: skip
-    # The sticks' own speed, found without v_b: a v_b it contradicts is refused; one off by
-    # more than `_VB_SHIFT` is replaced by it (the band below then starts there and finds
-    # the speed to the noise's precision, as it does from a v_b closer to it).
+    t, tt, xx, vv, vb, r, kind, t0, s_t, s_v = _scaled(t, x, v, v_b)
     vb_given = vb
-    v_st = _sticks_speed(r + vb)
-    if v_st is not None:
-        _check_v_b(v_st * s_v, v_b, "x" if v is None else "v")
-        if abs(v_st - vb) > _VB_SHIFT * vb:
-            r, vb = r - (v_st - vb), v_st
+    r, vb = _from_the_sticks(r, vb, s_v, v_b, "x" if v is None else "v")
     with np.errstate(over="ignore", invalid="ignore"):  # a huge v's integral: not used then
         if x is None:
             xx = np.concatenate([[0.0], np.cumsum(0.5 * (vv[1:] + vv[:-1]) * np.diff(tt))])
@@ -106,29 +77,14 @@ def extract_velocity(t, x, v, v_b, tol, min_stick) -> Cycles:
             # the smoothed noise is correlated over the window: a stuck run shorter than
             # it may be one fluctuation of a slip that passes near v_b, not a stick
             min_stick = max(min_stick, window)
-    # the sticks' own speed: v_b as given is off by `center` (a few % at most is expected)
-    off = vb + center - vb_given
-    if abs(off) > _VB_WARN * vb_given:
-        warnings.warn(
-            f"extract_cycles: the sticks move at {(vb + center) * s_v:.6g}, "
-            f"{100 * off / vb_given:+.2g}% from the given v_b = {v_b:.6g}; using the sticks' "
-            "speed",
-            stacklevel=3,
-        )
+    _warn_off(vb + center, vb_given, s_v, v_b)
     if kind == "point":
         weight = np.gradient(tt)  # the time each sample stands for
         limit = tol_u * h * np.sqrt(np.arange(r.size + 1))  # independent noise adds up
     else:
         weight = np.diff(tt)
         limit = np.full(r.size + 1, tol_u * h)  # the sum telescopes to a change of x - v_b t
-    step = r * weight
-    drift = np.concatenate([[0.0], np.cumsum(step)])
-    long_enough = last - first + 1 >= min_stick
-    found = []
-    for s, e in zip(first[long_enough].tolist(), last[long_enough].tolist(), strict=True):
-        run = _flat_run(drift, step, s, e, limit, min_stick)
-        if run is not None:
-            found.append(run)
+    found = _flat_runs(r * weight, first, last, limit, min_stick)
     if not found:
         if stuck.any():
             raise ParameterError(
@@ -151,12 +107,7 @@ def extract_velocity(t, x, v, v_b, tol, min_stick) -> Cycles:
     # joins without moving it beyond 5 sd of the position noise are one stick split by
     # noise (position noise: sigma h / sqrt(2) for interval velocities, sigma h for v)
     pos_sd = sigma * h / (np.sqrt(2.0) if kind == "mean" else 1.0)
-    joined = []
-    for s, e in found:
-        if joined and offset(*joined[-1]) - offset(s, e) <= _NOISE_SIGMAS * pos_sd:
-            joined[-1] = (joined[-1][0], e)
-        else:
-            joined.append((s, e))
+    joined = _joined(found, offset, _NOISE_SIGMAS * pos_sd)
     n_split = len(found) - len(joined)
     found = joined
     sticks, releases, offsets = [], [], []
@@ -171,42 +122,11 @@ def extract_velocity(t, x, v, v_b, tol, min_stick) -> Cycles:
     stick, next_release = sticks[1:], releases[1:]
     keep = np.isfinite(release) & np.isfinite(stick) & np.isfinite(next_release)
     if not keep.any():
-        if len(found) == 1 and found[0][1] - found[0][0] + 1 >= 0.9 * n:
-            raise DataError(
-                "extract_cycles: the trace never slips: it moves at the sticks' speed "
-                f"{vb_used * s_v:.4g} throughout (one stick phase, no slip to time)"
-            )
-        if len(found) == 2:
-            raise DataError(
-                "extract_cycles: the trace holds a single slip between two stick phases; a "
-                "complete cycle runs from a release to the next one: record a longer trace"
-            )
-        raise ParameterError(
-            OWNER, "v_b", f"no complete stick-slip cycle in the trace ({len(found)} stick "
-            f"phase(s) found with tol={tol_u * s_v:.3g}); check v_b and tol, or record a "
-            "longer trace", v_b,
-        )  # fmt: skip
+        _no_cycle(found, n, vb_used * s_v, tol_u * s_v, v_b)
     slip_time = (stick - release)[keep]
     distance = ((offsets[:-1] + vb_used * release) - (offsets[1:] + vb_used * stick))[keep]
-    # In a slip v < v_b, so x rises by less than v_b T_sl: d > -v_b T_sl, up to the position
-    # noise at both ends. A cycle past that bound is no slip of this trace at this v_b.
-    impossible = distance < -vb_used * slip_time - 2 * _NOISE_SIGMAS * pos_sd
-    if impossible.any():
-        k = int(np.argmax(impossible))
-        raise DataError(
-            f"extract_cycles: the cycle released at t = {release[keep][k] * s_t + t0:.6g} has a "
-            f"slip distance of {distance[k] * s_t * s_v:.4g}, below -v_b T_sl = "
-            f"{-vb_used * slip_time[k] * s_t * s_v:.4g} (x cannot rise faster than the belt "
-            "while slipping): check v_b and the sign and units of the trace"
-        )
+    _check_slips(release[keep], slip_time, distance, vb_used, pos_sd, h, t0, s_t, s_v)
     stick_time = (next_release - stick)[keep]
-    if np.median(slip_time) < _MIN_SLIP_SAMPLES * h:
-        med = float(np.median(slip_time))
-        raise ParameterError(
-            OWNER, "t", f"samples too coarse: the median slip lasts {med * s_t:.3g}, "
-            f"{med / h:.2g} sampling intervals of {h * s_t:.3g}; need an interval below "
-            f"{med * s_t / _MIN_SLIP_SAMPLES:.3g}",
-        )  # fmt: skip
     table = dict(
         release_time=release[keep] * s_t + t0,
         slip_time=slip_time * s_t,
@@ -214,20 +134,151 @@ def extract_velocity(t, x, v, v_b, tol, min_stick) -> Cycles:
         stick_time=stick_time * s_t,
         period=(slip_time + stick_time) * s_t,
     )
-    info = dict(
+    info = _info(x, v, kind, v_b, vb_used * s_v, tol, tol_s * s_v, tol_u * s_v, window,
+                 sigma * s_v, sigma_s * s_v, min_stick, h * s_t, len(found), n_split)  # fmt: skip
+    return Cycles(table, info)
+
+
+def _scaled(t, x, v, v_b):
+    """The trace checked and put in units where t spans ~1 and v_b ~ 1 (powers of 2:
+    exact), so that a trace scaled by 1e307 neither overflows nor finds other cycles:
+    `(t, tt, xx, vv, vb, r, kind, t0, s_t, s_v)`, `r` the velocity less v_b (`kind`
+    "point": of each sample; "mean": between samples, from x)."""
+    if x is None and v is None:
+        raise ParameterError(OWNER, "x", "or 'v' is required: give a position or a velocity")
+    t = as_series("t", t, required=True)
+    x, v = as_series("x", x), as_series("v", v)
+    check_times(t)
+    check_length("x", x, t.size)
+    check_length("v", v, t.size)
+    t0, s_t, s_v = t[0], power_of_two(t[-1] - t[0]), power_of_two(v_b)
+    with np.errstate(all="ignore"):  # overflow is checked below, with its reason
+        tt = (t - t0) / s_t
+        xx = None if x is None else x / s_v / s_t  # in two steps: s_v * s_t may overflow
+        vv = None if v is None else v / s_v
+        vb = v_b / s_v
+        if vv is not None:
+            r, kind = vv - vb, "point"
+        else:
+            r, kind = np.diff(xx) / np.diff(tt) - vb, "mean"
+    for name, a in (("t", tt), ("x", xx), ("v", vv), ("x" if v is None else "v", r)):
+        if a is not None and not np.all(np.isfinite(a)):
+            raise ParameterError(
+                OWNER, name, f"overflows in units of v_b={v_b:.3g} and the trace's duration: "
+                "the values and v_b differ by more than the float range; rescale them",
+            )  # fmt: skip
+    return t, tt, xx, vv, vb, r, kind, t0, s_t, s_v
+
+
+def _flat_runs(step, first, last, limit, min_stick) -> list:
+    """The stuck runs (`first`, `last` samples) of at least `min_stick` samples along which
+    x - v_b t stays flat within `limit` (`_flat_run`: each run's flat part)."""
+    drift = np.concatenate([[0.0], np.cumsum(step)])
+    long_enough = last - first + 1 >= min_stick
+    found = []
+    for s, e in zip(first[long_enough].tolist(), last[long_enough].tolist(), strict=True):
+        run = _flat_run(drift, step, s, e, limit, min_stick)
+        if run is not None:
+            found.append(run)
+    return found
+
+
+def _from_the_sticks(r, vb, s_v, v_b, field):
+    """The sticks' own speed, found without v_b: a v_b it contradicts is refused; one off
+    by more than `_VB_SHIFT` is replaced by it (the band then starts there and finds the
+    speed to the noise's precision, as it does from a v_b closer to it). Returns `r`
+    (the velocity less the speed taken) and that speed."""
+    v_st = _sticks_speed(r + vb)
+    if v_st is not None:
+        _check_v_b(v_st * s_v, v_b, field)
+        if abs(v_st - vb) > _VB_SHIFT * vb:
+            r, vb = r - (v_st - vb), v_st
+    return r, vb
+
+
+def _warn_off(v_sticks, vb_given, s_v, v_b) -> None:
+    """The sticks' own speed against v_b as given (a few % off at most is expected)."""
+    off = v_sticks - vb_given
+    if abs(off) > _VB_WARN * vb_given:
+        warnings.warn(
+            f"extract_cycles: the sticks move at {v_sticks * s_v:.6g}, "
+            f"{100 * off / vb_given:+.2g}% from the given v_b = {v_b:.6g}; using the sticks' "
+            "speed",
+            stacklevel=4,
+        )
+
+
+def _check_slips(release, slip_time, distance, vb, pos_sd, h, t0, s_t, s_v) -> None:
+    """Refuse cycles that are no slips of this trace at this v_b, and slips too short for
+    the sampling (in the trace's scaled units; `t0`, `s_t`, `s_v` give them back)."""
+    # In a slip v < v_b, so x rises by less than v_b T_sl: d > -v_b T_sl, up to the position
+    # noise at both ends. A cycle past that bound is no slip of this trace at this v_b.
+    impossible = distance < -vb * slip_time - 2 * _NOISE_SIGMAS * pos_sd
+    if impossible.any():
+        k = int(np.argmax(impossible))
+        raise DataError(
+            f"extract_cycles: the cycle released at t = {release[k] * s_t + t0:.6g} has a "
+            f"slip distance of {distance[k] * s_t * s_v:.4g}, below -v_b T_sl = "
+            f"{-vb * slip_time[k] * s_t * s_v:.4g} (x cannot rise faster than the belt "
+            "while slipping): check v_b and the sign and units of the trace"
+        )
+    if np.median(slip_time) < _MIN_SLIP_SAMPLES * h:
+        med = float(np.median(slip_time))
+        raise ParameterError(
+            OWNER, "t", f"samples too coarse: the median slip lasts {med * s_t:.3g}, "
+            f"{med / h:.2g} sampling intervals of {h * s_t:.3g}; need an interval below "
+            f"{med * s_t / _MIN_SLIP_SAMPLES:.3g}",
+        )  # fmt: skip
+
+
+def _info(x, v, kind, v_b, v_sticks, tol, tol_used, tol_raw, window, noise_sd,
+          noise_sd_smoothed, min_stick, sampling_interval, n_sticks, n_joined) -> dict:  # fmt: skip
+    """How a position or velocity trace's cycles were found (in the trace's units)."""
+    return dict(
         input="x and v" if x is not None and v is not None else ("x" if x is not None else "v"),
         velocity="v" if kind == "point" else "x differences",
-        v_b=v_b, v_b_sticks=float(vb_used * s_v), tol=float(tol_s * s_v),
+        v_b=v_b, v_b_sticks=float(v_sticks), tol=float(tol_used),
         tol_rule="given" if tol is not None else (
             "5 robust sd of the smoothed |v - v_b| near v_b" if window
             else "5 robust sd of |v - v_b| near v_b"),
-        noise_sd=float(sigma * s_v), noise_sd_smoothed=float(sigma_s * s_v),
+        noise_sd=float(noise_sd), noise_sd_smoothed=float(noise_sd_smoothed),
         filter=f"scipy.signal.savgol_filter, {window} samples, polyorder 2" if window
-        else "none", smoothing_window=window, tol_raw=float(tol_u * s_v),
+        else "none", smoothing_window=window, tol_raw=float(tol_raw),
         min_stick=min_stick,
-        sampling_interval=float(h * s_t), n_sticks=len(found), n_joined=n_split,
+        sampling_interval=float(sampling_interval), n_sticks=n_sticks, n_joined=n_joined,
     )  # fmt: skip
-    return Cycles(table, info)
+
+
+def _joined(found, offset, gap):
+    """Sticks (first, last sample) that a "slip" joins without moving x - v_b t down by
+    more than `gap` joined into one (a stick split by noise)."""
+    joined = []
+    for s, e in found:
+        if joined and offset(*joined[-1]) - offset(s, e) <= gap:
+            joined[-1] = (joined[-1][0], e)
+        else:
+            joined.append((s, e))
+    return joined
+
+
+def _no_cycle(found, n, v_sticks, tol, v_b):
+    """Refuse a trace without a complete cycle, naming why: it never slips, it slips once,
+    or its sticks were not found at this v_b and tol."""
+    if len(found) == 1 and found[0][1] - found[0][0] + 1 >= 0.9 * n:
+        raise DataError(
+            "extract_cycles: the trace never slips: it moves at the sticks' speed "
+            f"{v_sticks:.4g} throughout (one stick phase, no slip to time)"
+        )
+    if len(found) == 2:
+        raise DataError(
+            "extract_cycles: the trace holds a single slip between two stick phases; a "
+            "complete cycle runs from a release to the next one: record a longer trace"
+        )
+    raise ParameterError(
+        OWNER, "v_b", f"no complete stick-slip cycle in the trace ({len(found)} stick "
+        f"phase(s) found with tol={tol:.3g}); check v_b and tol, or record a "
+        "longer trace", v_b,
+    )  # fmt: skip
 
 
 def _sticks_speed(vel: np.ndarray) -> float | None:
