@@ -179,17 +179,8 @@ def extract_slips(t, f, h, k, v_b, window, thr, lines, cut: Cut | None = None):
     """The extraction of a force trace whose settings are checked: `(table, info)`. `t`
     and `f` are evenly sampled at `h` unless `cut` says which samples of such a trace they
     are (`Cut`)."""
-    # scaled by a power of 2 (exact): a trace in any units finds the same cycles
-    s_f = power_of_two(float(np.max(np.abs(f))))
-    y_raw = f / s_f
-    if np.ptp(y_raw) == 0:
-        raise DataError("extract_cycles: no stick-slip: the force is constant")
-    med = running_median(y_raw, _DESPIKE)
-    resid = y_raw - med
     far, weight = (None, 1.0) if cut is None else (cut.far, cut.weight)
-    res_sd = _robust_sd(resid, far, weight)
-    spikes = np.abs(resid) > thr["spike"] * res_sd if res_sd > 0 else np.zeros(f.size, bool)
-    s = np.where(spikes, med, y_raw)
+    s_f, s, spikes, res_sd = _despiked(f, thr, far, weight)
     s, lines, line_rule = _remove_lines(s, h, lines)
     sigma = _noise_sd(s, far, weight)
     idx = np.arange(s.size, dtype=float)
@@ -257,6 +248,20 @@ def extract_slips(t, f, h, k, v_b, window, thr, lines, cut: Cut | None = None):
             f"sd of their estimate (noise sd {sigma * s_f:.3g}; the largest drop is "
             f"{largest:.3g} sd); a complete cycle needs two slips"
         )
+    table = _cycles_table(fits, t, idx, h, g, s_f, k, cut)
+    info = _info(
+        fits, k=k, v_b=v_b, v_b_est=v_b_est, h=h, thr=thr, lines=lines, line_rule=line_rule,
+        res_sd=res_sd, s_f=s_f, spikes=spikes, sigma=sigma, window=window, search=search,
+        hidden=hidden, rate_sd=rate_sd, white_sd=white_sd, skew=skew, drop_sd=drop_sd,
+        split_gain=split_gain, n_split=n_split,
+        n_samples=s.size if cut is None else int(cut.index[-1] - cut.index[0] + 1),
+    )  # fmt: skip
+    return table, info
+
+
+def _cycles_table(fits, t, idx, h, g, s_f, k, cut) -> dict:
+    """The cycles of the slips' fits (each slip with the stick after it; a slip whose
+    release has no loading line before it in the trace left out), in the trace's units."""
     i0, T, y0, D = fits[:, 0], fits[:, 1], fits[:, 2], fits[:, 3]
     med_T = float(np.median(T))
     if med_T < _MIN_SLIP_SAMPLES:
@@ -271,7 +276,7 @@ def extract_slips(t, f, h, k, v_b, window, thr, lines, cut: Cut | None = None):
     slip_time = (stuck_at - release)[:-1]
     stick_time = np.maximum(release[1:] - stuck_at[:-1], 0.0)  # an immediate re-slip: 0
     drop_f = ((D - g * T) * s_f)[:-1]
-    table = dict(
+    return dict(
         release_time=release[:-1][keep],
         slip_time=slip_time[keep],
         slip_distance=drop_f[keep] / k,
@@ -280,14 +285,21 @@ def extract_slips(t, f, h, k, v_b, window, thr, lines, cut: Cut | None = None):
         peak_force=((y0 + g * i0) * s_f + _shift(cut, i0))[:-1][keep],
         force_drop=drop_f[keep],
     )
-    info = _info(
-        fits, k=k, v_b=v_b, v_b_est=v_b_est, h=h, thr=thr, lines=lines, line_rule=line_rule,
-        res_sd=res_sd, s_f=s_f, spikes=spikes, sigma=sigma, window=window, search=search,
-        hidden=hidden, rate_sd=rate_sd, white_sd=white_sd, skew=skew, drop_sd=drop_sd,
-        split_gain=split_gain, n_split=n_split,
-        n_samples=s.size if cut is None else int(cut.index[-1] - cut.index[0] + 1),
-    )  # fmt: skip
-    return table, info
+
+
+def _despiked(f, thr, far, weight):
+    """The force scaled by a power of 2 (exact: a trace in any units finds the same
+    cycles), its spikes (further than `thr["spike"]` robust sd from a running median)
+    replaced by that median: `(scale, force, spikes, the residual's robust sd)`."""
+    s_f = power_of_two(float(np.max(np.abs(f))))
+    y_raw = f / s_f
+    if np.ptp(y_raw) == 0:
+        raise DataError("extract_cycles: no stick-slip: the force is constant")
+    med = running_median(y_raw, _DESPIKE)
+    resid = y_raw - med
+    res_sd = _robust_sd(resid, far, weight)
+    spikes = np.abs(resid) > thr["spike"] * res_sd if res_sd > 0 else np.zeros(f.size, bool)
+    return s_f, np.where(spikes, med, y_raw), spikes, res_sd
 
 
 def _first_guess(rate, g, regions) -> int:
