@@ -5,7 +5,7 @@
 Exact stepping of the public reference set. In buffers of `driver.SPECULATE_BELOW` paths
 or fewer the simulator steps on past a candidate step that ends below the stick level (as
 if refuted) and refines all such candidates at the end, each path's in step order
-(`driver._Run._chunk`): inside the stepping loop, up to `driver.PAST_SLOTS` candidates per
+(`driver.HostRun._chunk`): inside the stepping loop, up to `driver.PAST_SLOTS` candidates per
 path and call (`hybrid.SteppingPastHybrid`), and by the host between calls for the rest.
 Three ways: the baseline refines every candidate before stepping on (`SPECULATE_BELOW =
 0`); "host" steps past between calls only (`PAST_SLOTS = 0`, the scheme before
