@@ -44,6 +44,12 @@ class Statistic(abc.ABC):
     def __repr__(self) -> str:
         return f"{type(self).__name__}()"
 
+    def __eq__(self, other) -> bool:  # (two instances of one class with one state are one)
+        return type(other) is type(self) and vars(other) == vars(self)
+
+    def __hash__(self) -> int:
+        return hash((type(self), tuple(sorted(vars(self).items()))))
+
 
 class AndersonDarling(Statistic):
     r"""$A^2 = -n - \frac1n \sum_i (2i - 1) [\log u_{(i)} + \log(1 - u_{(n+1-i)})]$: the
