@@ -69,6 +69,8 @@ def test_a_goodness_of_fits_statistic_comes_back(result, tmp_path):
             statistic.name != "my distance"
         )
         assert back.statistic.symbol == statistic.symbol and back.statistic.name == statistic.name
+        # one of stickslip's comes back equal to the one saved; a user's by name only
+        assert (back.statistic == statistic) == (not isinstance(statistic, Mine))
         if isinstance(statistic, Mine):
             with pytest.raises(TypeError, match="only its name was kept"):
                 back.statistic(np.array([0.5]))
