@@ -107,13 +107,17 @@ class Problem:
 
     def params(self, u) -> dict:
         """The free parameters' values at fit coordinates `u`."""
-        return {k: from_fit_coords(self.coords[k], float(x))
-                for k, x in zip(self.names, u, strict=True)}  # fmt: skip
+        return _values(self.names, self.coords, u)
 
     @property
     def bandwidth(self):
         """The kernel bandwidths: one dict (a list of them, one a run, for a joint fit)."""
         return self.parts[0][2] if self.runs is None else [b for _, _, b in self.parts]
+
+
+def _values(names, coords, u) -> dict:
+    """The free parameters' values at fit coordinates `u`."""
+    return {k: from_fit_coords(coords[k], float(x)) for k, x in zip(names, u, strict=True)}
 
 
 def problem(
@@ -153,16 +157,14 @@ def problem(
     lo = np.array([to_fit_coords(coords[k], free[k][0]) for k in names])
     hi = np.array([to_fit_coords(coords[k], free[k][1]) for k in names])
 
-    def params(u):
-        return {k: from_fit_coords(coords[k], float(x)) for k, x in zip(names, u, strict=True)}
-
+    mid = _values(names, coords, 0.5 * (lo + hi))
     if runs is None:
         # The model at the box's centre and at each end of each axis: a value the model
         # refuses is the box's fault, said here in one line rather than as points that
         # quietly fail.
-        centre = check_box(Model, fixed, free, params(0.5 * (lo + hi)))
+        centre = check_box(Model, fixed, free, mid)
     else:
-        centre = runs.check_box(free, params(0.5 * (lo + hi)))
+        centre = runs.check_box(free, mid)
     check_n_sim_memory(n_sim, centre)
     sampled = None
     if runs is None:
