@@ -19,7 +19,7 @@ from stickslip._extract._force import check_thresholds, extract_slips
 from stickslip._extract._input import weighted_median
 from stickslip._inference.measurement import (
     Measurement,
-    _keyed_samples,
+    keyed_samples,
     measured_cycles,
     measured_trace,
 )
@@ -164,7 +164,7 @@ def test_measured_cycles_cuts_by_default():
 
 
 def test_keyed_noise_is_the_same_on_whichever_samples_are_drawn():
-    """`_keyed_samples` at a subset of the grid gives the whole grid's values there; the
+    """`keyed_samples` at a subset of the grid gives the whole grid's values there; the
     values are standard normal (KS at 0.01) and uncorrelated at lag 1 and across cycles
     (within 4 / sqrt(n)); the uniforms are uniform (KS at 0.01)."""
     rng = np.random.default_rng(2)
@@ -173,15 +173,15 @@ def test_keyed_noise_is_the_same_on_whichever_samples_are_drawn():
     slip = rng.uniform(1.0, 3.0, n_cycles)
     release = np.cumsum(np.r_[0.0, (slip + stick)[:-1]])
     n = int(release[-1] / h) + 50
-    noise, uniforms = _keyed_samples(release, slip, stick, n, h, 7, 0, True, True)
+    noise, uniforms = keyed_samples(release, slip, stick, n, h, 7, 0, True, True)
     at = np.sort(rng.choice(n, n // 5, replace=False))
-    some, some_u = _keyed_samples(release, slip, stick, n, h, 7, 0, True, True, at)
+    some, some_u = keyed_samples(release, slip, stick, n, h, 7, 0, True, True, at)
     np.testing.assert_array_equal(some, noise[at])
     np.testing.assert_array_equal(some_u, uniforms[at])
     assert stats.kstest(noise, "norm").pvalue > 0.01
     assert stats.kstest(uniforms, "uniform").pvalue > 0.01
     assert abs(np.corrcoef(noise[:-1], noise[1:])[0, 1]) < 4 / math.sqrt(n)
-    other, _ = _keyed_samples(release, slip, stick, n, h, 8, 0, True, False)
+    other, _ = keyed_samples(release, slip, stick, n, h, 8, 0, True, False)
     assert abs(np.corrcoef(noise, other)[0, 1]) < 4 / math.sqrt(n)
 
 

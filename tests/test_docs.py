@@ -43,10 +43,18 @@ def test_code_blocks_run(path, tmp_path, monkeypatch):
     if path.name == "README.md":
         blocks = [b for b in blocks if not _from_the_tutorial(b)]
     namespace: dict = {}
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # approximation warnings are documented in the text
-        for block in blocks:
-            exec(compile(block, f"{path.name}", "exec"), namespace)
+    from stickslip import _registry, _trace_kind
+
+    registered = [(r, dict(r.runtime)) for r in (_registry.MODELS, _trace_kind.TRACE_KINDS)]
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # approximation warnings are documented in the text
+            for block in blocks:
+                exec(compile(block, f"{path.name}", "exec"), namespace)
+    finally:  # what a page registers for its examples is its own
+        for registry, before in registered:
+            registry.runtime.clear()
+            registry.runtime.update(before)
 
 
 # The README's trace-to-model block reads the cycles that its `stickslip cycles` line writes

@@ -706,7 +706,8 @@ def _environment(sources: bool = True) -> str:
 _UNTRACED = (
     "study", "cli", "_inference", "_extract", "selection.py", "stability.py",
     "__init__.py", "extract.py", "units.py", "_background.py", "_output.py", "_ship.py",
-    "_cpu.py", "_cache.py", "_model_check.py", "quantities.py",
+    "_cpu.py", "_cache.py", "_model_check.py", "quantities.py", "trace_kinds.py", "_keyed.py",
+    "_trace_kind.py", "_registry.py",
 )  # fmt: skip
 
 

@@ -1,16 +1,17 @@
-"""Discovery of model plugins through the entry-point group `stickslip.models`.
+"""Discovery of plugins through entry-point groups: models (`stickslip.models`) and trace
+kinds (`stickslip.trace_kinds`).
 
-Built-in models are registered the same way a third-party package registers its own (see
-`pyproject.toml`). Discovery is cached; `refresh_models()` rescans. A plugin that fails to
-import, is not a `FrictionModel`, or repeats a name already taken gives a warning naming it
-and is skipped: one broken plugin never breaks the package.
+Built-in models and trace kinds are registered the same way a third-party package registers
+its own (see `pyproject.toml`). Discovery is cached; `refresh_models()` rescans. A plugin
+that fails to import, is not a subclass of its group's base class, or repeats a name already
+taken gives a warning naming it and is skipped: one broken plugin never breaks the package.
 """
 
 from __future__ import annotations
 
 import warnings
 from importlib.metadata import EntryPoint, entry_points
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from ._errors import PluginError
 
@@ -18,74 +19,117 @@ if TYPE_CHECKING:
     from ._model import FrictionModel
 
 ENTRY_POINT_GROUP = "stickslip.models"
-
-_cache: dict[str, type[FrictionModel]] | None = None
-_runtime: dict[str, type[FrictionModel]] = {}
-_named_cache: dict[str, type[FrictionModel] | None] = {}
+TRACE_KIND_GROUP = "stickslip.trace_kinds"
 
 
 class PluginWarning(UserWarning):
-    """A model plugin could not be loaded or clashes with another."""
+    """A plugin (a model or a trace kind) could not be loaded or clashes with another."""
+
+
+class Registry:
+    """The classes of one entry-point `group`, subclasses of the class `base()` returns
+    (imported when first needed), called `noun` in messages ("model", "trace kind")."""
+
+    def __init__(self, group: str, base, noun: str, public: str):
+        self.group, self.base, self.noun, self.public = group, base, noun, public
+        self.cache: dict[str, type] | None = None
+        self.runtime: dict[str, type] = {}
+        self.named_cache: dict[str, type | None] = {}
+
+    def load(self, entries: list[EntryPoint]) -> dict[str, type]:
+        """The classes of `entries` by name; a broken, foreign or repeated one is a warning."""
+        base, found = self.base(), {}
+        for ep in sorted(entries, key=lambda e: (e.name, e.value)):
+            what = f"stickslip: {self.noun} plugin '{ep.name}' ({ep.value})"
+            if ep.name in found:
+                warnings.warn(f"{what} duplicates an earlier plugin of that name "
+                              f"({found[ep.name].__module__}); ignored", PluginWarning,
+                              stacklevel=4)  # fmt: skip
+                continue
+            try:
+                obj = ep.load()
+            except Exception as exc:  # a broken plugin must not break discovery
+                warnings.warn(f"{what} failed to load: {type(exc).__name__}: {exc}",
+                              PluginWarning, stacklevel=4)  # fmt: skip
+                continue
+            if not (isinstance(obj, type) and issubclass(obj, base)):
+                warnings.warn(f"{what} is not a subclass of {self.public}; ignored",
+                              PluginWarning, stacklevel=4)  # fmt: skip
+                continue
+            found[ep.name] = obj
+        return found
+
+    def discover(self) -> dict[str, type]:
+        if self.cache is None:
+            self.cache = self.load(list(entry_points(group=self.group)))
+        return self.cache
+
+    def named(self, name: str) -> type | None:
+        """The plugin `name` alone, loading only its entry points (importing every plugin
+        costs a second or more); `None` if none loads under that name."""
+        if self.cache is not None:
+            return self.cache.get(name) or self.runtime.get(name)
+        if name not in self.named_cache:
+            entries = [ep for ep in entry_points(group=self.group) if ep.name == name]
+            self.named_cache[name] = self.load(entries).get(name) if entries else None
+        return self.named_cache[name] or self.runtime.get(name)
+
+    def refresh(self) -> None:
+        self.cache = None
+        self.named_cache.clear()
+
+    def all(self) -> dict[str, type]:
+        """Entry-point plugins first, then those registered at run time, sorted by name."""
+        found = dict(self.discover())
+        for name, cls in self.runtime.items():
+            found.setdefault(name, cls)
+        return dict(sorted(found.items()))
+
+    def register(self, owner: str, name: str, cls: Any) -> None:
+        if not (isinstance(cls, type) and issubclass(cls, self.base())):
+            raise TypeError(f"{owner}: {cls!r} is not a subclass of {self.public}")
+        if name in self.discover() and self.discover()[name] is not cls:
+            raise PluginError(f"{owner}: the name '{name}' is taken by an installed plugin")
+        self.runtime[name] = cls
+
+    def get(self, name: Any) -> type:
+        if isinstance(name, type):
+            if issubclass(name, self.base()):
+                return name
+            raise PluginError(f"{name!r} is not a subclass of {self.public}")
+        found = self.named(name)
+        if found is not None:
+            return found
+        known = self.all()
+        if name in known:
+            return known[name]
+        listed = ", ".join(known) or "none installed"
+        raise PluginError(f"unknown {self.noun} '{name}' (known {self.noun}s: {listed})")
+
+    def name_of(self, cls: type) -> str:
+        for name, registered in self.all().items():
+            if registered is cls:
+                return name
+        return cls.__name__
+
+
+def _friction_model():
+    from ._model import FrictionModel
+
+    return FrictionModel
+
+
+MODELS = Registry(ENTRY_POINT_GROUP, _friction_model, "model", "stickslip.FrictionModel")
+_runtime = MODELS.runtime
 
 
 def _load(entries: list[EntryPoint]) -> dict[str, type[FrictionModel]]:
-    from ._model import FrictionModel
-
-    models: dict[str, type[FrictionModel]] = {}
-    for ep in sorted(entries, key=lambda e: (e.name, e.value)):
-        if ep.name in models:
-            warnings.warn(
-                f"stickslip: model plugin '{ep.name}' ({ep.value}) duplicates an earlier "
-                f"plugin of that name ({models[ep.name].__module__}); ignored",
-                PluginWarning,
-                stacklevel=3,
-            )
-            continue
-        try:
-            obj = ep.load()
-        except Exception as exc:  # a broken plugin must not break discovery
-            warnings.warn(
-                f"stickslip: model plugin '{ep.name}' ({ep.value}) failed to load: "
-                f"{type(exc).__name__}: {exc}",
-                PluginWarning,
-                stacklevel=3,
-            )
-            continue
-        if not (isinstance(obj, type) and issubclass(obj, FrictionModel)):
-            warnings.warn(
-                f"stickslip: model plugin '{ep.name}' ({ep.value}) is not a subclass of "
-                "stickslip.FrictionModel; ignored",
-                PluginWarning,
-                stacklevel=3,
-            )
-            continue
-        models[ep.name] = obj
-    return models
-
-
-def _discover() -> dict[str, type[FrictionModel]]:
-    global _cache
-    if _cache is None:
-        _cache = _load(list(entry_points(group=ENTRY_POINT_GROUP)))
-    return _cache
-
-
-def _named(name: str) -> type[FrictionModel] | None:
-    """The plugin `name` alone, loading only its entry points (importing every plugin costs
-    a second or more); `None` if none loads under that name."""
-    if _cache is not None:
-        return _cache.get(name) or _runtime.get(name)
-    if name not in _named_cache:
-        entries = [ep for ep in entry_points(group=ENTRY_POINT_GROUP) if ep.name == name]
-        _named_cache[name] = _load(entries).get(name) if entries else None
-    return _named_cache[name] or _runtime.get(name)
+    return MODELS.load(entries)
 
 
 def refresh_models() -> None:
     """Forget the cached plugin scan; the next lookup rescans the entry points."""
-    global _cache
-    _cache = None
-    _named_cache.clear()
+    MODELS.refresh()
 
 
 def list_models() -> dict[str, type[FrictionModel]]:
@@ -94,10 +138,7 @@ def list_models() -> dict[str, type[FrictionModel]]:
     Entry-point plugins first, then models added with `register_model` (which may not
     shadow a plugin name).
     """
-    models = dict(_discover())
-    for name, cls in _runtime.items():
-        models.setdefault(name, cls)
-    return dict(sorted(models.items()))
+    return MODELS.all()
 
 
 def register_model(name: str, cls: type[FrictionModel]) -> None:
@@ -106,13 +147,7 @@ def register_model(name: str, cls: type[FrictionModel]) -> None:
     Packages should prefer the `stickslip.models` entry point; this is for notebooks and
     scripts.
     """
-    from ._model import FrictionModel
-
-    if not (isinstance(cls, type) and issubclass(cls, FrictionModel)):
-        raise TypeError(f"register_model: {cls!r} is not a subclass of stickslip.FrictionModel")
-    if name in _discover() and _discover()[name] is not cls:
-        raise PluginError(f"register_model: the name '{name}' is taken by an installed plugin")
-    _runtime[name] = cls
+    MODELS.register("register_model", name, cls)
 
 
 def get_model(name: str | type[FrictionModel]) -> type[FrictionModel]:
@@ -120,26 +155,9 @@ def get_model(name: str | type[FrictionModel]) -> type[FrictionModel]:
 
     Raises `PluginError` with the list of known names when there is no such model.
     """
-    from ._model import FrictionModel
-
-    if isinstance(name, type):
-        if issubclass(name, FrictionModel):
-            return name
-        raise PluginError(f"{name!r} is not a subclass of stickslip.FrictionModel")
-    found = _named(name)
-    if found is not None:
-        return found
-    models = list_models()
-    try:
-        return models[name]
-    except KeyError:
-        known = ", ".join(models) or "none installed"
-        raise PluginError(f"unknown model '{name}' (known models: {known})") from None
+    return MODELS.get(name)
 
 
 def model_name(cls: type[FrictionModel]) -> str:
     """The registry name of a model class (its class name if it is not registered)."""
-    for name, registered in list_models().items():
-        if registered is cls:
-            return name
-    return cls.__name__
+    return MODELS.name_of(cls)

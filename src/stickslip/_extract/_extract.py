@@ -1,10 +1,12 @@
-"""The entry point: `extract_cycles` picks the reader for the kind of trace given."""
+"""The entry point: `extract_cycles` picks the kind of trace given (`stickslip.trace_kinds`)
+and reads it."""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 
 from .._errors import ParameterError
+from .._trace_kind import default_kind, trace_kinds
 from ._cycles import Cycles
 from ._input import OWNER
 
@@ -22,6 +24,7 @@ def extract_cycles(
     window: int | None = None,
     thresholds: Mapping[str, float] | None = None,
     lines=None,
+    **more,
 ) -> Cycles:
     r"""Find the stick-slip cycles in a measured trace and time each one.
 
@@ -95,6 +98,11 @@ def extract_cycles(
     values runs on into the next slip: the trace shows one longer slip. An immediate
     re-stick ($T_{sl} = 0$) is invisible: the stick continues.
 
+    **Other kinds of trace.** The trace's kind is decided by the inputs given: `force`
+    and `stiffness` make a force trace, `x` and `v` a position/velocity one (the default).
+    A trace kind from a plugin (`stickslip.trace_kinds`, or `register_trace_kind`) takes
+    its own inputs and settings as further keyword arguments (`**more`).
+
     **Returns:** a `Cycles`, one row per complete cycle. The incomplete first and last
     cycles are dropped. `Cycles.to_csv` writes `info` into a `#` header;
     `Cycles.from_csv` reads it back.
@@ -105,27 +113,26 @@ def extract_cycles(
     `DataError` for a trace without stick-slip structure (noise, continuous sliding, a
     constant), with the evidence in one line.
     """
-    if force is not None or stiffness is not None:
-        if x is not None or v is not None:
-            raise ParameterError(OWNER, "force", "goes alone: give force or x/v, not both")
-        if force is None:
-            raise ParameterError(OWNER, "force", "is required with stiffness")
-        if stiffness is None:
-            raise ParameterError(OWNER, "stiffness", "is required with force (N/m)")
-        if tol is not None or min_stick is not None:
-            raise ParameterError(
-                OWNER, "tol" if tol is not None else "min_stick", "applies to x/v only: a "
-                "force trace's thresholds come from its noise (see window)",
-            )  # fmt: skip
-        from ._force import extract_force
-
-        return extract_force(t, force, stiffness, v_b, window, thresholds, lines)
-    if window is not None or thresholds is not None or lines is not None:
-        given = {"window": window, "thresholds": thresholds, "lines": lines}
-        name = next(k for k, v in given.items() if v is not None)
-        raise ParameterError(OWNER, name, "applies to force traces only")
-    if v_b is None:
-        raise ParameterError(OWNER, "v_b", "is required with x/v (the driving speed, > 0)")
-    from ._velocity import extract_velocity
-
-    return extract_velocity(t, x, v, v_b, tol, min_stick)
+    given = {"x": x, "v": v, "force": force, "stiffness": stiffness}
+    options = dict(tol=tol, min_stick=min_stick, window=window, thresholds=thresholds,
+                   lines=lines)  # fmt: skip
+    kinds = trace_kinds()
+    for key, value in more.items():  # a registered kind's own inputs and settings
+        if any(key in k.inputs for k in kinds):
+            given[key] = value
+        elif any(key in k.options for k in kinds):
+            options[key] = value
+        else:
+            known = ", ".join(f"{k.name} ({', '.join(k.inputs + k.options)})" for k in kinds)
+            raise ParameterError(OWNER, key, f"is not an input or setting of any trace kind "
+                                 f"(known kinds: {known})")  # fmt: skip
+    named = [k for k in kinds if any(given.get(i) is not None for i in k.inputs)]
+    if len(named) > 1:
+        raise ParameterError(
+            OWNER,
+            named[0].inputs[0],
+            f"goes alone: give {named[0].name} or {named[1].name}, not both",
+        )
+    kind = named[0] if named else default_kind()
+    return kind.extract(t, {i: given.get(i) for i in kind.inputs}, v_b,
+                        {k: v for k, v in options.items() if v is not None})  # fmt: skip

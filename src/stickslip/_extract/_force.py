@@ -340,7 +340,7 @@ def _check_loading(rate, k, v_b, hidden, window, noise_sd) -> None:
         warnings.warn(
             f"extract_cycles: the sticks' loading slope gives v_b = {v_b_est:.4g}, "
             f"{100 * (ratio - 1):+.2g}% from the given v_b = {v_b:.6g}; the slope is used",
-            stacklevel=4,
+            stacklevel=6,
         )
 
 

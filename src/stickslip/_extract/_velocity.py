@@ -204,7 +204,7 @@ def _warn_off(v_sticks, vb_given, s_v, v_b) -> None:
             f"extract_cycles: the sticks move at {v_sticks * s_v:.6g}, "
             f"{100 * off / vb_given:+.2g}% from the given v_b = {v_b:.6g}; using the sticks' "
             "speed",
-            stacklevel=4,
+            stacklevel=5,
         )
 
 

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from .._errors import DataError, ParameterError, StickSlipError
-from ..quantities import get, names
+from ..quantities import names
 
 KINDS = names("fit")  # the columns fitted
 LOG_KINDS = names("fit", positive=True)  # positive durations: fitted on a log scale
@@ -93,44 +93,12 @@ def measurement_of(data, trace=None, sampling=None, scales=None, owner: str = "f
     except ParameterError as err:  # said in fit's terms: its argument is `data`
         name = "scales" if err.parameter == "scales" else "data"
         raise ParameterError(owner, name, err.reason, err.value) from None
-    if measurement.signal == "force" and not isinstance(data.info.get("si"), dict):
+    if measurement.kind.in_si and not isinstance(data.info.get("si"), dict):
         # cycles of a force trace as extract_cycles gave them, in the trace's units (s, N,
         # m): the measurement was read in the model's units, so the table must be too, or
         # stick times in seconds would be scored against simulated ones in 1/omega0
-        scales = getattr(scales, "scales", scales)  # a Slider gives its Scales
-        table = _force_table_in_model_units(table, scales, data.info.get("stiffness"))
+        table = measurement.kind.to_model_units(table, scales, data.info)
     return table, measurement
-
-
-def _force_table_in_model_units(table: dict, scales, stiffness=None) -> dict[str, np.ndarray]:
-    """The columns of a force trace's cycles (s, m, N) in the model's units, as
-    `Slider.to_model` gives them: times over `scales.time`, force drops over `scales.force`
-    ($k x_0$), slip distances (drop / k) over $x_0$ (`scales.length`, or `force` over the
-    trace's `stiffness`: what the study's scales give), the peak force as the threshold
-    `(F - force_offset) / force` (left out without a `force_offset`: it is not fitted)."""
-    time, force = float(scales.time), float(scales.force)
-    length = getattr(scales, "length", None)
-    if length is None and stiffness is not None:
-        length = force / float(stiffness)
-    unit = {"time": time, "length": length, "force": force}
-    per = {name: unit[get(name).dimension] for name in names("measurement")}
-    offset = getattr(scales, "force_offset", None)
-    out = {}
-    for name, values in table.items():
-        values = np.asarray(values, float)
-        if name == "peak_force":
-            if offset is not None:
-                out[name] = (values - float(offset)) / force
-        elif per.get(name, 1.0) is None:
-            raise ParameterError(
-                "fit", "scales", "needs a length (or the trace's stiffness in the cycles' "
-                "info) to put the slip distances in the model's units",
-            )  # fmt: skip
-        elif name in per:
-            out[name] = values / per[name]
-        else:
-            out[name] = values
-    return out
 
 
 def _same(a, b) -> bool:

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .._errors import ParameterError
+from .._trace_kind import kind_of_signal
 from .estimator import simulated_mle
 from .goodness import ALPHA, MIN_VERDICT_REP, goodness_of_fit
 from .result import FitResult
@@ -199,7 +200,8 @@ def _loading_speed_mismatch(data, fixed, scales) -> str | None:
     info = info.get("si", info) if hasattr(info.get("si"), "get") else info
     measured, v_b = info.get("v_b_estimated"), fixed.get("v_b")
     velocity = getattr(getattr(scales, "scales", scales), "velocity", None)
-    if info.get("input") != "force" or velocity is None:
+    kind = kind_of_signal(info.get("input"))
+    if kind is None or not kind.in_si or velocity is None:
         return None
     try:
         ratio = float(v_b) * float(velocity) / float(measured)

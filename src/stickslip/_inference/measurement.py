@@ -13,11 +13,11 @@ same measurement as the data, so that data and model are compared like with like
    simulator step $\Delta t = h/2$ by default, interpolated linearly; the sticks are linear
    in closed form); for position and velocity traces each cycle at its own keyed phase
    from its release, the grid re-anchored in the middle of the stick before it
-   (`_keyed_grid`), so that a parameter change that moves earlier cycles leaves a cycle's
+   (`keyed_grid`), so that a parameter change that moves earlier cycles leaves a cycle's
    sampling as it was (common random numbers);
 3. the data's noise model is added (white Gaussian of the measured sd, keyed by cycle and
-   sample from its release: `_keyed_grid` for position and velocity traces,
-   `_keyed_samples` for a force trace, whose one uniform grid cannot be re-anchored; for a
+   sample from its release: `keyed_grid` for position and velocity traces,
+   `keyed_samples` for a force trace, whose one uniform grid cannot be re-anchored; for a
    force trace also spikes, keyed alike, and mains lines as `extract_cycles` reported
    them);
 4. `extract_cycles` runs with the data's settings, and its per-cycle columns are returned.
@@ -45,31 +45,19 @@ from .._errors import (
     check_nonnegative,
     check_positive,
 )
+from .._keyed import NOISE_STREAM, segments
+from .._trace_kind import (
+    SimulatedPath,
+    TraceKind,
+    all_signals,
+    default_kind,
+    kind_of_signal,
+    trace_kinds,
+)
 from ..quantities import names
 
 OWNER = "Measurement"
-SIGNALS = ("x", "v", "x and v", "force")
 CYCLE_COLUMNS = names("measurement")
-# The noise's own stream, far from the simulator's (which derives its keys from `seed` by
-# JAX's threefry): common random numbers across parameter values, independent of the paths.
-_NOISE_STREAM = 0x6D656173
-# ... and the sampling phases' (`_keyed_grid`).
-_PHASE_STREAM = 0x70686173
-# Common random numbers through the measurement (`_keyed_grid`, position and velocity
-# traces): each cycle's sampling phase and noise are keyed by the cycle, not by the sample.
-# On one uniform grid the phase at a release is the sum of all earlier periods over h, so a
-# parameter step of 2 % moved every later cycle against the grid and drew it fresh noise:
-# the log-likelihood jumped by 6-10 units between neighbouring points (measured, 320 cycles,
-# benchmarks' measured case) against a curvature of a few units over the design's step.
-# The grid is re-anchored at each cycle's release (its keyed phase) in the middle of the
-# stick before it, where the trace is a straight line; a stick of fewer than this many
-# sampling intervals is not cut (the extraction decides there, on a handful of samples),
-# and the phase then runs on from the cycle before.
-_REPHASE_INTERVALS = 10
-# The noise of a sample is read from one pool of standard normals at the cycle's keyed
-# offset plus the sample's index from its release (a cycle spans some 50 samples: two
-# cycles of ~10^4 share a stretch of the pool, identical noise, rarely).
-_NOISE_POOL = 2**20
 # A creeping slider's paths (one integrated motion, not counted cycles) last their share of
 # the cycles times the mean period of this many independent pilot cycles (`simulate`): its
 # relative error, cv / 32 (cv ~ 1), moves the number of simulated cycles by ~3 %, which
@@ -108,17 +96,14 @@ _FINEST = 0.25
 # extraction's work arrays of one path (about ten float arrays at a time), counted on all.
 _TRACE_BYTES = 8 * 10
 # How the forward measurement treats a force trace's sticks (`measured_cycles`): "cut",
-# only the stretches about the slips synthesised and extracted (`_cut_grid`), or "whole".
+# only the stretches about the slips synthesised and extracted (`cut_grid`), or "whole".
 STICKS = ("cut", "whole")
-# The samples kept about a slip (`_cut_grid`): its own length and this many force-rate
+# The samples kept about a slip (`cut_grid`): its own length and this many force-rate
 # windows either side. The extraction's shape fit takes the slip's stretch (its length and
 # half a window each side) and as much again either side (at least a window), its drop the
 # median of a window beyond that: 2 windows and the slip's length from it; one more for
 # the force rate's filter and the despiking's running median.
 _CUT_MARGIN = 3
-# A spike `extract_cycles` found is replaced by the running median whatever its height
-# beyond the threshold (the height is not reported): simulated spikes are twice it.
-_SPIKE_HEIGHT = 2.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -128,7 +113,7 @@ class Measurement:
     - `sampling_interval` $h$ (> 0): the trace's (median) sampling interval;
     - `signal`: what was recorded and given to `extract_cycles`: `"x"` (position), `"v"`
       (velocity), `"x and v"` or `"force"` (the spring force, in units of $k x_0$: the
-      model's position);
+      model's position), or a signal of a plugin's trace kind;
     - `noise_sd` ($\ge 0$): sd of white Gaussian noise on that signal (for `"x and v"`
       on the velocity: `extract_cycles` does not measure the position's noise, taken as 0);
     - `tol`, `min_stick` (`x`/`v`): the stuck band, when it was given (None: from the
@@ -141,8 +126,13 @@ class Measurement:
     - `lines`, `line_amplitude` (`force`): the frequencies of the spectral lines notched
       out (cycles per model time unit), and their amplitude in the simulated trace (not
       reported by `extract_cycles`: one noise sd, which its detector finds and notches out);
-    - `columns`: the per-cycle columns the data have.
+    - `columns`: the per-cycle columns the data have;
+    - `options`: the settings of a trace kind from a plugin (a mapping; the built-in
+      kinds keep theirs in the fields above).
 
+    Each `signal` belongs to a kind of trace (`kind`, a `stickslip.trace_kinds.TraceKind`),
+    which reads its settings from `Cycles.info` and knows what its measurement does to a
+    simulated cycle; another kind's fields are refused.
     `Measurement.from_cycles(cycles)` reads all of it from a `Cycles`.
     """
 
@@ -158,6 +148,7 @@ class Measurement:
     lines: tuple[float, ...] = ()
     line_amplitude: float = 0.0
     columns: tuple[str, ...] = ("slip_time", "slip_distance", "stick_time", "period")
+    options: tuple[tuple[str, Any], ...] = ()
 
     def __post_init__(self):
         def put(name, value):  # (frozen: store the checked values)
@@ -165,22 +156,18 @@ class Measurement:
 
         put("sampling_interval", check_positive(OWNER, "sampling_interval",
                                                 self.sampling_interval))  # fmt: skip
-        if self.signal not in SIGNALS:
+        kind = kind_of_signal(self.signal)
+        if kind is None:
             raise ParameterError(
-                OWNER, "signal", f"must be one of {', '.join(map(repr, SIGNALS))}", self.signal
-            )
+                OWNER, "signal", f"must be one of {', '.join(map(repr, all_signals()))}",
+                self.signal,
+            )  # fmt: skip
         put("noise_sd", check_nonnegative(OWNER, "noise_sd", self.noise_sd))
-        force = self.signal == "force"
-        for name in ("tol", "min_stick") if force else ("window", "thresholds"):
-            if getattr(self, name) is not None:
-                kind = "x/v" if force else "force"
-                raise ParameterError(OWNER, name, f"applies to {kind} traces only")
-        if not force:
-            for name in ("spike_fraction", "spike_height", "line_amplitude"):
-                if getattr(self, name) != 0.0:
-                    raise ParameterError(OWNER, name, "applies to force traces only")
-            if self.lines:
-                raise ParameterError(OWNER, "lines", "applies to force traces only")
+        defaults = {f.name: f.default for f in dataclasses.fields(self)}
+        for other in trace_kinds():  # another kind's settings, left at their defaults
+            for name in other.fields:
+                if name not in kind.fields and getattr(self, name) != defaults[name]:
+                    raise ParameterError(OWNER, name, f"applies to {other.name} traces only")
         put("tol", check_positive(OWNER, "tol", self.tol, allow_none=True))
         if self.min_stick is not None:
             put("min_stick", check_int(OWNER, "min_stick", self.min_stick, minimum=1))
@@ -206,8 +193,20 @@ class Measurement:
                 OWNER, "columns", f"must be some of {', '.join(CYCLE_COLUMNS)}",
                 ", ".join(map(str, unknown)) or None,
             )  # fmt: skip
-        if not force and set(columns) & {"peak_force", "force_drop"}:
-            raise ParameterError(OWNER, "columns", "peak_force and force_drop need a force trace")
+        foreign = [c for c in columns if c not in names(kind.quantities)]
+        if foreign:
+            giver = next((k for k in trace_kinds() if set(foreign) <= set(names(k.quantities))),
+                         None)  # fmt: skip
+            verb = "needs" if len(foreign) == 1 else "need"
+            need = f"{verb} a {giver.name} trace" if giver else f"{verb} another kind of trace"
+            raise ParameterError(OWNER, "columns", f"{' and '.join(foreign)} {need}")
+        options = self.options
+        items = options.items() if isinstance(options, Mapping) else options
+        try:  # a mapping, or its (name, value) pairs (as a saved fit keeps them)
+            put("options", tuple(sorted((str(k), v) for k, v in items)))
+        except (TypeError, ValueError):
+            raise ParameterError(OWNER, "options", "must be a mapping of a trace kind's "
+                                 "settings by name", options) from None  # fmt: skip
         put("columns", columns)
 
     @classmethod
@@ -238,12 +237,8 @@ class Measurement:
             info = info["si"]  # `Slider.to_model`: the extraction's own settings, in SI
         columns = tuple(c for c in CYCLE_COLUMNS if c in table)
         signal = info.get("input")
-        need = ["input", "sampling_interval", "noise_sd"]
-        if signal == "force":
-            need += ["window", "thresholds", "n_spikes", "n_samples", "spike_threshold",
-                     "lines_removed"]  # fmt: skip
-        else:
-            need += ["min_stick", "tol_rule", "tol"]
+        kind = kind_of_signal(signal) or default_kind()
+        need = ["input", "sampling_interval", "noise_sd", *kind.info_keys]
         missing = [k for k in need if k not in info]
         if missing:
             raise ParameterError(
@@ -251,58 +246,20 @@ class Measurement:
                 "extraction are needed to model the measurement (a table from an older file "
                 "without them? extract the cycles again)",
             )  # fmt: skip
-        if signal not in SIGNALS:
+        if kind_of_signal(signal) is None:
             raise ParameterError(OWNER, "cycles.info['input']", "is not a known signal", signal)
-        h = _number(info, "sampling_interval")
-        noise = _number(info, "noise_sd")
-        if signal != "force":
-            if scales is not None:
-                raise ParameterError(
-                    OWNER, "scales", "applies to force traces only: position and velocity "
-                    "traces are taken in the model's units",
-                )  # fmt: skip
-            if signal == "x":
-                # the extraction measures the noise of the interval velocities
-                # (x_{k+1} - x_k) / h: sqrt(2) times the position noise over h
-                noise = noise * h / math.sqrt(2.0)
-            given = info["tol_rule"] == "given"
-            return cls(
-                sampling_interval=h, signal=signal, noise_sd=noise,
-                tol=_number(info, "tol") if given else None,
-                min_stick=int(info["min_stick"]), columns=columns,
-            )  # fmt: skip
-        if scales is None:
-            raise ParameterError(
-                OWNER, "scales", "is required for a force trace: its cycles are in seconds and "
-                "newtons; give Slider(...).scales (or the Slider) for the model's units",
-            )  # fmt: skip
-        scales = getattr(scales, "scales", scales)  # a Slider gives its Scales
-        time, force = getattr(scales, "time", None), getattr(scales, "force", None)
-        if not (isinstance(time, float) and isinstance(force, float)):
-            raise ParameterError(OWNER, "scales", "must be a stickslip.units.Scales or a Slider")
-        n_samples = max(int(info["n_samples"]), 1)
-        return cls(
-            sampling_interval=h / time, signal="force", noise_sd=noise / force,
-            window=int(info["window"]), thresholds=dict(info["thresholds"]),
-            spike_fraction=int(info["n_spikes"]) / n_samples,
-            spike_height=_SPIKE_HEIGHT * _number(info, "spike_threshold") / force,
-            lines=tuple(float(f) * time for f in info["lines_removed"]),
-            line_amplitude=noise / force if info["lines_removed"] else 0.0,
-            columns=columns,
-        )  # fmt: skip
+        return cls(**kind.measurement(info, columns, scales))
+
+    @property
+    def kind(self) -> TraceKind:
+        """The kind of trace this measurement records (`stickslip.trace_kinds`)."""
+        return kind_of_signal(self.signal)
 
     def extract_settings(self, v_b: float) -> dict[str, Any]:
-        """The keyword arguments of `extract_cycles` for a trace of this measurement driven
-        at `v_b` (model units; the force in units of $k x_0$: stiffness 1)."""
-        if self.signal == "force":
-            return dict(
-                stiffness=1.0, v_b=v_b, window=self.window,
-                thresholds=None if self.thresholds is None else dict(self.thresholds),
-                # the data's lines, notched as on the data (a search would look near the
-                # mains frequencies in Hz, not in the model's time unit)
-                lines=self.lines,
-            )  # fmt: skip
-        return dict(v_b=v_b, tol=self.tol, min_stick=self.min_stick)
+        """The keyword arguments of `extract_cycles` (besides the trace) for a trace of
+        this measurement driven at `v_b` (model units; a force in units of $k x_0$:
+        stiffness 1)."""
+        return self.kind.settings(self, v_b)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -326,13 +283,12 @@ def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
                    dt: float | None = None, sticks: str = "whole") -> MeasuredTrace:  # fmt: skip
     """The model as a continuous trace of about `n_cycles` successive cycles, sampled and
     made noisy as `measurement` says; see `measured_cycles`. `sticks="cut"` (a force trace
-    with a given `window`): the middles of the long sticks left out (`_cut_grid`), each
+    with a given `window`): the middles of the long sticks left out (`cut_grid`), each
     trace's `cut` saying which samples of the whole trace were kept."""
     from .._model import CreepingSlider, time_scales
 
     owner = "measured_cycles"
     names, n_cycles, seed = _checked(owner, model, measurement, n_cycles, seed, sticks)
-    cut = sticks == "cut" and measurement.signal == "force" and measurement.window is not None
     h = measurement.sampling_interval
     scales = time_scales(model)
     fast, slow = (1.0, 1.0) if scales is None else scales
@@ -346,48 +302,20 @@ def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
     series = _series(owner, model, n_cycles, n_paths, dt, horizon, seed, h)
     ix, iv = names.index("x"), names.index("v")
     table = series.cycles
-    if measurement.signal != "force":
-        _pool(seed)  # (made here, not by two paths' threads at once)
+    kind = measurement.kind
+    kind.prepare(measurement, seed)  # (here, not by two paths' threads at once)
 
     def path_signals(p):
         t, states, _ = series.trajectory(p)
         # the slip samples lie at release + k dt, which may pass the stick by rounding
         t = np.maximum.accumulate(np.asarray(t, float))
-        rng = np.random.default_rng([seed, _NOISE_STREAM, p])
         rows = table["path"] == p
-        cycles = (table["release_time"][rows], table["slip_time"][rows],
-                  table["stick_time"][rows])  # fmt: skip
-        uniforms, kept = None, None
-        if measurement.signal == "force":
-            # one uniform grid (`extract_cycles` refuses an uneven force trace), its noise
-            # and spikes keyed by cycle
-            n = int(np.floor(t[-1] / h)) + 1
-            if cut:
-                kept = _cut_grid(*cycles, n, h, measurement.window)
-            at = None if kept is None else kept.index
-            grid = h * (np.arange(n) if at is None else at)
-            noise, uniforms = _keyed_samples(*cycles, n, h, seed, p, measurement.noise_sd > 0,
-                                             measurement.spike_fraction > 0, at)  # fmt: skip
-        else:
-            grid, noise = _keyed_grid(*cycles, t[-1], h, seed, p)
-        # linear between samples: exact along a stick (x grows at v_b from the stick
-        # state to the next onset, v = v_b), the slips as in `_STEPS_PER_SAMPLE`
-        x = np.interp(grid, t, states[:, ix])
-        v = np.interp(grid, t, states[:, iv])
-        if kept is not None:
-            if measurement.lines:
-                # the data's lines notched out of the whole trace, as the extraction does:
-                # the slips ring (`_notched`); the cut one is extracted without a notch
-                x = _notched(x, kept.index, model.v_b * h, measurement.lines, h)
-            # the cut stretches' rise taken out: the sticks' line continues across a cut
-            kept = dataclasses.replace(
-                kept, shift=model.v_b * h * (kept.index - np.arange(kept.index.size))
-            )
-            x = x - kept.shift
-        signals = _record(measurement, grid, x, v, noise, rng, uniforms, lines=kept is None)
-        if kept is not None:
-            signals["cut"] = kept
-        return signals
+        return kind.synthesise(measurement, SimulatedPath(
+            t=t, x=states[:, ix], v=states[:, iv], release=table["release_time"][rows],
+            slip=table["slip_time"][rows], stick=table["stick_time"][rows], seed=seed, path=p,
+            v_b=float(model.v_b), rng=np.random.default_rng([seed, NOISE_STREAM, p]),
+            cut=sticks == "cut",
+        ))  # fmt: skip
 
     traces = on_two_threads(path_signals, n_paths)
     return MeasuredTrace(tuple(traces), dict(series.cycles), measurement, dt)
@@ -464,51 +392,7 @@ def _check_trace(owner: str, duration: float, n_cycles: int, h: float) -> None:
     )  # fmt: skip
 
 
-def _keyed_grid(release, slip, stick, end, h, seed, path):
-    """Sampling times of one path's trace on `[0, end]` and their standard normal noise,
-    both keyed by cycle: the samples of cycle c lie at `release[c] + (phase[c] + j) h`,
-    `phase[c]` uniform from the cycle's key, from the middle of the stick before it to the
-    middle of its own (sticks of `_REPHASE_INTERVALS` intervals or more: across shorter ones
-    the grid runs on), and sample j's noise is `pool[offset[c] + j]`. Where the grid is
-    re-anchored, the sample closer than `h` to the one before is dropped, so that one
-    interval in such a stick is between h and 2h (`extract_cycles` takes the times as
-    given; along a stick the velocity is exact whatever the interval). A cycle's phase and
-    noise therefore stay the same when a parameter change moves the cycles before it."""
-    n = release.size
-    phase = np.random.default_rng([seed, _PHASE_STREAM, path]).random(n)
-    offset = np.random.default_rng([seed, _NOISE_STREAM, path, 1]).integers(0, _NOISE_POOL, n)
-    anchors, starts = _segments(release, slip, stick, end, h)
-    stops = np.r_[starts[1:], end]
-    origin = release[anchors] + phase[anchors] * h
-    j0 = np.ceil((starts - origin) / h).astype(np.int64)
-    j1 = np.ceil((stops - origin) / h).astype(np.int64)
-    j1[-1] = np.floor((end - origin[-1]) / h).astype(np.int64) + 1  # `end` itself may be a sample
-    counts = np.maximum(j1 - j0, 0)
-    segment = np.repeat(np.arange(anchors.size), counts)
-    first = np.cumsum(counts) - counts
-    j = np.arange(segment.size) - np.repeat(first, counts) + np.repeat(j0, counts)
-    grid = origin[segment] + j * h
-    gap = np.diff(grid)
-    keep = np.r_[True, gap >= h * (1 - 1e-9)]
-    index = (offset[anchors][segment] + j) % _NOISE_POOL
-    noise = _pool(seed)[index]
-    return grid[keep], noise[keep]
-
-
-def _segments(release, slip, stick, end, h):
-    """The stretches of a path's trace on `[0, end]` that are keyed by one cycle: `(anchors,
-    starts)`, the cycle each belongs to and its start, the middle of the stick before that
-    cycle (sticks of `_REPHASE_INTERVALS` intervals or more; across shorter ones the
-    stretch runs on, keyed by the cycle before)."""
-    stuck = release + slip
-    cut = np.isfinite(stuck) & np.isfinite(stick) & (stick >= _REPHASE_INTERVALS * h)
-    anchors = np.r_[0, np.flatnonzero(cut[:-1]) + 1]
-    starts = np.r_[0.0, (stuck + 0.5 * stick)[anchors[1:] - 1]]
-    keep = starts < end
-    return anchors[keep], starts[keep]
-
-
-def _notched(x, index, rise, lines, h):
+def notched(x, index, rise, lines, h):
     """The noise-free force `x` at the samples `index` of a uniform grid (spacing `h`),
     through the notches `extract_cycles` puts at `lines` (scipy's iirnotch, Q 30, run
     forwards and backwards), as if the whole grid were filtered: between the kept
@@ -564,17 +448,17 @@ def _gapped_filtfilt(b, a, values, starts, gaps):
     return passes(b, a, values, starts, gaps, unit, lam, V, Vi, K)
 
 
-def _keyed_samples(release, slip, stick, n, h, seed, path, normals, spikes, at=None):
+def keyed_samples(release, slip, stick, n, h, seed, path, normals, spikes, at=None):
     """Standard normal noise of the samples `k h` (`k` in `at`, by default all `n` of the
     uniform grid: a force trace), if `normals`, and, if `spikes`, uniforms that place its
-    spikes (`_record`), both keyed by cycle: a sample in cycle c's stretch (`_segments`)
+    spikes (`ForceTrace.record`), both keyed by cycle: a sample in cycle c's stretch (`segments`)
     `j` samples from the first at or after c's release (j < 0 before it) takes the value
     of `(seed, path, c, j)` (`_hashed`). A parameter change that moves the cycles before c
     therefore leaves the noise about c's slip as it was, up to the release's phase within
     one interval (the grid cannot be re-anchored: `extract_cycles` refuses an uneven force
     trace), and a sample's value does not depend on which others are drawn (a cut trace,
-    `_cut_grid`, has the whole trace's noise on the samples it keeps)."""
-    anchors, starts = _segments(release, slip, stick, n * h, h)
+    `cut_grid`, has the whole trace's noise on the samples it keeps)."""
+    anchors, starts = segments(release, slip, stick, n * h, h)
     first = np.minimum(np.ceil(starts / h - 1e-9), n).astype(np.int64)
     zero = np.ceil(release[anchors] / h - 1e-9).astype(np.int64)
     k = np.arange(n, dtype=np.int64) if at is None else np.asarray(at, np.int64)
@@ -603,7 +487,7 @@ def _hashed(seed, path, cycle, offset, stream, kind):
     of `(seed, path, stream)`: splitmix64's output at `offset` of the stream whose state the
     key hashes to (the uniform from its top 53 bits, the normal its inverse cdf), computed
     for all samples at once and the same whichever others are drawn. The noise's own
-    stream (`_NOISE_STREAM`), far from the simulator's keys."""
+    stream (`NOISE_STREAM`), far from the simulator's keys."""
     from scipy.special import ndtri
 
     from ._samples import uniforms
@@ -611,13 +495,13 @@ def _hashed(seed, path, cycle, offset, stream, kind):
     golden = np.uint64(_GOLDEN)
     with np.errstate(over="ignore"):
         head = np.zeros(1, np.uint64)
-        for value in (seed, _NOISE_STREAM, path, stream):
+        for value in (seed, NOISE_STREAM, path, stream):
             head = _mix(head + (np.uint64(value) + np.uint64(1)) * golden)
     u = uniforms(int(head[0]), np.broadcast_to(cycle, np.shape(offset)), offset)
     return ndtri(u) if kind == "normal" else u
 
 
-def _cut_grid(release, slip, stick, n, h, window):
+def cut_grid(release, slip, stick, n, h, window):
     """Which samples of a force trace's uniform grid (`n` samples at `h`) the forward
     measurement keeps (`sticks="cut"`): about each slip, from `_CUT_MARGIN` windows plus
     its own length before its release to as many after its stick, the long sticks'
@@ -649,42 +533,6 @@ def _cut_grid(release, slip, stick, n, h, window):
     return Cut(index=index, far=far, weight=float(weight))
 
 
-_POOLS: dict[int, np.ndarray] = {}
-
-
-def _pool(seed: int) -> np.ndarray:
-    """`_NOISE_POOL` standard normals of `seed`'s noise stream (kept for the last few seeds:
-    a fit evaluates ~100 points with one seed)."""
-    if seed not in _POOLS:
-        while len(_POOLS) >= 4:
-            _POOLS.pop(next(iter(_POOLS)))
-        rng = np.random.default_rng([seed, _NOISE_STREAM, 2**32 - 1])
-        _POOLS[seed] = rng.standard_normal(_NOISE_POOL)
-    return _POOLS[seed]
-
-
-def _record(m: Measurement, t, x, v, unit_noise, rng, uniforms=None,
-            lines: bool = True) -> dict[str, np.ndarray]:  # fmt: skip
-    """The signal(s) `m` records at times `t`: `unit_noise` (standard normals, one a sample)
-    times the noise sd; a force trace's lines (if `lines`) with phases drawn from `rng`, its
-    spikes where `uniforms` (one a sample) fall below the spike fraction, upwards below
-    half of it."""
-    noise = m.noise_sd * unit_noise if m.noise_sd > 0 and unit_noise is not None else 0.0
-    if m.signal == "x":
-        return dict(t=t, x=x + noise)
-    if m.signal == "v":
-        return dict(t=t, v=v + noise)
-    if m.signal == "x and v":
-        return dict(t=t, x=x, v=v + noise)
-    force = x + noise
-    for f in m.lines if lines else ():
-        force = force + m.line_amplitude * np.sin(2 * np.pi * f * t + rng.uniform(0, 2 * np.pi))
-    if m.spike_fraction > 0:
-        at = np.flatnonzero(uniforms < m.spike_fraction)
-        force[at] += m.spike_height * np.where(uniforms[at] < 0.5 * m.spike_fraction, 1.0, -1.0)
-    return dict(t=t, force=force)
-
-
 def measured_cycles(model, measurement: Measurement, n_cycles: int, seed: int, *,
                     dt: float | None = None,
                     sticks: str = "cut") -> dict[str, np.ndarray]:  # fmt: skip
@@ -705,7 +553,7 @@ def measured_cycles(model, measurement: Measurement, n_cycles: int, seed: int, *
     - `dt`: the simulator's step (default: half the sampling interval, within an eighth
       and a half of the model's fastest time scale);
     - `sticks`: `"cut"` (default) synthesises and extracts a force trace only about its
-      slips, the long sticks' middles left out (`_cut_grid`; the same cycles as the whole
+      slips, the long sticks' middles left out (`cut_grid`; the same cycles as the whole
       trace gives, to within the extraction's timing error: docs/fit.md); `"whole"`
       every sample. Position and velocity traces, and a force measurement without a
       `window`, are synthesised whole.
@@ -750,25 +598,4 @@ def extracted(signals: dict, measurement: Measurement, v_b: float) -> dict[str, 
 def _extracted(signals: dict, measurement: Measurement, v_b: float) -> dict[str, np.ndarray]:
     """`extracted` with the warnings left to the caller (who may run it in a thread: the
     warning filters are the process's)."""
-    from .._extract import extract_cycles
-    from .._extract._force import check_thresholds, extract_slips
-
-    settings = measurement.extract_settings(v_b)
-    if "cut" not in signals:
-        return extract_cycles(**signals, **settings).table
-    return extract_slips(
-        signals["t"], signals["force"], measurement.sampling_interval, 1.0, v_b,
-        measurement.window, check_thresholds(settings["thresholds"]), (),
-        cut=signals["cut"],
-    )[0]  # fmt: skip
-
-
-def _number(info: Mapping, key: str) -> float:
-    try:
-        value = float(info[key])
-    except (TypeError, ValueError):
-        value = math.nan
-    if not math.isfinite(value) or value < 0:
-        raise ParameterError(OWNER, f"cycles.info['{key}']", "must be a finite number >= 0",
-                             info[key])  # fmt: skip
-    return value
+    return measurement.kind.extracted(signals, measurement, v_b)

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from .._errors import ParameterError, StickSlipError, check_int, check_positive
+from .._trace_kind import kind_of_signal
 
 OWNER = "FitResult.predict"
 # The parameters `Slider.si_parameters` maps; the others of a model (`eta0`) are settings.
@@ -93,7 +94,8 @@ def predict(result, run=None, *, stiffness=None, v_b=None, n_sim=None, seed=None
     info = None
     if run is not None:
         info = getattr(run, "info", None)
-        if not isinstance(info, dict) or info.get("input") != "force":
+        kind = kind_of_signal(info.get("input")) if isinstance(info, dict) else None
+        if kind is None or not kind.in_si:
             raise ParameterError(OWNER, "run", "must be a Cycles of a force trace (from "
                                  "extract_cycles or analyse_run), in s, m and N")  # fmt: skip
         stiffness = info["stiffness"] if stiffness is None else stiffness

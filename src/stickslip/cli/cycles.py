@@ -51,23 +51,40 @@ from ._common import handle_errors
     help="Write the table (with its settings) here and a figure beside it "
     "(default: the table to stdout).",
 )
+@click.option(
+    "--kind",
+    default=None,
+    metavar="NAME",
+    help="A trace kind from a plugin (`stickslip.trace_kinds`): its inputs are read from "
+    "the columns of their names, its settings from --option.",
+)
+@click.option(
+    "--option",
+    "options",
+    multiple=True,
+    metavar="KEY=VALUE",
+    help="With --kind: a setting of that kind (a number, or text); repeat for more.",
+)
 @click.option("--force", "replace", is_flag=True, help="Replace an existing --out file.")
 @handle_errors
-def cycles(trace, v_b, force_column, force_scale, stiffness, tol, out, replace):
+def cycles(trace, v_b, force_column, force_scale, stiffness, tol, kind, options, out, replace):
     """Find the stick-slip cycles in TRACE and write one row per complete cycle.
 
     TRACE is a CSV file with a header naming the columns (`t` and `x` and/or `v`, or a force
     column named by --force-column) or a MATLAB .mat file holding those variables. The
     table has the columns release_time, slip_time, slip_distance, stick_time and period
     (and peak_force, force_drop with a force), after a `#` block with every setting used
-    (see `stickslip.extract_cycles`).
+    (see `stickslip.extract_cycles`). A trace of another kind (a plugin's) is read with
+    --kind NAME, its inputs from the columns named like them.
     """
     from .._errors import DataError, ParameterError
     from .._output import check_interrupted, clean_file_leftovers
     from ..extract import extract_cycles
     from ..study import StudyError
 
-    _check_options(force_column, v_b, stiffness, tol, force_scale)
+    plugin = _plugin_kind(kind, options, force_column, stiffness, tol, force_scale)
+    if plugin is None:
+        _check_options(force_column, v_b, stiffness, tol, force_scale)
     figure = None
     if out is not None:
         _check_out(out, trace, replace)
@@ -77,11 +94,16 @@ def cycles(trace, v_b, force_column, force_scale, stiffness, tol, out, replace):
     elif sys.stdout is None:
         raise StudyError("--out", None, "is needed: standard output is closed")
     wanted = ("t", force_column) if force_column else ("t", "x", "v")
+    if plugin is not None:
+        wanted = ("t", *plugin[0].inputs)
     from ..study.traces import read_trace
 
     columns = read_trace(trace, wanted)
     try:
-        if force_column:
+        if plugin is not None:
+            given = {k: columns[k] for k in plugin[0].inputs if k in columns}
+            found = extract_cycles(columns["t"], v_b=v_b, **given, **plugin[1])
+        elif force_column:
             found = extract_cycles(
                 columns["t"], force=columns[force_column] * force_scale,
                 stiffness=stiffness, v_b=v_b,
@@ -142,6 +164,45 @@ def _regime(t, force, stiffness, v_b) -> str | None:
         return None
     what = "an oscillation" if run.regime == "oscillation" else "steady sliding"
     return f"no cycles: the run is {what}: {run.evidence}"
+
+
+def _plugin_kind(kind, options, force_column, stiffness, tol, force_scale):
+    """`(kind, settings)` for `--kind NAME` with its `--option KEY=VALUE` settings (numbers
+    where they read as one), or None without --kind; the built-in kinds' options are
+    refused beside it."""
+    import json
+
+    from ..study import StudyError
+
+    if kind is None:
+        if options:
+            raise StudyError("--option", None, "applies with --kind only")
+        return None
+    from .._errors import PluginError
+    from ..trace_kinds import get_trace_kind
+
+    try:
+        found = get_trace_kind(kind)()
+    except PluginError as err:
+        raise StudyError("--kind", None, str(err)) from None
+    if type(found).__module__ == "stickslip.trace_kinds":
+        raise StudyError("--kind", None, f"names a plugin's kind: a {found.name} trace is read "
+                         "with --force-column (a force) or from its t, x, v columns")  # fmt: skip
+    for name, given in (("--force-column", force_column), ("--stiffness", stiffness),
+                        ("--tol", tol), ("--force-scale", force_scale != 1.0 or None)):  # fmt: skip
+        if given is not None:
+            raise StudyError(name, None, "applies to the built-in kinds: with --kind, give "
+                             "the kind's settings as --option KEY=VALUE")  # fmt: skip
+    settings = {}
+    for item in options:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise StudyError("--option", None, f"must be KEY=VALUE (got {item!r})")
+        try:
+            settings[key.strip()] = json.loads(value)
+        except ValueError:
+            settings[key.strip()] = value
+    return found, settings
 
 
 def _check_options(force_column, v_b, stiffness, tol, force_scale) -> None:

@@ -36,6 +36,7 @@ import warnings
 import numpy as np
 
 from .._inference.saved import jsonable
+from .._trace_kind import kind_of_signal
 from .load import StudyError, load_study
 
 # A table of cycles is small (`stickslip cycles` writes about 60 B a row): the cap keeps a
@@ -281,7 +282,8 @@ def run_fit(study, out=None, *, overrides=None, force: bool = False, progress: b
             )  # fmt: skip
     scales = None
     if spec.scales is not None:
-        if not measured or data.info.get("input") != "force":
+        kind = kind_of_signal(data.info.get("input")) if measured else None
+        if kind is None or not kind.in_si:
             what = (
                 "per-cycle values" if not measured
                 else f"the cycles of a {data.info.get('input')} trace"
