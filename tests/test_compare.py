@@ -76,6 +76,20 @@ def test_clear_case_chooses_the_random_threshold(clear_case):
     assert min(test["statistic"]) > 12, test
 
 
+def test_the_fits_record_their_boxes_and_the_pair_is_nested(clear_case, tmp_path):
+    """Each fit records its search box as given (`diagnostics.box`, kept by save and
+    load); from it `compare_fits` reads that the fixed threshold (sd 0, inside the random
+    threshold's box of sd) is nested in the random one."""
+    r_fixed, r_random, c = clear_case
+    assert r_fixed.diagnostics.box == {"x0": (0.4, 4.0)}
+    assert r_random.diagnostics.box == {"threshold_params.mean": (0.4, 4.0),
+                                        "threshold_params.sd": (0.0, 1.5)}  # fmt: skip
+    (test,) = c.tests
+    assert test["nested"] is True
+    r_random.save(tmp_path / "random.json")
+    assert ss.load_fit(tmp_path / "random.json").diagnostics.box == r_random.diagnostics.box
+
+
 def test_kept_cycles_are_the_ones_simulated_again(clear_case):
     """The comparison scores its replicates against the cycles each fit simulated at its
     design (kept in `diagnostics["design"]["samples"]`); without them it simulates the
@@ -206,7 +220,10 @@ def test_refusals(clear_case):
     fewer = dataclasses.replace(r_random, data={"slip_time": r_random.data["slip_time"]})
     with pytest.raises(ss.DataError, match="fitted to slip_time and"):
         compare_fits([r_fixed, fewer])
-    traced = dataclasses.replace(r_random, diagnostics={**r_random.diagnostics, "trace": True})
+    sampled = ss.Measurement(sampling_interval=0.01, signal="v")  # (a trace the data lack)
+    traced = dataclasses.replace(
+        r_random, diagnostics=dataclasses.replace(r_random.diagnostics, measurement=sampled)
+    )
     with pytest.raises(ss.DataError, match="measurement differently.*trace"):
         compare_fits([r_fixed, traced])
     for err in (ss.ParameterError, ss.DataError):  # one-line messages

@@ -16,6 +16,7 @@ import pytest
 
 import stickslip as ss
 from stickslip._inference import compare, intervals
+from stickslip._inference.diagnostics import FitDiagnostics
 
 BASE = dict(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, tau=0.1)
 
@@ -80,7 +81,7 @@ def test_the_structural_lag_follows_the_onset():
 
 
 def _candidate(name, model, box, n_free):
-    result = types.SimpleNamespace(model=model, diagnostics={"box": box})
+    result = types.SimpleNamespace(model=model, diagnostics=FitDiagnostics(box=box))
     return types.SimpleNamespace(name=name, result=result, n_free=n_free)
 
 

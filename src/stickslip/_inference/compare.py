@@ -39,7 +39,7 @@ law. The simulation's own noise is conditioned on rather than averaged over: the
 simulated samples are drawn once and used for the data and every replicate, so under the
 null the data's $T$ and the replicates' $T^*$ share one law *given those samples*, and the
 test keeps its level whatever the noise (noise can only cost power). It is then repeated
-with each fit's second seed (`diagnostics["design"]["seeds"]`, independent samples), and
+with each fit's second seed (`diagnostics.design.seeds`, independent samples), and
 a candidate is rejected only when both reject: the larger $p$ counts, which keeps the
 level, and a warning says when the two disagree (the choice then hangs on the simulation:
 raise `n_sim`). A polynomial's maximum rather than the largest design value, because the
@@ -223,7 +223,8 @@ def _drawn(null, n_boot: int, seed: int) -> Replicates:
 def _fingerprint(result) -> tuple:
     """What identifies a fit across processes (a pickled copy is another object): its
     model, estimate, log-likelihood and simulation seeds."""
-    seeds = tuple(int(x) for x in result.diagnostics.get("design", {}).get("seeds", ()))
+    design = result.diagnostics.design
+    seeds = tuple(int(x) for x in (design.seeds or ())) if design is not None else ()
     return (_model_name(type(result.model)), tuple(sorted(result.estimate.items())),
             float(result.log_likelihood), seeds)  # fmt: skip
 
@@ -237,7 +238,7 @@ def _default_n_boot(rivals: int, alpha: float) -> int:
 def _loaded_joint(result) -> bool:
     """A fit of several runs loaded from disk (`load_fit`): its map to each run's model is
     not saved."""
-    return bool(result.diagnostics.get("runs")) and result.diagnostics.get("joint") is None
+    return bool(result.diagnostics.runs) and result.diagnostics.joint is None
 
 
 _LOADED_JOINT = ("is a loaded fit of several runs: the map from its SI values to each run's "
@@ -414,14 +415,14 @@ class _Candidate:
     @classmethod
     def of(cls, name, result) -> _Candidate:
         setting = Setting.of(result)  # (the constructor's arguments: `model_kwargs`)
-        design = result.diagnostics.get("design", {})
-        if "points" not in design or "seeds" not in design:
+        design = result.diagnostics.design
+        if design is None or design.points is None or design.seeds is None:
             raise ParameterError(
                 "compare_fits", "fits", f"holds {name}, a fit without its design of points "
                 "(from another version of stickslip): fit it again",
             )  # fmt: skip
-        first, second = (int(x) for x in design["seeds"])
-        runs = result.diagnostics.get("joint")
+        first, second = (int(x) for x in design.seeds)
+        runs = result.diagnostics.joint
         if runs is None:
             parts, columns = (setting,), (result.data,)
         else:
@@ -440,11 +441,11 @@ class _Candidate:
         there (one per run), their offsets from the centre in steps, and, per seed, the
         cycles the fit simulated there (`None` where the fit did not keep them: simulated
         again, the same cycles)."""
-        d = self.result.diagnostics["design"]
-        centre, steps = np.asarray(d["centre"], float), np.asarray(d["steps"], float)
-        points = np.atleast_2d(np.asarray(d["points"], float))
-        finite = np.all(np.isfinite(np.asarray(d["values"], float)), axis=0)
-        kept = d.get("samples")
+        d = self.result.diagnostics.design
+        centre, steps = np.asarray(d.centre, float), np.asarray(d.steps, float)
+        points = np.atleast_2d(np.asarray(d.points, float))
+        finite = np.all(np.isfinite(np.asarray(d.values, float)), axis=0)
+        kept = d.samples
         models, offsets, samples = [], [], ([], [])
         for i, u in enumerate(points):
             m = [_built(s, u) for s in self.parts] if finite[i] else [None]
@@ -508,7 +509,7 @@ class _RunSetting:
         return cls(
             runs=runs, index=index, names=setting.names, scales=setting.scales,
             u_hat=setting.u_hat, n_sim=setting.n_sim, observe=runs.measurements[index],
-            bandwidth=dict(setting.diagnostics["bandwidth"][index]),
+            bandwidth=dict(setting.diagnostics.bandwidth[index]),
             kinds=list(runs.columns[index]),
         )  # fmt: skip
 
@@ -613,10 +614,10 @@ def _nested(a: _Candidate, b: _Candidate) -> bool:
     box, or another class that says how it reproduces `a`'s model (a classmethod
     `embed(model)`, such as `random-threshold` for `langevin`: a normal threshold of sd 0)
     with those arguments inside `b`'s box alike."""
-    box = b.result.diagnostics.get("box")
+    box = b.result.diagnostics.box
     if box is None:  # a fit from an earlier version: its box is not known
         return False
-    if b.result.diagnostics.get("joint") is not None:  # (SI boxes: not checked; the test is
+    if b.result.diagnostics.joint is not None:  # (SI boxes: not checked; the test is
         return False  # valid unclipped, as for a pair that is not nested)
     Mb = type(b.result.model)
     if isinstance(a.result.model, Mb):
@@ -796,17 +797,18 @@ def _check_same_data(named: dict) -> None:
                     f"({k}: {how}): likelihoods compare models on one data set"
                 )
         d = r.diagnostics
-        runs = [[x["name"] for x in f.diagnostics.get("runs") or []] for f in (r, ref)]
+        runs = [[x["name"] for x in f.diagnostics.runs or []] for f in (r, ref)]
         if runs[0] != runs[1]:
             raise DataError(
                 f"compare_fits: {name} was fitted to {_runs_text(runs[0])} and {ref_name} to "
                 f"{_runs_text(runs[1])}: likelihoods compare models on one data set"
             )
         for key in ("trace", "sampling", "observe"):
-            if _plain(d.get(key)) != _plain(d0.get(key)):
+            mine, theirs = getattr(d, key), getattr(d0, key)
+            if _plain(mine) != _plain(theirs):
                 raise DataError(
                     f"compare_fits: {name} and {ref_name} model the data's measurement "
-                    f"differently ({key}: {d.get(key)!r} against {d0.get(key)!r}): fit both "
+                    f"differently ({key}: {mine!r} against {theirs!r}): fit both "
                     "to the same data, Cycles or trace settings"
                 )
 

@@ -23,6 +23,7 @@ import numpy as np
 
 from .._errors import DataError, ParameterError, check_int, check_positive
 from .data import LOG_KINDS, check_data, looks_sampled, measurement_of, to_fit_scale
+from .diagnostics import Design, FitDiagnostics
 from .forward import simulate_values, simulation_settings
 from .intervals import (
     combine_seeds,
@@ -382,8 +383,8 @@ def simulated_mle(
     )  # fmt: skip
     fitted = p.build(estimate)
     if p.runs is not None:
-        diagnostics["runs"] = p.runs.describe(fitted)
-        diagnostics["joint"] = p.runs  # the map to each run's model (`compare_fits`)
+        diagnostics.runs = p.runs.describe(fitted)
+        diagnostics.joint = p.runs  # the map to each run's model (`compare_fits`)
     return FitResult(
         estimate=estimate, ci=ci, log_likelihood=ll_hat, method=_method(p, dependence),
         diagnostics=diagnostics, data=p.data, model=fitted[0],
@@ -391,24 +392,22 @@ def simulated_mle(
 
 
 def _diagnostics(p: Problem, loglik: Likelihood, surface, cov, *, optimizer, caught, values2,
-                 seed2, samples, mc_noise, dependence, seconds) -> dict:  # fmt: skip
-    """A fit's diagnostics (`FitResult.diagnostics`): its settings, the surface's design,
-    both seeds' values, the simulation's noise, the rows' dependence, the warnings."""
-    return dict(
+                 seed2, samples, mc_noise, dependence, seconds) -> FitDiagnostics:  # fmt: skip
+    """A fit's diagnostics (`FitResult.diagnostics`): its settings and box, the surface's
+    design, both seeds' values, the simulation's noise, the rows' dependence, the warnings."""
+    return FitDiagnostics(
         n_sim=p.n_sim, dt=p.dt, t_max=p.t_max, seed=p.seed, measurement=p.measured,
-        # `trace`, `sampling`, `observe`: the measurement as the model comparison reads it
-        trace=p.measured is not None,
-        sampling=None if p.measured is None else p.measured.sampling_interval,
-        observe=p.measured, n_data={k: int(v.size) for k, v in p.data.items()},
+        n_data={k: int(v.size) for k, v in p.data.items()},
         zero_fraction={k: float(np.mean(v == 0)) for k, v in p.data.items() if k in LOG_KINDS},
-        bandwidth=p.bandwidth, scales=p.coords, covariance=cov.tolist(),
-        hessian=surface.hessian.tolist(), evaluations=len(loglik.points),
-        points=loglik.points, seconds=seconds,
+        bandwidth=p.bandwidth, scales=p.coords,
+        box={k: (float(lo), float(hi)) for k, (lo, hi) in p.free.items()},
+        covariance=cov.tolist(), hessian=surface.hessian.tolist(),
+        evaluations=len(loglik.points), points=loglik.points, seconds=seconds,
         warnings=([p.sampled] if p.sampled else []) + caught,
         to_fit=ToFit(p.coords), optimizer=optimizer,
         # the surface's design (fit coordinates), its values at both seeds and, where kept,
         # the cycles simulated there: the model comparison's design (`compare_fits`)
-        design=dict(
+        design=Design(
             clipped=surface.clipped, vertex=surface.shift is not None,
             centre=surface.centre.tolist(), steps=surface.steps.tolist(),
             points=surface.design.tolist(), values=[list(map(float, surface.values)),

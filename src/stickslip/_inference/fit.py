@@ -10,7 +10,7 @@ What it assumes: independent cycles (the paper's sharp reset: every slip starts 
 model's onset state), the model family is right (`check` tests it), and the maximum lies
 inside the `free` box. Cycles extracted from a trace (a `Cycles`) are fitted with the
 measurement inside the forward model (`measurement`). Nothing fails silently: a one-line
-warning each (also in `diagnostics["warnings"]`) when Nelder-Mead stops on its cap, the
+warning each (also in `diagnostics.warnings`) when Nelder-Mead stops on its cap, the
 estimate sits on an edge, the polynomial has no vertex near the best point, design points
 are clipped at the box, the simulation noise is comparable with the curvature, a dict of
 data looks like the cycles of a sampled trace, or the data reject the model.
@@ -91,7 +91,7 @@ def fit(
       fixed is each run's own (its reference slider's), and `NAME[i]` run i's own value
       of NAME over the shared one. The model is `langevin` or a
       threshold model (`random-threshold`, `random-threshold-held`); the estimate is in
-      SI; `diagnostics["runs"]` has each run's spring, speed, cycles, fitted model and,
+      SI; `diagnostics.runs` has each run's spring, speed, cycles, fitted model and,
       with `check`, a KS p-value per observable against the fitted model's cycles through
       its measurement (not corrected for the fit: a low one rejects). The cycles see
       only the gap $F_s - F_k - cV$: fix `kinetic_friction` and fit `static_friction`.
@@ -153,7 +153,7 @@ def fit(
         trace=trace, sampling=sampling, progress=progress,
     )  # fmt: skip
     if loading is not None:
-        result.diagnostics["warnings"].insert(0, loading)
+        result.diagnostics.warnings.insert(0, loading)
     return _checked(result, seed, wall0) if check else result
 
 
@@ -172,15 +172,15 @@ def _joint(model, data, free, fixed, *, seed, n_sim, dt, scales, check, progress
                        progress=progress, runs=runs)  # fmt: skip
     if check:
         d = result.diagnostics
-        runs.p_values(result, d["n_sim"], (seed + 1) % 2**64)
-        low = [f"{row['name']} {k} p = {p:.3g}" for row in d["runs"]
+        runs.p_values(result, d.n_sim, (seed + 1) % 2**64)
+        low = [f"{row['name']} {k} p = {p:.3g}" for row in d.runs
                for k, p in row["p_values"].items() if p < ALPHA]  # fmt: skip
         if low:
             text = (f"the data reject the model: {', '.join(low)} < {ALPHA} (KS against the "
                     "fitted model's cycles through that run's measurement)")  # fmt: skip
-            d["warnings"].append(text)
+            d.warnings.append(text)
             warnings.warn(f"fit: {text}", stacklevel=3)
-    result.diagnostics["seconds"] = time.perf_counter() - wall0
+    result.diagnostics.seconds = time.perf_counter() - wall0
     return result
 
 
@@ -231,7 +231,7 @@ def _checked(result: FitResult, seed: int, wall0: float) -> FitResult:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         # a seed of its own: the goodness check's streams are drawn from [seed, 0]
-        measured = result.diagnostics.get("measurement") is not None
+        measured = result.diagnostics.measurement is not None
         extra = dict(n_rep=MEASURED_N_REP) if measured else {}
         g = goodness_of_fit(result, seed=seed % 2**63, **extra)
     low = {k: p for k, p in g.p_values.items() if p < ALPHA}
@@ -242,7 +242,7 @@ def _checked(result: FitResult, seed: int, wall0: float) -> FitResult:
             f"the data reject the model: {shown} < {ALPHA} (the data's distribution is unlike "
             f"the fitted {type(result.model).__name__}'s: see FitResult.plot)"
         )
-        d["warnings"].append(text)
+        d.warnings.append(text)
         warnings.warn(f"fit: {text}", stacklevel=3)
-    d["seconds"] = time.perf_counter() - wall0
+    d.seconds = time.perf_counter() - wall0
     return dataclasses.replace(result, goodness=g)

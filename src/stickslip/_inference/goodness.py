@@ -49,6 +49,7 @@ from .._errors import DataError, ParameterError, check_int
 from .._memory import check_memory
 from ..quantities import get
 from .data import to_fit_scale
+from .diagnostics import FitDiagnostics
 from .forward import simulate_values
 from .intervals import concave
 from .likelihood import KDE_BINS, density_table, log_density_at
@@ -213,16 +214,16 @@ def goodness_of_fit(
             "KolmogorovSmirnov() or a subclass)", type(statistic),
         )  # fmt: skip
     d = result.diagnostics
-    if d.get("runs"):
+    if d.runs:
         raise ParameterError(
             owner, "result", "is a fit of several runs: its check is each run's KS p-values "
-            "(fit(..., check=True): diagnostics['runs'])",
+            "(fit(..., check=True): diagnostics.runs)",
         )  # fmt: skip
     data = {k: np.asarray(v, float) for k, v in result.data.items()}
     kinds = list(data)
     n = next(iter(data.values())).size
-    factor = REF_FACTOR if d.get("measurement") is None else MEASURED_REF_FACTOR
-    n_ref = max(d["n_sim"], factor * n) if n_ref is None else n_ref
+    factor = REF_FACTOR if d.measurement is None else MEASURED_REF_FACTOR
+    n_ref = max(d.n_sim, factor * n) if n_ref is None else n_ref
     n_ref = check_int(owner, "n_ref", n_ref, minimum=1000)
     setting = Setting.of(result)
     _check_memory(setting, n, n_rep, n_ref)
@@ -254,9 +255,9 @@ def goodness_of_fit(
         f"the fitted model ({n_ref} reference cycles), against {n_rep} parametric-bootstrap "
         f"replicates of {n} cycles simulated at the estimate ({how})"
     )
-    if not refit and d.get("warnings"):
+    if not refit and d.warnings:
         said.append(
-            "the fit warned (see its diagnostics['warnings']): the linearised bootstrap assumes "
+            "the fit warned (see its diagnostics.warnings): the linearised bootstrap assumes "
             "a regular maximum inside the box, so these p-values are rough; refit=True is exact"
         )
     if 1 / (n_rep + 1) >= ALPHA:  # the smallest p-value, 1 / (n_rep + 1), is not below ALPHA
@@ -362,22 +363,22 @@ class Setting:
     bandwidth: Any  # per column (a list of those, per run, for a joint fit)
     kinds: list
     fit_seed: int
-    diagnostics: dict
+    diagnostics: FitDiagnostics
 
     @classmethod
     def of(cls, result) -> Setting:
         d = result.diagnostics
         names = list(result.estimate)
-        scales = dict(d["scales"])
+        scales = dict(d.scales)
         u_hat = np.array([to_fit_coords(scales[k], result.estimate[k]) for k in names])
         return cls(
             Model=type(result.model), params=model_kwargs(result.model), names=names,
-            scales=scales, u_hat=u_hat, hessian=np.atleast_2d(np.asarray(d["hessian"], float)),
-            covariance=np.atleast_2d(np.asarray(d["covariance"], float)), n_sim=int(d["n_sim"]),
-            n_data=next(iter(result.data.values())).size, dt=_float(d["dt"]),
-            t_max=_float(d["t_max"]), observe=d.get("measurement"),
-            bandwidth=_bandwidths(d["bandwidth"]),
-            kinds=list(result.data), fit_seed=int(d["seed"]), diagnostics=d,
+            scales=scales, u_hat=u_hat, hessian=np.atleast_2d(np.asarray(d.hessian, float)),
+            covariance=np.atleast_2d(np.asarray(d.covariance, float)), n_sim=int(d.n_sim),
+            n_data=next(iter(result.data.values())).size, dt=_float(d.dt),
+            t_max=_float(d.t_max), observe=d.measurement,
+            bandwidth=_bandwidths(d.bandwidth),
+            kinds=list(result.data), fit_seed=int(d.seed), diagnostics=d,
         )  # fmt: skip
 
     def model(self, u):
@@ -490,8 +491,7 @@ class Setting:
         """The replicate refitted as the data were; returns its estimate (fit coordinates)."""
         from .estimator import simulated_mle
 
-        d = self.diagnostics
-        free = d.get("free") or self._box()
+        free = self._box()
         fixed = {k: v for k, v in self.params.items() if k not in self.names}
         for k in self.names:  # a dict parameter keeps its other entries in fixed
             head, _, entry = k.partition(".")
@@ -507,7 +507,8 @@ class Setting:
         return np.array([to_fit_coords(self.scales[k], r.estimate[k]) for k in self.names])
 
     def _box(self) -> dict:
-        """A search box for a refit (the fit does not record its own): 8 standard errors
+        """A search box for a refit, about the estimate the replicates were simulated at
+        (not the data's box, `diagnostics.box`, which may be far wider): 8 standard errors
         either side of the estimate, at least 0.5, in fit coordinates; a linear-scale
         parameter keeps a box through 0 so that `fit` keeps its scale."""
         se = np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))

@@ -208,7 +208,7 @@ class Runs:
     def p_values(self, result, n_sim: int, seed: int) -> None:
         """Per run and observable, the KS p-value of its cycles against the fitted models'
         simulated ones through its measurement (another seed than the fit's), into
-        `result.diagnostics["runs"]`. Not corrected for the fit (the estimate was tuned on
+        `result.diagnostics.runs`. Not corrected for the fit (the estimate was tuned on
         these data): high p-values are optimistic, a low one is a rejection. A run on
         which the fitted slider's trace shows no cycles through its measurement gets
         p-values of 0 and the reason (`"unresolved"`)."""
@@ -218,7 +218,7 @@ class Runs:
         from .forward import simulate_values
 
         models = self.build(result.estimate)
-        for row, m, d, measured in zip(result.diagnostics["runs"], models, self.columns,
+        for row, m, d, measured in zip(result.diagnostics.runs, models, self.columns,
                                        self.measurements, strict=True):  # fmt: skip
             try:
                 sim = simulate_values(m, n_sim, None, None, seed, measured)

@@ -72,12 +72,12 @@ def cycle_log_likelihood(
     if not isinstance(result, FitResult):
         raise ParameterError(owner, "result", "must be a FitResult (from fit)", type(result))
     d = result.diagnostics
-    n_sim = d["n_sim"] if n_sim is None else check_int(owner, "n_sim", n_sim, minimum=1000)
-    seed = d["seed"] if seed is None else check_int(owner, "seed", seed, minimum=0)
+    n_sim = d.n_sim if n_sim is None else check_int(owner, "n_sim", n_sim, minimum=1000)
+    seed = d.seed if seed is None else check_int(owner, "seed", seed, minimum=0)
     if data is None:
         cols = result.data
     else:
-        cols = check_data(data, measured=d["measurement"] is not None)
+        cols = check_data(data, measured=d.measurement is not None)
         if set(cols) != set(result.data):
             raise ParameterError(
                 owner, "data", f"must have the fit's columns ({', '.join(result.data)})",
@@ -104,8 +104,8 @@ def cycle_log_likelihood(
         raise ParameterError(
             owner, "params", f"do not make a {Model.__name__} ({type(err).__name__}: {err})"
         ) from None
-    terms = _per_cycle(model, cols, d["bandwidth"], n_sim, d["dt"], d["t_max"], seed,
-                       d["measurement"])  # fmt: skip
+    terms = _per_cycle(model, cols, d.bandwidth, n_sim, d.dt, d.t_max, seed,
+                       d.measurement)  # fmt: skip
     if terms is None:
         return np.full(next(iter(cols.values())).size, -np.inf)
     return np.sum([terms[k] for k in cols], axis=0)

@@ -19,6 +19,7 @@ def load_fit(path):
     a newer version, a field missing), naming the file and what is wrong; `PluginError`
     where its model is not installed."""
     from .._registry import get_model
+    from .diagnostics import FitDiagnostics
     from .goodness import GoodnessOfFit
     from .measurement import Measurement
     from .params import ToFit
@@ -51,12 +52,12 @@ def load_fit(path):
         for key in ("lines", "columns"):
             measurement[key] = tuple(measurement[key])
         measurement = Measurement(**measurement)
-    d = dict(document["diagnostics"])
-    d.update(measurement=measurement, observe=measurement, trace=measurement is not None,
-             sampling=None if measurement is None else measurement.sampling_interval,
-             to_fit=ToFit(d.get("scales", {})))  # fmt: skip
-    d["points"] = [(np.asarray(x, float), float(v)) for x, v in d.get("points", [])]
-    d["units"] = _units(document.get("units"), path)
+    d = FitDiagnostics.from_mapping(document["diagnostics"])
+    d.measurement, d.to_fit = measurement, ToFit(d.scales)
+    d.points = [(np.asarray(x, float), float(v)) for x, v in d.points]
+    if d.box is not None:
+        d.box = {k: tuple(v) for k, v in d.box.items()}
+    d.units = _units(document.get("units"), path)
     goodness = document["goodness"]
     if goodness is not None:
         for key in ("replicates", "data", "reference"):

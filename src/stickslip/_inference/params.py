@@ -168,7 +168,7 @@ def to_fit_coords(scale, x):
 @dataclasses.dataclass(frozen=True)
 class ToFit:
     """`(name, x) -> u`: a free parameter's values in fit coordinates (log for a box with
-    a positive lower end), as `FitResult.diagnostics["to_fit"]`; picklable (a fit crosses
+    a positive lower end), as `FitResult.diagnostics.to_fit`; picklable (a fit crosses
     to and from worker processes)."""
 
     scales: dict[str, str]

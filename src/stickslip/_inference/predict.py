@@ -85,7 +85,7 @@ def predict(result, run=None, *, stiffness=None, v_b=None, n_sim=None, seed=None
     from ..units import Slider
     from .params import model_kwargs
 
-    slider = result.diagnostics.get("units")
+    slider = result.diagnostics.units
     if not isinstance(slider, Slider):
         raise ParameterError(
             OWNER, "result", "must be a fit in physical units: fit(..., cycles, scales="
@@ -106,9 +106,9 @@ def predict(result, run=None, *, stiffness=None, v_b=None, n_sim=None, seed=None
     stiffness = check_positive(OWNER, "stiffness", stiffness)
     v_b = check_positive(OWNER, "v_b", v_b)
     d = result.diagnostics
-    n_sim = d["n_sim"] if n_sim is None else check_int(OWNER, "n_sim", n_sim, minimum=100)
+    n_sim = d.n_sim if n_sim is None else check_int(OWNER, "n_sim", n_sim, minimum=100)
     # a seed other than the fit's: the check does not reuse the draws it was tuned on
-    seed = int(d["seed"]) + 1 if seed is None else check_int(OWNER, "seed", seed, minimum=0)
+    seed = int(d.seed) + 1 if seed is None else check_int(OWNER, "seed", seed, minimum=0)
     params = model_kwargs(result.model)
     si = slider.si_parameters({k: v for k, v in params.items() if k in _PHYSICAL})
     si.pop("v_b", None)

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from .diagnostics import FitDiagnostics
 from .forward import simulate_values
 from .surface import DESIGN_STEP
 
@@ -20,16 +21,17 @@ class FitResult:
     - `log_likelihood`: at the estimate (of the data's transformed values plus the
       Jacobian of the log scale: a density of the data themselves);
     - `method`: what was done, in words;
-    - `diagnostics`: the settings (`n_sim`, `dt`, `t_max`, `seed`, bandwidths,
-      `measurement`: the data's `Measurement`, `None` for per-cycle values), the
-      covariance and Hessian (fit coordinates), every evaluated point, the evaluations and
-      seconds spent, `optimizer` (Nelder-Mead's evaluations and cap), `design` (the axes
-      clipped at the box, whether the polynomial had a vertex, its `centre`, `steps`,
+    - `diagnostics`: a `FitDiagnostics` (also read as a mapping, `diagnostics["n_sim"]`):
+      the settings (`n_sim`, `dt`, `t_max`, `seed`, bandwidths, `measurement`: the data's
+      `Measurement`, `None` for per-cycle values, `box`: the search box), the covariance
+      and Hessian (fit coordinates), every evaluated point, the evaluations and seconds
+      spent, `optimizer` (Nelder-Mead's evaluations and cap), `design` (a `Design`: the
+      axes clipped at the box, whether the polynomial had a vertex, its `centre`, `steps`,
       `points` and their `values` at both `seeds`, in fit coordinates, and, where small
-      enough, the cycles simulated there, which `compare_fits` reuses), `mc_noise` (the second
-      seed, the Monte Carlo sd of the estimate against its standard error, the `n_sim`
-      advised), `zero_fraction` (of each duration column), and `warnings` (each also
-      issued as a one-line `UserWarning`);
+      enough, the cycles simulated there, which `compare_fits` reuses), `mc_noise` (the
+      second seed, the Monte Carlo sd of the estimate against its standard error, the
+      `n_sim` advised), `zero_fraction` (of each duration column), and `warnings` (each
+      also issued as a one-line `UserWarning`);
     - `goodness`: the `GoodnessOfFit` of the fitted model against the data (`fit`'s
       `check=True`), and `p_values` from it (`None` with `check=False`).
     """
@@ -38,10 +40,14 @@ class FitResult:
     ci: dict[str, tuple[float, float]]
     log_likelihood: float
     method: str
-    diagnostics: dict[str, Any]
+    diagnostics: FitDiagnostics
     data: dict[str, np.ndarray] = dataclasses.field(repr=False)
     model: Any = dataclasses.field(repr=False)
     goodness: Any = dataclasses.field(default=None, repr=False)
+
+    def __post_init__(self):
+        if not isinstance(self.diagnostics, FitDiagnostics):  # a mapping of its fields
+            object.__setattr__(self, "diagnostics", FitDiagnostics.from_mapping(self.diagnostics))
 
     @property
     def p_values(self) -> dict[str, float] | None:
@@ -65,13 +71,13 @@ class FitResult:
         if self.p_values is not None:
             shown = ", ".join(f"{k} p = {p:.3g}" for k, p in self.p_values.items())
             lines.append(f"goodness of fit ({self.goodness.n_rep} replicates): {shown}")
-        for run in self.diagnostics.get("runs") or ():
+        for run in self.diagnostics.runs or ():
             shown = ", ".join(f"{k} p = {p:.3g}" for k, p in run.get("p_values", {}).items())
             why = f" ({run['unresolved']})" if run.get("unresolved") else ""
             lines.append(f"  {run['name']}: k = {run['stiffness']:.6g} N/m, V = "
                          f"{run['v_b']:.4g} m/s, {run['cycles']} cycles"
                          + (f"; KS {shown}{why}" if shown else ""))  # fmt: skip
-        lines += [f"warning: {w}" for w in self.diagnostics.get("warnings", ())]
+        lines += [f"warning: {w}" for w in self.diagnostics.warnings]
         return "\n".join(lines)
 
     def predict(self, run=None, *, stiffness=None, v_b=None, n_sim=None, seed=None):
@@ -109,9 +115,9 @@ class FitResult:
         fit's) their seed: for a predictive check take one other than the fit's, so that
         the comparison does not reuse the draws the estimate was tuned on."""
         d = self.diagnostics
-        sim = simulate_values(self.model, d["n_sim"] if n_sim is None else int(n_sim), d["dt"],
-                        d["t_max"], d["seed"] if seed is None else int(seed),
-                        d["measurement"])  # fmt: skip
+        sim = simulate_values(self.model, d.n_sim if n_sim is None else int(n_sim), d.dt,
+                        d.t_max, d.seed if seed is None else int(seed),
+                        d.measurement)  # fmt: skip
         return {k: np.asarray(sim[k], float) for k in self.data}
 
     def plot(self, path=None, n_sim: int | None = None):
@@ -142,19 +148,19 @@ class FitResult:
             ax.legend(fontsize=7)
             if self.p_values is not None:
                 ax.set_title(f"{k}: p = {self.p_values[k]:.3g}", fontsize=9)
-        pts = np.array([p[0] for p in d["points"]])
-        ll = np.array([p[1] for p in d["points"]])
+        pts = np.array([p[0] for p in d.points])
+        ll = np.array([p[1] for p in d.points])
         for i, (ax, name) in enumerate(zip(axes[len(kinds) :], free, strict=True)):
-            u = d["to_fit"](name, pts[:, i])
+            u = d.to_fit(name, pts[:, i])
             ax.plot(u, ll, ".", ms=3, color="0.6", label="evaluated")
-            u0 = d["to_fit"](name, self.estimate[name])
+            u0 = d.to_fit(name, self.estimate[name])
             grid = np.linspace(u0 - 3 * DESIGN_STEP, u0 + 3 * DESIGN_STEP, 50)
-            H = np.asarray(d["hessian"])
+            H = np.asarray(d.hessian)
             ax.plot(
                 grid, self.log_likelihood + 0.5 * H[i, i] * (grid - u0) ** 2, "-", label="quadratic"
             )
             ax.set_ylim(self.log_likelihood - 20, self.log_likelihood + 2)
-            ax.set_xlabel(f"{d['scales'][name]} {name}")
+            ax.set_xlabel(f"{d.scales[name]} {name}")
             ax.set_ylabel("log-likelihood")
             ax.legend(fontsize=7)
         fig.tight_layout()

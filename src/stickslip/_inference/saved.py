@@ -26,7 +26,7 @@ VERSION = 1
 # What of `diagnostics` is written (the rest is rebuilt: `to_fit` from the scales, the
 # measurement's aliases `observe`, `trace` and `sampling` from it).
 _KEPT = ("n_sim", "dt", "t_max", "seed", "n_data", "zero_fraction", "bandwidth", "scales",
-         "covariance", "hessian", "evaluations", "points", "seconds", "warnings",
+         "box", "covariance", "hessian", "evaluations", "points", "seconds", "warnings",
          "optimizer", "design", "mc_noise", "dependence", "runs")  # fmt: skip
 # The SI mapping a fit was given (`scales=`), by its class.
 UNITS = ("Slider", "Scales")
@@ -64,12 +64,12 @@ def save_fit(result, path) -> pathlib.Path:
             "FitResult.save", "model", f"has parameters JSON cannot hold ({err}); a model "
             "whose parameters are numbers, strings, lists and dicts can be saved",
         ) from None  # fmt: skip
-    design = dict(d.get("design") or {})
+    design = dict(d.design or {})
     design["samples"] = None  # simulated again where needed (the same cycles)
-    diagnostics = {k: d[k] for k in _KEPT if k in d}
+    diagnostics = {k: getattr(d, k) for k in _KEPT if getattr(d, k) is not None}
     diagnostics["design"] = design
-    measurement = d.get("measurement")
-    units = d.get("units")
+    measurement = d.measurement
+    units = d.units
     if units is not None:
         units = dict(dataclasses.asdict(units), kind=type(units).__name__)
     document = dict(

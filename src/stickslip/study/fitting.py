@@ -365,13 +365,13 @@ def _record(result, params: dict, model_name: str) -> dict:
         goodness_method=None if result.goodness is None else result.goodness.method,
         fixed=jsonable({k: v for k, v in params.items() if k not in result.estimate}),
         settings={k: d[k] for k in ("n_sim", "dt", "t_max", "seed", "n_data")},
-        measurement=jsonable(d.get("measurement")),
-        covariance=d["covariance"],
-        evaluations=d["evaluations"],
-        optimizer=jsonable(d["optimizer"]),
-        mc_noise=jsonable(d["mc_noise"]),
-        seconds=d["seconds"],
-        warnings=d["warnings"],
+        measurement=jsonable(d.measurement),
+        covariance=d.covariance,
+        evaluations=d.evaluations,
+        optimizer=jsonable(d.optimizer),
+        mc_noise=jsonable(d.mc_noise),
+        seconds=d.seconds,
+        warnings=d.warnings,
     )
 
 
@@ -455,9 +455,9 @@ def _fit_lines(result, scales) -> list[str]:
         lines += [f"| {k} | {p:.3g} |" for k, p in result.p_values.items()]
         lines += [""]
     lines += [_verdict(result), ""]
-    lines += [f"log-likelihood {result.log_likelihood:.2f}; {d['evaluations']} points "
-              f"evaluated in {d['seconds']:.1f} s; data: "
-              + ", ".join(f"{n} {k}" for k, n in d["n_data"].items()), ""]  # fmt: skip
+    lines += [f"log-likelihood {result.log_likelihood:.2f}; {d.evaluations} points "
+              f"evaluated in {d.seconds:.1f} s; data: "
+              + ", ".join(f"{n} {k}" for k, n in d.n_data.items()), ""]  # fmt: skip
     return lines
 
 
@@ -472,7 +472,7 @@ def write_fit(result, study, out: pathlib.Path, force: bool, scales=None):
         result.plot(tmp / "fit.png")
         title = study.title or f"Fit of {study.model.name}"
         lines = [f"# {title}", "", *_fit_lines(result, scales)]
-        lines += [f"- warning: {w}" for w in result.diagnostics["warnings"]]
+        lines += [f"- warning: {w}" for w in result.diagnostics.warnings]
         lines += ["", "![fit](fit.png)", ""]
         (tmp / "summary.md").write_text("\n".join(lines))
         replace_file(tmp, out, force)
@@ -575,7 +575,7 @@ def write_comparison(comparison, study, out: pathlib.Path, force: bool, scales=N
         lines += ["", "## Warnings", ""]
         said = [f"- model choice: {w}" for w in comparison.warnings]
         for name, r in comparison.fits.items():
-            said += [f"- {name}: {w}" for w in r.diagnostics["warnings"]]
+            said += [f"- {name}: {w}" for w in r.diagnostics.warnings]
         lines += said or ["none"]
         lines += ["", "![candidates against the data](candidates.png)", ""]
         lines += [f"![{chosen}](fit.png)", ""]
