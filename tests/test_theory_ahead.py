@@ -67,42 +67,45 @@ def test_open_grid_is_not_computed_ahead():
     assert runner._theory_ahead(point, loaded) is None
 
 
-def test_warnings_stay_with_the_thread_that_raised_them(monkeypatch):
+def test_notes_stay_with_the_thread_that_made_them(monkeypatch):
+    """A thread collecting notes takes its own; another thread's notes are warnings, shown
+    as the filters say; `warnings` itself is left as it was."""
+    from stickslip._notes import collecting_notes, note
+
     shown, caught = [], {}
     inside, done = threading.Event(), threading.Event()
     hook = lambda message, *args, **kwargs: shown.append(str(message))  # noqa: E731
     monkeypatch.setattr(warnings, "filters", [("ignore", None, ResourceWarning, None, 0)])
     monkeypatch.setattr(warnings, "showwarning", hook)
     warnings._filters_mutated()
+    filters = list(warnings.filters)
 
     def theory():
-        with measure._recorded() as mine:
-            warnings.warn("note", UserWarning, stacklevel=1)
+        with collecting_notes() as mine:
+            note("note", ss.ApproximationWarning)
             inside.set()
             done.wait(5)
-            warnings.warn("note", UserWarning, stacklevel=1)  # (again: every one is recorded)
-        caught["theory"] = [str(w.message) for w in mine]
+            note("note", ss.ApproximationWarning)  # (again: every one is kept)
+        caught["theory"] = [(str(n), n.category) for n in mine]
 
     thread = threading.Thread(target=theory)
     thread.start()
     inside.wait(5)
-    warnings.warn("simulation", UserWarning, stacklevel=1)  # (another thread's: shown as before)
-    warnings.warn("hidden", ResourceWarning, stacklevel=1)  # (ignored, as the filters say)
+    note("simulation", UserWarning)  # (another thread's: shown as before)
+    note("hidden", ResourceWarning)  # (ignored, as the filters say)
     done.set()
     thread.join()
-    assert caught["theory"] == ["note", "note"]
+    assert caught["theory"] == [("note", ss.ApproximationWarning)] * 2
     assert shown == ["simulation"]
-    assert warnings.showwarning is hook and warnings.filters[0][2] is ResourceWarning
+    assert warnings.showwarning is hook and warnings.filters == filters
 
 
-def test_without_the_per_thread_hook_the_theory_runs_after_the_simulation(monkeypatch):
-    """A Python whose `warnings` lacks the private hook `_recorded` sorts warnings with: no
-    theory thread, captures by `catch_warnings`; the numbers and notes of the threaded run."""
+def test_the_theory_after_the_simulation_gives_the_threaded_numbers_and_notes(monkeypatch):
+    """Without the theory thread (`_theory_ahead` starting none), the numbers and notes
+    of the threaded run."""
     threaded = ss.run_study(study(), progress=False)
-    monkeypatch.setattr(measure, "PER_THREAD", False)
     started = []
-    ahead = runner._theory_ahead
-    monkeypatch.setattr(runner, "_theory_ahead", lambda p, s: started.append(ahead(p, s)))
+    monkeypatch.setattr(runner, "_theory_ahead", lambda p, s: started.append(None))
     plain = ss.run_study(study(), progress=False)
     assert started == [None]
     for name in threaded.variables:
@@ -112,7 +115,3 @@ def test_without_the_per_thread_hook_the_theory_runs_after_the_simulation(monkey
                 == np.asarray(plain[name].values).tobytes()
             ), name
     assert plain.attrs["warnings"] == threaded.attrs["warnings"]
-    with measure._recorded() as caught:
-        warnings.warn("note", UserWarning, stacklevel=1)
-        warnings.warn("note", UserWarning, stacklevel=1)
-    assert [str(w.message) for w in caught] == ["note", "note"]

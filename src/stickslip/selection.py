@@ -705,12 +705,12 @@ def _checked_analytic(model, rows, tolerance, speed, pilot, output, mc) -> list[
 
 def _analytic_cells(model, settings, output, edges) -> np.ndarray:
     """One approximation as cell averages (as the accuracy-cost benchmark computes them)."""
-    from ._estimate import ApproximationWarning, CrossingEstimator
+    from ._estimate import CrossingEstimator
+    from ._notes import collecting_notes
 
     est = CrossingEstimator(model, progress=False)
     args = (settings["method"], settings["order"], settings["normalized"])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ApproximationWarning)
+    with collecting_notes():  # (its notes dropped: thread-safe, unlike catch_warnings)
         if output == "slip_time":
             return est.first_passage_cells(edges, *args)
         return np.asarray(est.period_density(0.5 * (edges[1:] + edges[:-1]), *args), float)
@@ -760,12 +760,12 @@ def first_passage_density(
     h = step.mean()
     edges = np.concatenate([t - h / 2, [t[-1] + h / 2]])
     if choice.kind == "analytic":
-        from ._estimate import ApproximationWarning, CrossingEstimator
+        from ._estimate import CrossingEstimator
+        from ._notes import collecting_notes
 
         est = CrossingEstimator(model)
         args = (s["method"], s["order"], s["normalized"])
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", ApproximationWarning)
+        with collecting_notes():  # (its notes dropped: thread-safe, unlike catch_warnings)
             if output == "slip_time":
                 # Cell averages, as the histogram of a Monte Carlo choice (no mass below 0).
                 inside = np.maximum(edges, 0.0)

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import warnings
 from types import MappingProxyType
 from typing import Any
 
@@ -539,10 +538,10 @@ def _check_methods(model, methods, t_max, fast, white, noiseless, window, window
     `diagnostics[key]`. Returns the probability of an immediate stick and the window's mass
     (the estimator's, `1 - p0`, for white noise)."""
     if methods:
-        from ._estimate import ApproximationWarning, CrossingEstimator
+        from ._estimate import CrossingEstimator
+        from ._notes import collecting_notes
 
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", ApproximationWarning)
+        with collecting_notes():  # (its notes dropped: thread-safe, unlike catch_warnings)
             dt = min(DIAGNOSTICS_DT, fast / DIAGNOSTICS_PER_SCALE)
             est = CrossingEstimator(model, dt=dt)
             p0 = est.immediate_probability

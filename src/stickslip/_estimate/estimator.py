@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import warnings
 
 import numpy as np
 
 from .._errors import ParameterError, check_choice, check_int, check_positive
 from .._jax import jax
 from .._model import CreepingSlider, FrictionModel, time_scales, to_arrays
+from .._notes import collecting_notes, note
 from . import gaussian as G
 from . import series
 from .sources import EmpiricalSource, GaussianSource
@@ -447,8 +447,7 @@ class CrossingEstimator:
             )
         args = (method, order, normalized)
         x = _floats("quadrature_error", "x", x)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", ApproximationWarning)
+        with collecting_notes():  # (the twin's notes are the estimate's own: not repeated)
             if kind == "slip_time":
                 a = self.first_passage_cells(x, *args)
                 b = self._twin.first_passage_cells(x, *args)
@@ -504,7 +503,7 @@ class CrossingEstimator:
     def _grid_end(self, t_max):
         t_end = self.dt * math.ceil(max(t_max, self.dt) / self.dt - 1e-9)
         if t_end > self.t_complete:
-            warnings.warn(
+            note(
                 f"the recorded upcrossings are complete only up to t = {self.t_complete:.4g} "
                 f"(some paths reached the cap); estimates beyond it are biased low",
                 ApproximationWarning,
@@ -517,14 +516,14 @@ class CrossingEstimator:
         scale = max(1.0, float(np.max(np.abs(F)))) if F.size else 1.0
         neg = F < -1e-12 * scale
         if neg.any():
-            warnings.warn(
+            note(
                 f"{name}: density negative on t in [{grid[neg][0]:.4g}, {grid[neg][-1]:.4g}] "
                 f"(min {F.min():.4g}); returned unclipped",
                 ApproximationWarning,
                 stacklevel=3,
             )
         if method == "decoupling" and info["escape_rate_min"] < 0:
-            warnings.warn(
+            note(
                 f"{name}: negative escape rate (min {info['escape_rate_min']:.4g}); the "
                 "approximation is not a density there",
                 ApproximationWarning,
@@ -532,7 +531,7 @@ class CrossingEstimator:
             )
         total = float(self._source.w.sum())
         if method == "truncation" and not normalized and info["mass"][-1] > total + MASS_TOL:
-            warnings.warn(
+            note(
                 f"{name}: integrates to {float(info['mass'][-1]):.4g} by t = {grid[-1]:.4g}, "
                 f"more than the {total:.4g} of slipping paths: a truncation counts later "
                 "upcrossings too",
@@ -540,7 +539,7 @@ class CrossingEstimator:
                 stacklevel=3,
             )
         if order == 2 and info.get("grid_gap", 0.0) > MASS_TOL:
-            warnings.warn(
+            note(
                 f"{name}: dt = {self.dt:g} does not resolve n1's onset transient (the trapezoid "
                 f"rule misses its integral by {info['grid_gap']:.2g} relative); the second-order "
                 "integrals on this grid are as coarse: take a shorter dt",
@@ -549,7 +548,7 @@ class CrossingEstimator:
             )
         if normalized and info["t_n"] is None:
             mass = float(info["mass"][-1])
-            warnings.warn(
+            note(
                 f"normalised truncation (order {order}): the density integrates to only "
                 f"{mass:.4g} by t = {grid[-1]:.4g}, so it is not cut",
                 ApproximationWarning,
@@ -735,7 +734,7 @@ class CrossingEstimator:
         out = cells / np.diff(edges)
         name = f"{method} order {order}"
         if (out < 0).any():
-            warnings.warn(
+            note(
                 f"{name}: {kind} density negative in places "
                 f"(min {out.min():.4g}); returned unclipped",
                 ApproximationWarning,
@@ -752,7 +751,7 @@ class CrossingEstimator:
         carries more than the slipping paths (it counts later upcrossings)."""
         carried, held = float(all_mass.sum()), float(cells.sum())
         if carried - held > MASS_TOL:
-            warnings.warn(
+            note(
                 f"{name}: the {kind} cells [{edges[0]:.4g}, {edges[-1]:.4g}] hold {held:.4g} "
                 f"of the {carried:.4g} it carries: widen them",
                 ApproximationWarning,
@@ -762,7 +761,7 @@ class CrossingEstimator:
             expected = float(self._series(self._grid_end(self._horizon()), method, order,
                                           normalized)[2]["mass"][-1])  # fmt: skip
             if abs(carried - expected) > MASS_TOL:
-                warnings.warn(
+                note(
                     f"{name}: the {kind} density carries {carried:.4g}, the slip-time density "
                     f"{expected:.4g}: dt = {self.dt:g} does not resolve its second-order "
                     "integrals (a shorter dt does)",
@@ -771,7 +770,7 @@ class CrossingEstimator:
                 )
         total = float(self._source.w.sum())
         if method == "truncation" and carried > total + MASS_TOL:
-            warnings.warn(
+            note(
                 f"{name}: the {kind} density carries {carried:.4g}, more than the "
                 f"{total:.4g} of slipping paths: a truncation counts later upcrossings too",
                 ApproximationWarning,
@@ -892,16 +891,14 @@ class CrossingEstimator:
         sampling error: zeros."""
         method = getattr(self, name)
         if not isinstance(self._source, EmpiricalSource):
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", ApproximationWarning)
+            with collecting_notes():  # (its notes are the estimate's own: not repeated)
                 return np.zeros(np.shape(method(*args)))
         up, B = self._upcrossings, self.error_groups
         group = np.arange(up.n_paths) % B
         horizon = self._horizon()
         values = []
-        with warnings.catch_warnings():
+        with collecting_notes():
             # the estimate itself reports its warnings; B near-copies of them add nothing
-            warnings.simplefilter("ignore", ApproximationWarning)
             for b in range(B):
                 keep = group != b
                 part = dataclasses.replace(up, **{f: getattr(up, f)[keep] for f in up.PER_PATH})

@@ -5,17 +5,14 @@ assembles them; both use this module."""
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import math
-import pathlib
-import threading
 import time
-import warnings
 from typing import Any
 
 import numpy as np
 
+from .._notes import collecting_notes
 from .schema import Study
 
 # A random onset's quadrature error (L1, nodes doubled) above this is reported.
@@ -59,7 +56,8 @@ def theory_density(point: Point, analytic, q: str, edges: np.ndarray):
     est = point.exact if estimator_source(point.study, analytic) == "exact" else point.empirical
     centres = 0.5 * (edges[1:] + edges[:-1])
     t0 = time.perf_counter()
-    with _recorded() as caught:
+    with collecting_notes() as caught:  # (this thread's: the theory may run beside the
+        # simulations, `run._theory_ahead`)
         args = (analytic.method, analytic.order, analytic.normalized)
         if q == "slip_time":
             values = est.first_passage_cells(edges, *args)
@@ -78,99 +76,6 @@ def theory_density(point: Point, analytic, q: str, edges: np.ndarray):
             )
     seconds = time.perf_counter() - t0
     return np.asarray(values, float), seconds, notes
-
-
-# `_recorded` sorts warnings by thread through `warnings`' private display hook (CPython
-# 3.11-3.13 have it). Where a Python lacks it, a capture is a plain `catch_warnings` and a
-# study computes its theory after its simulations, not beside them (`run._theory_ahead`):
-# the same numbers and notes, only later.
-_HOOKS = ("_showwarnmsg_impl", "_filters_mutated", "_showwarning_orig")
-PER_THREAD = all(hasattr(warnings, name) for name in _HOOKS)
-# the warnings caught per thread, and what the first capture replaced
-_SHOW = getattr(warnings, "_showwarnmsg_impl", None)
-_capture_lock = threading.Lock()
-_captured: dict[int, list] = {}
-_replaced: list = []
-
-
-def _dispatch(message) -> None:
-    """`warnings`' display hook while a capture is open: a capturing thread's warnings go
-    to its list, the others' are shown as before."""
-    caught = _captured.get(threading.get_ident())
-    if caught is not None:
-        caught.append(message)
-        return
-    if not _replaced:  # (left installed by a `catch_warnings` entered during a capture)
-        _SHOW(message)
-        return
-    filters, impl, show = _replaced[0]
-    action = _action(message, filters)
-    if action == "ignore":
-        return
-    if action == "error":
-        raise message.message
-    if show is not warnings._showwarning_orig:  # (a hook of the user's, as `warnings` calls it)
-        m = message
-        show(m.message, m.category, m.filename, m.lineno, m.file, m.line)
-    else:
-        impl(message)
-
-
-def _action(message, filters) -> str:
-    """What `filters` (the ones a capture replaced) do with another thread's warning: the
-    first that matches its text, category, module (read off its file name) and line.
-    ("default" and "once" show it each time: the registries of shown warnings are not
-    kept for these few warnings of a capture's time.)"""
-    text = str(message.message)
-    module = pathlib.Path(message.filename or "").stem
-    for action, msg, category, mod, lineno in filters:
-        if (
-            (msg is None or msg.match(text))
-            and issubclass(message.category, category)
-            and (mod is None or mod.match(module))
-            and (not lineno or lineno == message.lineno)
-        ):
-            return action
-    return warnings.defaultaction
-
-
-@contextlib.contextmanager
-def _recorded():
-    """`warnings.catch_warnings(record=True)` with every warning recorded ("always"), for
-    this thread's warnings only: the theory of a point is computed in a thread while the
-    simulations run (`run._theory_ahead`), and `catch_warnings` would record their
-    warnings too, and, entered from two threads, restore the wrong filters. (Without the
-    hook, `PER_THREAD` false: `catch_warnings` itself; no theory thread runs then.)"""
-    if not PER_THREAD:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            yield caught
-        return
-    caught: list = []
-    with _capture_lock:
-        if not _replaced:
-            _replaced.append(
-                (warnings.filters[:], warnings._showwarnmsg_impl, warnings.showwarning)
-            )
-            warnings.filters.insert(0, ("always", None, Warning, None, 0))
-            warnings._filters_mutated()
-            warnings._showwarnmsg_impl = _dispatch
-            warnings.showwarning = warnings._showwarning_orig
-        outer = _captured.get(threading.get_ident())  # (a capture inside a capture)
-        _captured[threading.get_ident()] = caught
-    try:
-        yield caught
-    finally:
-        with _capture_lock:
-            if outer is not None:
-                _captured[threading.get_ident()] = outer
-            else:
-                del _captured[threading.get_ident()]
-            if not _captured:
-                filters, impl, show = _replaced.pop()
-                warnings.filters[:] = filters
-                warnings._filters_mutated()
-                warnings._showwarnmsg_impl, warnings.showwarning = impl, show
 
 
 def cell_average_2d(f, edges, k: int = 2):

@@ -295,11 +295,10 @@ def _theory_ahead(point: Point, study: Study):
     ahead; else the thread (an error is left for `assemble` to meet again and raise)."""
     import threading
 
-    from . import measure
     from .measure import THEORY_DENSITIES, theory_density
 
     s, outs, grid = point.study, study.resolved_outputs(), study.grid
-    if point.exact is None or not s.analytic or not measure.PER_THREAD:
+    if point.exact is None or not s.analytic:
         return None
     # A grid left open may be read off the theory itself (`_theory_range`, before `assemble`):
     # the estimator would see its calls in another order.
