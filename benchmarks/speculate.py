@@ -2,10 +2,10 @@
 
     python benchmarks/speculate.py [--repeats 12] [--n-paths 10000 100000] [--dt 0.8]
 
-Exact stepping of the public reference set. In buffers of `driver.SPECULATE_BELOW` paths
+Exact stepping of the public reference set. In buffers of `host.SPECULATE_BELOW` paths
 or fewer the simulator steps on past a candidate step that ends below the stick level (as
 if refuted) and refines all such candidates at the end, each path's in step order
-(`driver.HostRun._chunk`): inside the stepping loop, up to `driver.PAST_SLOTS` candidates per
+(`host.HostRun._chunk`): inside the stepping loop, up to `host.PAST_SLOTS` candidates per
 path and call (`hybrid.SteppingPastHybrid`), and by the host between calls for the rest.
 Three ways: the baseline refines every candidate before stepping on (`SPECULATE_BELOW =
 0`); "host" steps past between calls only (`PAST_SLOTS = 0`, the scheme before
@@ -35,11 +35,11 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
 
     import stickslip as ss
-    from stickslip._simulate import driver
+    from stickslip._simulate import host
     from stickslip.selection import calibration_seconds
 
     model = ss.get_model("langevin")(**PUBLIC)
-    default = (driver.SPECULATE_BELOW, driver.PAST_SLOTS)
+    default = (host.SPECULATE_BELOW, host.PAST_SLOTS)
     ways = {
         "refine each first": (0, default[1]),
         f"step past, host (<= {default[0]})": (default[0], 0),
@@ -47,13 +47,13 @@ def main(argv=None) -> int:
     }
 
     def run(n, way, seed):
-        driver.SPECULATE_BELOW, driver.PAST_SLOTS = way
+        host.SPECULATE_BELOW, host.PAST_SLOTS = way
         try:
             start = time.perf_counter()
             ens = ss.simulate(model, n, args.dt, 100.0, seed=seed, solver="exact", progress=False)
             return time.perf_counter() - start, ens
         finally:
-            driver.SPECULATE_BELOW, driver.PAST_SLOTS = default
+            host.SPECULATE_BELOW, host.PAST_SLOTS = default
 
     print(f"public set, exact stepping, dt = {args.dt}, calibration "
           f"{calibration_seconds() * 1e3:.1f} ms")  # fmt: skip

@@ -265,7 +265,7 @@ def test_the_cycles_prefetch_compiles_what_the_cycles_then_run(empty_cache):
     from stickslip._simulate.cycles import prefetch_cycles
 
     def made():
-        names = ("driver._onset", "driver._advance", "cycles._record")
+        names = ("steps.onset", "steps.advance", "cycles._record")
         counts = {_compile._name(f): n for f, (_, n) in _compile._compiled_seconds.items()}
         return {k: v for k, v in counts.items() if k.endswith(names)}
 

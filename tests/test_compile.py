@@ -86,7 +86,7 @@ def test_a_repeated_run_looks_up_its_loops_by_a_cheap_key(monkeypatch):
     again = ss.get_model("langevin")(**WHITE, tau=0.1)
     ens = ss.simulate(again, 3000, 0.4, 20.0, seed=2)
     assert ens.stats["candidates"] > 1000  # the refinement ran
-    assert not {"_advance", "refine_levels"} & set(seen), seen
+    assert not {"advance", "refine_levels"} & set(seen), seen
 
 
 def test_a_repeated_run_passes_its_model_arrays_already_on_the_device(monkeypatch):
@@ -107,7 +107,7 @@ def test_a_repeated_run_passes_its_model_arrays_already_on_the_device(monkeypatc
     for seed in (1, 2):
         made.clear()
         ss.simulate(ss.get_model("langevin")(**WHITE, tau=0.1), 1000, 0.8, 20.0, seed=seed)
-        runs.append([f.leaves for f in made if f.fn.__name__ == "_advance"][0])
+        runs.append([f.leaves for f in made if f.fn.__name__ == "advance"][0])
     first, second = runs
     assert len(first) > 10 and all(isinstance(x, jax.Array) for x in first + second)
     assert all(a is b for a, b in zip(first, second, strict=True))
@@ -371,9 +371,9 @@ def test_quick_programs_give_the_numbers_of_optimised_ones(monkeypatch):
     default fusion emitters instead (kept apart on disk: the options are in the key), they
     give the same sticks, slips and trajectories to the last bit: an Euler run (cubic stick
     location) and an exact one, and a cycle series."""
-    from stickslip._simulate import cycles, driver
+    from stickslip._simulate import cycles, steps
 
-    assert {_compile._name(f) for f in (driver._onset, driver._locate, cycles._record)} <= (
+    assert {_compile._name(f) for f in (steps.onset, steps.locate, cycles._record)} <= (
         _compile._quick
     )
 
@@ -381,7 +381,7 @@ def test_quick_programs_give_the_numbers_of_optimised_ones(monkeypatch):
         mlir_module_serialized = b"module"
 
     leaves = [np.zeros(3)]
-    quick_file = _compile._executable_file(Module, leaves, _compile._options(driver._onset))
+    quick_file = _compile._executable_file(Module, leaves, _compile._options(steps.onset))
     assert quick_file != _compile._executable_file(Module, leaves, _compile._OWN_KEY)
     model = ss.get_model("langevin")(**WHITE, tau=0.1)
 

@@ -57,7 +57,7 @@ def test_a_longer_run_records_on_a_compiled_size(series, Langevin, monkeypatch, 
     runs hold are recorded alike, whatever solve and column each ran in. A stand-in asks
     the background compiler for the size itself (under its policy), as the stepping does."""
     from stickslip import _rng
-    from stickslip._simulate import cycles, driver
+    from stickslip._simulate import cycles, host
 
     monkeypatch.setenv("STICKSLIP_COMPILE", "reuse")
     counts = {k: ss.cache_info()[k] for k in ("traces", "compiles")}
@@ -71,7 +71,7 @@ def test_a_longer_run_records_on_a_compiled_size(series, Langevin, monkeypatch, 
         np.testing.assert_array_equal(X2[:n], X[:n])
     # The search itself, on a run whose recording solve is compiled at the sizes given.
     root = _rng.stream_key(_rng.seed_key(0), _rng.SERIES)
-    run = driver.HostRun("simulate_cycles", Langevin(**PUBLIC), "auto", "continuous", 0.005,
+    run = host.HostRun("simulate_cycles", Langevin(**PUBLIC), "auto", "continuous", 0.005,
                       300.0, root)  # fmt: skip
 
     class Compiled:

@@ -20,7 +20,7 @@ from test_exact_detection import PUBLIC, SECOND, _against_reference
 
 import stickslip as ss
 from stickslip._errors import ParameterError
-from stickslip._simulate import device, driver
+from stickslip._simulate import buffers, config, device
 
 T_MAX = {"public": 30.0, "second": 40.0}
 PARAMS = {"public": PUBLIC, "second": SECOND}
@@ -121,16 +121,16 @@ def test_scheduler_is_checked(Langevin):
 
 def test_auto_keeps_the_host_scheduler_on_a_cpu():
     """Measured on 2 cores (benchmarks/gpu_check.py): the host scheduler is the faster there."""
-    backend = driver.jax.default_backend()
+    backend = config.jax.default_backend()
     expected = "host" if backend == "cpu" else "device"
-    assert driver._scheduler("simulate", "auto", "bridge") == expected
-    assert driver._scheduler("simulate", "auto", "grid") == "host"
+    assert config.choose_scheduler("simulate", "auto", "bridge") == expected
+    assert config.choose_scheduler("simulate", "auto", "grid") == "host"
 
 
 def test_buffer_ladders():
     """Each buffer an eighth of the one before, at most `MAX_SIZES`; the refinement's first
     holds the two halves of every candidate of a full queue (a small queue's only one)."""
-    assert (device.MIN_STEPPING, device.FINE) == (driver.MIN_BUFFER, driver.FINE_BUFFER)
+    assert (device.MIN_STEPPING, device.FINE) == (buffers.MIN_BUFFER, buffers.FINE_BUFFER)
     assert device.stepping_sizes(1024) == (1024, 128)
     assert device.stepping_sizes(2**20) == (2**20, 2**17, 2**14, 2**11)
     assert device.interval_sizes(1024) == (2048,)

@@ -115,7 +115,7 @@ def test_detector_choice(Langevin):
     # the four other detectors, each a program of its own); the first case runs, and says
     # it in the ensemble's `info`.
     from stickslip._rng import seed_key
-    from stickslip._simulate.driver import HostRun
+    from stickslip._simulate.host import HostRun
 
     for params, kwargs, detector in cases:
         model = Langevin(**params)
@@ -307,12 +307,12 @@ def test_compiled_refinement_is_the_depth_first_one(Langevin, dt, monkeypatch):
     the stick. The run's own candidates are mostly decided within a level or two, so the
     same candidates are refined again moved just below the level, where their halves stay
     open level after level and outgrow their buffer (`GROW`)."""
-    from stickslip._simulate import driver
+    from stickslip._simulate import host
 
     monkeypatch.setattr(bridge, "CAPACITIES", (256, 512))
     monkeypatch.setattr(bridge, "BATCH", 256)
     model = Langevin(**PUBLIC)
-    run = driver.HostRun("test", driver.to_arrays(model), "auto", "continuous", dt, 30.0,
+    run = host.HostRun("test", host.to_arrays(model), "auto", "continuous", dt, 30.0,
                       ss._rng.seed_key(5))  # fmt: skip
     got, statuses = [], []
     original, call = bridge.Refiner.first_crossing, bridge.Refiner._call
@@ -355,11 +355,11 @@ def test_compiled_refinement_is_the_depth_first_one(Langevin, dt, monkeypatch):
 
 def test_stepping_past_candidates_finds_the_same_sticks(Langevin, monkeypatch):
     """Small buffers step past candidate steps that end below the level and refine them all
-    at the end (`driver.SPECULATE_BELOW`): the same sticks, bit for bit, as refining each
+    at the end (`host.SPECULATE_BELOW`): the same sticks, bit for bit, as refining each
     candidate before stepping on (the scheme checked against the depth-first reference
     above), although some paths were stepped past the step that holds their stick."""
     from stickslip import _compile
-    from stickslip._simulate import driver
+    from stickslip._simulate import host
 
     # (each run on the buffers it wants: no other size stands in for its first one, so the
     # stepping calls counted below are each scheme's own)
@@ -367,11 +367,11 @@ def test_stepping_past_candidates_finds_the_same_sticks(Langevin, monkeypatch):
     model = Langevin(**PUBLIC)
     runs = []
     # Never; always, by the host between stepping calls; always, inside the stepping loop
-    # (up to 2 per path and call, `driver.PAST_SLOTS`; the host takes the rest: here ~40 %
+    # (up to 2 per path and call, `host.PAST_SLOTS`; the host takes the rest: here ~40 %
     # of the paths fill both slots in some call, ~20 % end a call just past one).
     for below, slots in ((0, 2), (1 << 30, 0), (1 << 30, 2)):
-        monkeypatch.setattr(driver, "SPECULATE_BELOW", below)
-        monkeypatch.setattr(driver, "PAST_SLOTS", slots)
+        monkeypatch.setattr(host, "SPECULATE_BELOW", below)
+        monkeypatch.setattr(host, "PAST_SLOTS", slots)
         runs.append(ss.simulate(model, 3000, 0.8, 30.0, seed=4, solver="exact", progress=False))
     each, *pasts = runs
     assert "speculated" not in each.stats
@@ -395,9 +395,9 @@ def test_stepped_past_candidates_are_settled_in_step_order(Langevin, monkeypatch
     the order recorded) that holds a crossing; a last candidate that ends at the level but
     whose refinement finds none (rounding) places the stick at its end; the miss bound is
     the stepping bound at the stick plus the refinements of the candidates up to it."""
-    from stickslip._simulate import driver
+    from stickslip._simulate import host
 
-    run = driver.HostRun("test", driver.to_arrays(Langevin(**PUBLIC)), "exact", "continuous",
+    run = host.HostRun("test", host.to_arrays(Langevin(**PUBLIC)), "exact", "continuous",
                       0.5, 30.0, ss._rng.seed_key(1))  # fmt: skip
     below, above = np.array([[0.5], [0.9], [0.0]]), np.array([[0.4], [1.0], [0.0]])
     # Path rows 0 and 1. Row 0: steps 2 (crossing found at 0.25), 5; row 1: steps 3, 4
@@ -431,13 +431,13 @@ def test_refinement_in_two_threads_is_the_one_thread_one(Langevin, monkeypatch):
     order (the one-thread refinement is checked against the depth-first reference above);
     and in one thread in several batches of equal size."""
     from stickslip import _compile
-    from stickslip._simulate import driver
+    from stickslip._simulate import host
 
     # (one chunk on its own buffer, refined in batches of the size wanted: no other size
     # stands in for them)
     monkeypatch.setattr(_compile, "STAND_IN", 0)
     model = Langevin(**PUBLIC)
-    run = driver.HostRun("test", driver.to_arrays(model), "auto", "continuous", 0.8, 30.0,
+    run = host.HostRun("test", host.to_arrays(model), "auto", "continuous", 0.8, 30.0,
                       ss._rng.seed_key(7))  # fmt: skip
     got = []
     original = bridge.Refiner.first_crossing

@@ -70,14 +70,14 @@ def test_linear_gaussian_is_numpy_for_numbers_and_traceable(Langevin, tau):
     """Of given parameters the description is plain NumPy (nothing for JAX to compile: the
     simulator then reads it without a compiled call), and of traced ones (a compiled caller,
     a gradient) it is the same arrays: the drift and diffusion at a traced omega0."""
-    from stickslip._simulate.driver import _traces_nothing
+    from stickslip._simulate.config import traces_nothing
 
     m = Langevin(**GOOD, tau=tau)
     lg = m.linear_gaussian()
     fields = ("A", "b", "B", "crossing", "position", "m0", "P0")
     assert all(type(getattr(lg, f)) is np.ndarray for f in fields)
-    assert _traces_nothing(m.linear_gaussian)
-    assert not _traces_nothing(lambda: jnp.eye(2))  # (a plugin's in JAX: one compiled call)
+    assert traces_nothing(m.linear_gaussian)
+    assert not traces_nothing(lambda: jnp.eye(2))  # (a plugin's in JAX: one compiled call)
 
     @jax.jit
     def traced(omega0):  # (as the simulator's compiled calls see a model: arrays as leaves)

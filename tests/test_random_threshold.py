@@ -72,7 +72,7 @@ def test_every_law_steps_on_the_plain_models_compiled_loop(RandomThreshold, Lang
     keys); only the release differs. That the numbers are the same: the zero-spread test
     above (bit for bit) and the slip-phase methods (here and in the model contract)."""
     from stickslip._rng import seed_key
-    from stickslip._simulate.driver import HostRun
+    from stickslip._simulate.host import HostRun
 
     def run(model):
         return HostRun("simulate", model, "auto", "continuous", 0.2, 20.0, seed_key(0))

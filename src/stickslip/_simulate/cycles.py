@@ -19,7 +19,9 @@ from .._jax import jnp
 from .._memory import check_memory
 from .._model import CreepingSlider, FrictionModel
 from .._model_check import explain
-from .driver import HostRun, next_pow2, stand_in, validate_args
+from .buffers import next_pow2, stand_in
+from .config import validate_args
+from .host import HostRun
 from .hybrid import INACTIVE, SLIPPING
 from .loop import solve
 

@@ -1,6 +1,6 @@
 """The device scheduler: the first passages of a chunk of paths in one compiled program.
 
-The host scheduler (`driver.HostRun._chunk`) runs a chunk as a sequence of short compiled calls
+The host scheduler (`host.HostRun._chunk`) runs a chunk as a sequence of short compiled calls
 with NumPy compaction, sorting and batch cutting in between: cheap on a CPU, where a call's
 results are zero-copy views, but on an accelerator every call and every read of a result is
 a wait (docs/performance.md, "On a GPU"). Here the whole chunk is one program:
@@ -13,7 +13,7 @@ a wait (docs/performance.md, "On a GPU"). Here the whole chunk is one program:
    a scatter. A path steps on past a candidate that ends below the level, and stops at one
    that ends at or above it (it holds a crossing) or at the horizon.
 2. *Compaction*: the stepping buffers form a ladder of sizes (each an eighth of the one
-   before, as `driver._smaller_buffer` below `FINE_BUFFER`); once the paths left fit the
+   before, as `buffers.smaller_buffer` below `FINE_BUFFER`); once the paths left fit the
    next one, they are gathered into it.
 3. *Refinement*: when the queue cannot take another step's candidates, or no path is left,
    the whole queue is refined by the bridge detector's level pass (`bridge.refine_levels`)
@@ -47,11 +47,11 @@ from . import bridge
 from .hybrid import onset_states
 
 _NONE = np.iinfo(np.int32).max  # "no stick found" (a step index no run reaches)
-MIN_STEPPING = 128  # smallest stepping buffer of the ladder (`driver.MIN_BUFFER`)
-FINE = 8192  # from here up the refinement has a ladder of buffers (`driver.FINE_BUFFER`)
+MIN_STEPPING = 128  # smallest stepping buffer of the ladder (`buffers.MIN_BUFFER`)
+FINE = 8192  # from here up the refinement has a ladder of buffers (`buffers.FINE_BUFFER`)
 MIN_INTERVALS = 256  # smallest interval buffer of the refinement ladder (`bridge.CAPACITIES`)
 MAX_SIZES = 4  # buffers of a ladder (the smallest of a large chunk costs little on a device)
-LADDER = 8  # ratio of consecutive buffer sizes (as `driver._smaller_buffer` below FINE_BUFFER)
+LADDER = 8  # ratio of consecutive buffer sizes (as `buffers.smaller_buffer` below FINE_BUFFER)
 # Refinement status of one span of the queue (besides `bridge.GO` and `bridge.DONE`): a level
 # would overflow the largest interval buffer; the span is then refined in halves.
 _FAIL = 4
@@ -84,7 +84,7 @@ def interval_sizes(n: int) -> tuple[int, ...]:
 
 def _onset(model, smooth, key, path):
     """The onset states of the paths' first cycle, their positions and the crossing
-    variable's rate there (as `driver._onset`: the same draws)."""
+    variable's rate there (as `steps.onset`: the same draws)."""
     return onset_states(model, smooth, _rng.path_keys(key, path, jnp.uint32(0)))
 
 
@@ -374,7 +374,7 @@ def _program(
 
 
 def first_passages(run, N, paths):
-    """`driver.HostRun._chunk` on the device scheduler: onset states, stick states, stick times,
+    """`host.HostRun._chunk` on the device scheduler: onset states, stick states, stick times,
     whether located, miss bounds and onset positions of the paths `paths` (one chunk, at most
     `N` paths: the buffer of the run's program), from one compiled call and one copy to the
     host."""

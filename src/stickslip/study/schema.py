@@ -661,7 +661,7 @@ class Study(Base):
         omega0 = 1e8 at dt = 0.2, or too fine for float64) is refused here, not after the run
         has started."""
         from .._errors import ParameterError
-        from .._simulate import driver
+        from .._simulate import config
 
         sim = self.simulation
         for loc, dt in (("simulation.dt", sim.dt), ("simulation.cycles.dt", sim.cycles.dt)):
@@ -671,7 +671,7 @@ class Study(Base):
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")  # (refusals only: the run warns)
                     # (the step's tables, kept for the run: ~4 ms)
-                    driver.check_exact_step("simulate", lg, dt, monitor=sim.monitor,
+                    config.check_exact_step("simulate", lg, dt, monitor=sim.monitor,
                                             smooth=smooth)  # fmt: skip
             except ParameterError as err:
                 where = "model.params" if err.parameter == "model" else loc
