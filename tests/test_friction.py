@@ -124,8 +124,8 @@ BAD = [
     ("stribeck", dict(static=1.0, coulomb=0.5, v_stribeck=0.0), "v_stribeck", "must be > 0"),
     ("stribeck", dict(static=1.0, coulomb=0.5, v_stribeck=0.1, delta=0.0), "delta", "> 0"),
     ("stribeck", dict(static=1.0, coulomb=0.5, v_stribeck=0.1, viscosity=-1), "viscosity", ">= 0"),
-    ("stribeck", dict(static=1.0, coulomb=0.5), "stribeck", "missing"),
-    ("coulomb", dict(static=1.0, kinetic=0.5, mu=0.1), "coulomb", "no parameter"),
+    ("stribeck", dict(static=1.0, coulomb=0.5), "v_stribeck", "is required by the stribeck law"),
+    ("coulomb", dict(static=1.0, kinetic=0.5, mu=0.1), "mu", "is not a parameter of the coulomb"),
     ("nope", {}, "law", "must be one of 'coulomb', 'viscous', 'velocity-weakening'"),
     (None, {}, "law", "must be one of"),
 ]

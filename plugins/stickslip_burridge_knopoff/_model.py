@@ -9,9 +9,10 @@ from typing import Any
 import equinox as eqx
 
 from stickslip import ParameterError
-from stickslip.friction import FrictionLaw, get_friction_law
+from stickslip.friction import FRICTION_LAWS, FrictionLaw
 from stickslip.plugin import (
     ChainModel,
+    build_named,
     check_choice,
     check_int,
     check_nonnegative,
@@ -77,13 +78,10 @@ class BurridgeKnopoff(ChainModel):
                 raise ParameterError(_NAME, "friction_params", "given with a friction law instance")
             self.friction = friction
         else:
-            try:
-                self.friction = get_friction_law(friction, **dict(friction_params or {}))
-            except ParameterError as err:  # name the chain's own fields
-                field = {"law": "friction", friction: "friction_params"}.get(
-                    err.parameter, f"friction_params.{err.parameter}"
-                )
-                raise ParameterError(_NAME, field, err.reason, err.value) from None
+            self.friction = build_named(
+                _NAME, "friction", FRICTION_LAWS, friction, friction_params,
+                params_field="friction_params",
+            )  # fmt: skip
         if threshold is None:
             if threshold_params:
                 raise ParameterError(_NAME, "threshold_params", "given without a threshold law")

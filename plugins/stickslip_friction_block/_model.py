@@ -5,13 +5,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping
 
 from stickslip_langevin import check_noise, check_rate, check_speed
 
 from stickslip import FrictionModel, ParameterError
-from stickslip.friction import FRICTION_LAWS, FrictionLaw, get_friction_law
-from stickslip.plugin import check_nonnegative, check_positive, check_real, jnp
+from stickslip.friction import FRICTION_LAWS, FrictionLaw
+from stickslip.plugin import build_named, check_nonnegative, check_positive, check_real, jnp
 
 _NAME = "friction-block"
 
@@ -149,23 +148,5 @@ def _make_law(friction, friction_params):
                 _NAME, "friction_params", "must be None when friction is a FrictionLaw instance"
             )
         return friction
-    params = {} if friction_params is None else friction_params
-    if not isinstance(params, Mapping) or not all(isinstance(key, str) for key in params):
-        raise ParameterError(
-            _NAME,
-            "friction_params",
-            "must be a dict of the law's parameters by name",
-            friction_params,
-        )
-    try:
-        return get_friction_law(friction, **params)
-    except ParameterError as exc:
-        if exc.owner == "friction" and exc.parameter == "law":  # unknown name
-            raise ParameterError(_NAME, "friction", exc.reason, friction) from None
-        if exc.owner == "friction":  # a missing or unknown law parameter
-            raise ParameterError(
-                _NAME, "friction_params", f"do not fit law '{friction}', which {exc.reason}"
-            ) from None
-        raise ParameterError(
-            _NAME, f"friction_params.{exc.parameter}", exc.reason, exc.value
-        ) from None
+    return build_named(_NAME, "friction", FRICTION_LAWS, friction, friction_params,
+                       params_field="friction_params")  # fmt: skip

@@ -11,7 +11,7 @@ import equinox as eqx
 import numpy as np
 
 from stickslip import ParameterError
-from stickslip.plugin import check_nonnegative, check_positive, check_real, jax, jnp
+from stickslip.plugin import build_named, check_nonnegative, check_positive, check_real, jax, jnp
 
 _NAME = "random-threshold"
 
@@ -250,32 +250,8 @@ def make_law(name, params) -> ThresholdLaw:
     """A threshold law from its name and parameters (a dict), with one-line errors."""
     if isinstance(name, ThresholdLaw):
         return name
-    if name not in THRESHOLD_LAWS:
-        options = ", ".join(repr(k) for k in THRESHOLD_LAWS)
-        raise ParameterError(_NAME, "threshold", f"must be one of {options}", name)
-    cls = THRESHOLD_LAWS[name]
-    import dataclasses
-
-    fields = [f.name for f in dataclasses.fields(cls)]
-    if params is not None and not (
-        isinstance(params, dict) and all(isinstance(k, str) for k in params)
-    ):
-        raise ParameterError(
-            _NAME, "threshold_params", "must be a dict of the law's parameters by name", params
-        )
-    params = dict(params or {})
-    for key in params:
-        if key not in fields:
-            raise ParameterError(
-                _NAME,
-                f"threshold_params.{key}",
-                f"is not a parameter of the {name} law ({', '.join(fields)})",
-            )
-    for key in fields:
-        if key not in params:
-            raise ParameterError(_NAME, f"threshold_params.{key}", f"is required by the {name} law")
-        params[key] = check_real(_NAME, f"threshold_params.{key}", params[key])
-    return cls(**params)
+    return build_named(_NAME, "threshold", THRESHOLD_LAWS, name, params,
+                       params_field="threshold_params", check_value=check_real)  # fmt: skip
 
 
 def describe(law: ThresholdLaw) -> str:

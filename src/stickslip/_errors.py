@@ -104,3 +104,50 @@ def check_int(owner: str, name: str, value: Any, *, minimum: int | None = None) 
     if minimum is not None and value < minimum:
         raise ParameterError(owner, name, f"must be >= {minimum}", value)
     return value
+
+
+def build_named(owner: str, field: str, table, name: Any, params: Any = None, *,
+                params_field: str | None = None, check_value=None, kind: str = "law"):  # fmt: skip
+    """An instance of the class `table[name]`, built from the parameters `params` (a
+    mapping by name, or None for none), each mistake one line that names `owner` and the
+    field: an unknown `name` (the known ones listed), `params` that are not a mapping by
+    name, a parameter the class does not take or one it needs without a default (its
+    parameters listed), and a `ParameterError` of the class's own checks, renamed to the
+    field. A parameter's field is `params_field.key` (just `key` without `params_field`).
+    `check_value(owner, field, value)`, if given, checks each value first (`check_real`).
+    `kind` is what messages call the classes ("law")."""
+    import inspect
+    from collections.abc import Mapping
+
+    prefix = f"{params_field}." if params_field else ""
+    where = params_field or field
+    try:
+        cls = table[name]
+    except (KeyError, TypeError):
+        options = ", ".join(repr(k) for k in table)
+        raise ParameterError(owner, field, f"must be one of {options}", name) from None
+    params = {} if params is None else params
+    if not (isinstance(params, Mapping) and all(isinstance(k, str) for k in params)):
+        raise ParameterError(owner, where, f"must be a dict of the {name} {kind}'s parameters "
+                             "by name", params)  # fmt: skip
+    kinds = (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
+    taken = [p for p in inspect.signature(cls).parameters.values() if p.kind in kinds]
+    takes = f"it takes {', '.join(str(p) for p in taken)}"
+    names = [p.name for p in taken]
+    for key in params:
+        if key not in names:
+            raise ParameterError(owner, prefix + key, f"is not a parameter of the {name} {kind} "
+                                 f"({takes})")  # fmt: skip
+    for p in taken:
+        if p.default is p.empty and p.name not in params:
+            raise ParameterError(owner, prefix + p.name, f"is required by the {name} {kind} "
+                                 f"({takes})")  # fmt: skip
+    values = dict(params)
+    if check_value is not None:
+        values = {k: check_value(owner, prefix + k, v) for k, v in values.items()}
+    try:
+        return cls(**values)
+    except ParameterError as err:  # the class's own checks, in the caller's terms
+        parameter = err.parameter or ""
+        named = parameter if not prefix or parameter.startswith(prefix) else prefix + parameter
+        raise ParameterError(owner, named, err.reason, err.value) from None

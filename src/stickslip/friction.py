@@ -13,7 +13,7 @@ import abc
 
 import equinox as eqx
 
-from ._errors import ParameterError, check_nonnegative, check_positive, check_real
+from ._errors import ParameterError, build_named, check_nonnegative, check_positive, check_real
 
 __all__ = [
     "FrictionLaw",
@@ -189,32 +189,4 @@ def get_friction_law(name: str | FrictionLaw, **params) -> FrictionLaw:
                 "friction", "law", "is a FrictionLaw instance: give its parameters to it, not here"
             )
         return name
-    try:
-        cls = FRICTION_LAWS[name]
-    except (KeyError, TypeError):
-        options = ", ".join(repr(k) for k in FRICTION_LAWS)
-        raise ParameterError("friction", "law", f"must be one of {options}", name) from None
-    import inspect
-
-    accepted = list(inspect.signature(cls.__init__).parameters)[1:]
-    for key in params:
-        if key not in accepted:
-            raise ParameterError("friction", name, f"takes {_signature(cls)}: no parameter '{key}'")
-    try:
-        return cls(**params)
-    except TypeError as exc:  # a missing parameter
-        import re
-
-        names = re.findall(r"'(\w+)'", str(exc)) if "missing" in str(exc) else []
-        text = f"missing {', '.join(names)}" if names else str(exc)
-        raise ParameterError("friction", name, f"takes {_signature(cls)}: {text}") from None
-
-
-def _signature(cls):
-    import inspect
-
-    return (
-        "("
-        + ", ".join(str(p) for p in list(inspect.signature(cls.__init__).parameters.values())[1:])
-        + ")"
-    )
+    return build_named("friction", "law", FRICTION_LAWS, name, params)

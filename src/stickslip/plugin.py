@@ -25,7 +25,9 @@ class MyBlock(FrictionModel):
 
 **Parameter checks.** Each returns the value as a float (or int, or the chosen string) or
 raises a one-line `ParameterError` that names the owner and the parameter:
-`check_real`, `check_positive`, `check_nonnegative`, `check_int`, `check_choice`.
+`check_real`, `check_positive`, `check_nonnegative`, `check_int`, `check_choice`; and
+`build_named`, an instance of a class chosen by name from a table with its parameters (a
+law of friction or of thresholds), each mistake one line naming the model's own field.
 
 **Friction laws** (`stickslip.friction`): `FrictionLaw` (the base class of a law),
 `get_friction_law`, `FRICTION_LAWS` and the built-in `Coulomb`, `LinearViscous`,
@@ -39,6 +41,7 @@ from __future__ import annotations
 
 from ._errors import ParameterError as ParameterError
 from ._errors import PluginError as PluginError
+from ._errors import build_named as build_named
 from ._errors import check_choice as check_choice
 from ._errors import check_int as check_int
 from ._errors import check_nonnegative as check_nonnegative
@@ -59,6 +62,7 @@ from .friction import VelocityWeakening as VelocityWeakening
 from .friction import get_friction_law as get_friction_law
 
 __all__ = [
+    "build_named",
     "ChainModel",
     "Coulomb",
     "CreepingSlider",
