@@ -155,3 +155,32 @@ def test_noisy_cycles_carry_the_threshold():
         starts = states[np.r_[True, ~slipping[:-1]] & slipping][:, 0]
         expect = c["stick_position"][rows[:-1]] + m.v_b * c["stick_time"][rows[:-1]]
         np.testing.assert_allclose(starts[1 : rows.size], expect, rtol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["langevin", "random-threshold"])
+def test_a_memoryless_stick_is_the_release_contracts_default(name):
+    """One contract for every model's stick: what `release(key, y_stick)` returns. A
+    memoryless model (`carries_state = False`) is not a second kind of model: its stick is
+    `release`'s default (the next onset drawn with the cycle's key, the stick time to it),
+    which the simulator evaluates inside its onset program. The stick times and next onsets
+    of `simulate` are `release` called on its stick states with the cycle's keys, to
+    rounding (two programs compiled apart; a random threshold draws its next threshold
+    there: another key would move it by its sd)."""
+    from stickslip import _rng
+    from stickslip._simulate.host import HostRun
+
+    params = dict(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, tau=0.1)
+    if name == "langevin":
+        model = ss.get_model(name)(**params, x0=1.0)
+    else:
+        model = ss.get_model(name)(**params, threshold="normal",
+                                   threshold_params={"mean": 1.0, "sd": 0.3})  # fmt: skip
+    assert not model.carries_state
+    ens = ss.simulate(model, 500, 0.1, 40.0, seed=4)
+    stuck = ens.stuck
+    run = HostRun("simulate", model, "auto", "continuous", 0.1, 40.0, _rng.seed_key(4))
+    keys = _rng.path_keys(run.keys["onset"], np.arange(500, dtype=np.uint32)[stuck], 1)
+    T_st, y_next = jax.vmap(model.release)(keys, jnp.asarray(ens.stick_state[stuck]))
+    np.testing.assert_allclose(np.asarray(y_next), ens.next_onset_state[stuck], rtol=1e-13,
+                               atol=1e-13)  # fmt: skip
+    np.testing.assert_allclose(np.asarray(T_st), ens.stick_time[stuck], rtol=1e-13, atol=1e-13)
