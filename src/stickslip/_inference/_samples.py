@@ -1,7 +1,7 @@
 """The forward measurement's per-sample work, compiled (Numba), one pass over a trace's
 samples where numpy took several: the keyed uniforms (`measurement._hashed`: splitmix64
 of each sample's key, ten numpy passes and 6 ms a fit's point) and the cut grid's far
-samples (`measurement._cut_grid`: a binary search and a dozen temporaries a sample)."""
+samples (`measurement.cut_grid`: a binary search and a dozen temporaries a sample)."""
 
 from __future__ import annotations
 
