@@ -130,3 +130,27 @@ def test_a_file_that_is_no_saved_fit_is_one_line(tmp_path, text, said):
     with pytest.raises(ss.DataError, match=said) as err:
         ss.load_fit(path)
     assert "\n" not in str(err.value) and str(path) in str(err.value)
+
+
+def test_a_fit_pickled_with_its_diagnostics_as_a_dict_reads_back(result):
+    """A fit kept (pickled) by an earlier version held its diagnostics as a dict: it comes
+    back typed, and summarises, simulates and checks as the fit it was."""
+    import pickle
+
+    from stickslip._inference.diagnostics import Design, FitDiagnostics
+
+    state = dict(result.__dict__)
+    old = {k: v for k, v in result.diagnostics.items() if k not in ("design",)}
+    old["design"] = dict(result.diagnostics.design)
+    state["diagnostics"] = old
+    kept = object.__new__(type(result))
+    kept.__setstate__(pickle.loads(pickle.dumps(state)))
+    assert isinstance(kept.diagnostics, FitDiagnostics)
+    assert isinstance(kept.diagnostics.design, Design)
+    assert kept.summary() == result.summary()
+    assert kept.diagnostics.design.seeds == result.diagnostics.design.seeds
+    again = pickle.loads(pickle.dumps(result))
+    assert again.diagnostics.box == result.diagnostics.box == {"D": (0.1, 1.5)}
+    # (and as a mapping, the keys the dict had, the measurement's aliases among them)
+    assert {"n_sim", "design", "observe", "trace", "sampling"} <= set(result.diagnostics)
+    assert len(dict(result.diagnostics)) == len(result.diagnostics)

@@ -202,3 +202,26 @@ def test_the_cycles_command_reads_a_users_kind(encoder, tmp_path):
     ):
         done = run_cli("cycles", "enc.csv", "--v-b", "0.5", *args, cwd=tmp_path)
         assert done.returncode == 2 and said in done.stderr, done.stderr
+
+
+def test_an_unset_setting_of_another_kind_is_no_setting():
+    """An empty list of lines on a position measurement is no setting (as before); a
+    kind that lists a field `Measurement` does not have breaks no measurement."""
+    assert Measurement(sampling_interval=0.1, signal="x", lines=[]).lines == ()
+
+    class Odd(MotionTrace):
+        name, signals, inputs, fields, default = "odd", ("odd",), ("odd_x",), ("nope",), False
+
+    ss.register_trace_kind("odd-test", Odd)
+    try:
+        assert Measurement(sampling_interval=0.1, signal="force").kind.name == "force"
+    finally:
+        _trace_kind.TRACE_KINDS.runtime.pop("odd-test", None)
+
+
+def test_a_law_error_lists_the_parameters_plainly():
+    law = ss.get_model("random-threshold")
+    with pytest.raises(ss.ParameterError, match=r"'threshold_params.sd' is required by the "
+                       r"normal law \(it takes mean, sd\)"):  # fmt: skip
+        law(omega0=1.0, zeta=0.1, D=0.1, v_b=1.0, threshold="normal",
+            threshold_params={"mean": 1.0})  # fmt: skip

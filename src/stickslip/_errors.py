@@ -132,7 +132,7 @@ def build_named(owner: str, field: str, table, name: Any, params: Any = None, *,
                              "by name", params)  # fmt: skip
     kinds = (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
     taken = [p for p in inspect.signature(cls).parameters.values() if p.kind in kinds]
-    takes = f"it takes {', '.join(str(p) for p in taken)}"
+    takes = f"it takes {', '.join(str(p.replace(annotation=p.empty)) for p in taken)}"
     names = [p.name for p in taken]
     for key in params:
         if key not in names:

@@ -26,6 +26,9 @@ class PluginWarning(UserWarning):
     """A plugin (a model or a trace kind) could not be loaded or clashes with another."""
 
 
+_REGISTRIES: list = []  # every group's registry (`refresh_models` rescans them all)
+
+
 class Registry:
     """The classes of one entry-point `group`, subclasses of the class `base()` returns
     (imported when first needed), called `noun` in messages ("model", "trace kind")."""
@@ -35,6 +38,7 @@ class Registry:
         self.cache: dict[str, type] | None = None
         self.runtime: dict[str, type] = {}
         self.named_cache: dict[str, type | None] = {}
+        _REGISTRIES.append(self)
 
     def load(self, entries: list[EntryPoint]) -> dict[str, type]:
         """The classes of `entries` by name; a broken, foreign or repeated one is a warning."""
@@ -128,8 +132,10 @@ def _load(entries: list[EntryPoint]) -> dict[str, type[FrictionModel]]:
 
 
 def refresh_models() -> None:
-    """Forget the cached plugin scan; the next lookup rescans the entry points."""
-    MODELS.refresh()
+    """Forget the cached plugin scan (models and trace kinds); the next lookup rescans the
+    entry points."""
+    for registry in _REGISTRIES:
+        registry.refresh()
 
 
 def list_models() -> dict[str, type[FrictionModel]]:

@@ -19,7 +19,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ._errors import ParameterError
+from ._errors import ParameterError, PluginError
 from ._keyed import keyed_grid, noise_pool
 from ._registry import TRACE_KIND_GROUP, Registry
 
@@ -167,8 +167,16 @@ TRACE_KINDS = Registry(TRACE_KIND_GROUP, lambda: TraceKind, "trace kind", "stick
 
 
 def trace_kinds() -> tuple[TraceKind, ...]:
-    """One instance of each registered trace kind, by registry name."""
-    return tuple(cls() for cls in TRACE_KINDS.all().values())
+    """One instance of each registered trace kind, by registry name; a `PluginError` where
+    none is (the built-in ones come through the package's own entry points)."""
+    kinds = tuple(cls() for cls in TRACE_KINDS.all().values())
+    if not kinds:
+        raise PluginError(
+            f"no kind of trace is registered under the entry points '{TRACE_KIND_GROUP}': "
+            "the installed package's metadata predates them; reinstall stickslip "
+            "(pip install -e . in a source checkout)"
+        )
+    return kinds
 
 
 def list_trace_kinds() -> dict[str, type[TraceKind]]:
@@ -201,7 +209,10 @@ def all_signals() -> tuple[str, ...]:
 
 def default_kind() -> TraceKind:
     """The kind `extract_cycles` reads when none of any kind's inputs is given."""
-    return next(k for k in trace_kinds() if k.default)
+    kind = next((k for k in trace_kinds() if k.default), None)
+    if kind is None:
+        raise PluginError("no registered kind of trace is the default (MotionTrace is)")
+    return kind
 
 
 def info_number(info: Mapping, key: str) -> float:

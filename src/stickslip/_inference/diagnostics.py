@@ -4,7 +4,8 @@
 prediction and saving read their fields by name, so a field that a fit does not fill is a
 default seen in one place, not a key silently missing. Both also read as mappings
 (`d["n_sim"]`, `d.get("runs")`, `dict(d)`), as they did when they were dicts, every field a
-key (`None` where a fit has nothing to put there).
+key (`None` where a fit has nothing to put there), and a fit's measurement also as the keys
+`observe`, `trace` and `sampling` it had.
 """
 
 from __future__ import annotations
@@ -32,10 +33,10 @@ class _Record(Mapping):
         setattr(self, key, value)
 
     def __iter__(self) -> Iterator[str]:
-        return iter(self._names())
+        return iter(self._names() + tuple(getattr(self, "_DERIVED", ())))
 
     def __len__(self) -> int:
-        return len(self._names())
+        return len(self._names()) + len(getattr(self, "_DERIVED", ()))
 
     @classmethod
     def from_mapping(cls, values: Mapping):
@@ -116,9 +117,10 @@ class FitDiagnostics(_Record):
     # was one (`trace`) and its sampling interval (`sampling`)
     _DERIVED = ("observe", "trace", "sampling")
 
-    def __post_init__(self):
-        if isinstance(self.design, Mapping) and not isinstance(self.design, Design):
-            self.design = Design.from_mapping(self.design)
+    def __setattr__(self, name: str, value: Any) -> None:
+        if name == "design" and isinstance(value, Mapping) and not isinstance(value, Design):
+            value = Design.from_mapping(value)  # (a dict of its fields, as before)
+        super().__setattr__(name, value)
 
     @property
     def observe(self):

@@ -164,9 +164,9 @@ class Measurement:
             )  # fmt: skip
         put("noise_sd", check_nonnegative(OWNER, "noise_sd", self.noise_sd))
         defaults = {f.name: f.default for f in dataclasses.fields(self)}
-        for other in trace_kinds():  # another kind's settings, left at their defaults
+        for other in trace_kinds():  # another kind's settings, left unset
             for name in other.fields:
-                if name not in kind.fields and getattr(self, name) != defaults[name]:
+                if name in defaults and name not in kind.fields and _is_set(getattr(self, name)):
                     raise ParameterError(OWNER, name, f"applies to {other.name} traces only")
         put("tol", check_positive(OWNER, "tol", self.tol, allow_none=True))
         if self.min_stick is not None:
@@ -260,6 +260,15 @@ class Measurement:
         this measurement driven at `v_b` (model units; a force in units of $k x_0$:
         stiffness 1)."""
         return self.kind.settings(self, v_b)
+
+
+def _is_set(value) -> bool:
+    """Whether a kind's setting is given: not None, not an empty sequence, not 0."""
+    if value is None:
+        return False
+    if isinstance(value, (tuple, list, np.ndarray, Mapping)):
+        return len(value) > 0
+    return not (isinstance(value, (int, float)) and value == 0)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

@@ -49,6 +49,13 @@ class FitResult:
         if not isinstance(self.diagnostics, FitDiagnostics):  # a mapping of its fields
             object.__setattr__(self, "diagnostics", FitDiagnostics.from_mapping(self.diagnostics))
 
+    def __setstate__(self, state: dict) -> None:
+        """Unpickled (a fit kept from an earlier version held its diagnostics as a dict)."""
+        diagnostics = state.get("diagnostics")
+        if diagnostics is not None and not isinstance(diagnostics, FitDiagnostics):
+            state = {**state, "diagnostics": FitDiagnostics.from_mapping(diagnostics)}
+        self.__dict__.update(state)
+
     @property
     def p_values(self) -> dict[str, float] | None:
         """`{observable: p}`, the simulation-calibrated goodness-of-fit p-value of each
