@@ -7,7 +7,11 @@ estimate's covariance built by each rule from the same pieces:
   not explain (what `fit` reports);
 - `widened + half difference`: the sandwich widened by 1 + n/n_sim, plus the square of
   the two seeds' half difference (the rule before the jackknife);
-- `Hessian + jackknife`: the Hessian's inverse instead of the sandwich.
+- `Hessian + jackknife`: the Hessian's inverse instead of the sandwich;
+- `quadratic bread + jackknife`: the sandwich and the jackknife with the curvature of a
+  plain quadratic fitted to both seeds' mean values at the design's centre, instead of
+  the first seed's polynomial (cubic terms along each axis) at its vertex: along a weak
+  direction the cubic terms, noisy, move the curvature at a vertex that lies steps away.
 
 Per rule and parameter: the sd of (estimate - truth) / se over the fits with both
 seeds' vertices (1 for honest intervals), and how many of them cover. Also the fit's rule
@@ -24,6 +28,7 @@ once (the first kept fit's centre; warmed, the median of 7 in this process).
 
 from __future__ import annotations
 
+import dataclasses
 import glob
 import math
 import pickle
@@ -85,7 +90,27 @@ def pieces(path):
         "widened + half difference": sandwich * (1 + n / d["n_sim"]) + np.outer(half, half),
         "Hessian + jackknife": np.linalg.inv(-0.5 * (H + H2)) + mc,
     }
+    Hq = _quadratic_hessian(points - centre, 0.5 * (v1 + v2))
+    if np.all(np.linalg.eigvalsh(-Hq) > 0):
+        plain = dataclasses.replace(surface, hessian=Hq)
+        bread, _, _ = iv.sandwich_covariance(plain, names, s2, iv.structural_lag(r.model))
+        jq = [iv._jackknife(plain, b) for b in (b1, b2)]
+        if all(j is not None for j in jq):
+            out["rules"]["quadratic bread + jackknife"] = bread + 0.25 * (jq[0] + jq[1])
     return out
+
+
+def _quadratic_hessian(offsets, values) -> np.ndarray:
+    """The Hessian of the full quadratic least-squares fit of `values` at `offsets`."""
+    n, k = offsets.shape
+    pairs = [(i, j) for i in range(k) for j in range(i, k)]
+    X = np.column_stack([np.ones(n), offsets] + [offsets[:, i] * offsets[:, j] for i, j in pairs])
+    ok = np.isfinite(values)
+    coef = np.linalg.lstsq(X[ok], values[ok], rcond=None)[0][1 + k :]
+    H = np.zeros((k, k))
+    for (i, j), c in zip(pairs, coef, strict=True):
+        H[i, j] = H[j, i] = 2 * c if i == j else c
+    return H
 
 
 def timing(path) -> None:
