@@ -26,6 +26,7 @@ _REPHASE_INTERVALS = 10
 # cycles of ~10^4 share a stretch of the pool, identical noise, rarely).
 _NOISE_POOL = 2**20
 
+
 def keyed_grid(release, slip, stick, end, h, seed, path):
     """Sampling times of one path's trace on `[0, end]` and their standard normal noise,
     both keyed by cycle: the samples of cycle c lie at `release[c] + (phase[c] + j) h`,
