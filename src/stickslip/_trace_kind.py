@@ -143,7 +143,8 @@ class TraceKind(abc.ABC):
         `extract_cycles(**signals, **settings)` reads it)."""
         settings = dict(self.settings(measurement, v_b))
         v_b = settings.pop("v_b")
-        given = {k: signals.get(k, settings.pop(k, None)) for k in self.inputs}
+        given = {k: settings.pop(k, None) for k in self.inputs}  # (a force's stiffness)
+        given.update({k: signals[k] for k in self.inputs if k in signals})
         options = {k: v for k, v in settings.items() if v is not None}
         return self.extract(signals["t"], given, v_b, options).table
 
