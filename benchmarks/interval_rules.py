@@ -2,16 +2,19 @@
 both seeds' simulated cycles there: `fit_independent.py --keep DIR`) scored again, and the
 estimate's covariance built by each rule from the same pieces:
 
-- `sandwich + jackknife`: the sandwich and the jackknife over the simulated cycles;
-- `fit's rule`: that, plus the part of the two seeds' half difference the jackknife does
-  not explain (what `fit` reports);
+- `sandwich + jackknife`: the sandwich (the first seed's polynomial, cubic terms along
+  each axis, at its vertex as the bread) and the jackknife over the simulated cycles;
+- `cubic bread + jackknife + difference`: that, plus the part of the two seeds' half
+  difference the jackknife does not explain (what `fit` reported before the plain bread);
+- `fit's rule`: the same with the plain bread (`intervals.with_plain_bread`: the
+  curvature of a plain quadratic fitted to both seeds' mean values over the design), what
+  `fit` reports;
 - `widened + half difference`: the sandwich widened by 1 + n/n_sim, plus the square of
   the two seeds' half difference (the rule before the jackknife);
 - `Hessian + jackknife`: the Hessian's inverse instead of the sandwich;
-- `quadratic bread + jackknife`: the sandwich and the jackknife with the curvature of a
-  plain quadratic fitted to both seeds' mean values at the design's centre, instead of
-  the first seed's polynomial (cubic terms along each axis) at its vertex: along a weak
-  direction the cubic terms, noisy, move the curvature at a vertex that lies steps away.
+- `quadratic bread + jackknife`: the plain bread and the jackknife, without the seeds'
+  difference: along a weak direction the cubic terms, noisy, move the curvature at a
+  vertex that lies steps away.
 
 Per rule and parameter: the sd of (estimate - truth) / se over the fits with both
 seeds' vertices (1 for honest intervals), and how many of them cover. Also the fit's rule
@@ -28,7 +31,6 @@ once (the first kept fit's centre; warmed, the median of 7 in this process).
 
 from __future__ import annotations
 
-import dataclasses
 import glob
 import math
 import pickle
@@ -69,9 +71,13 @@ def pieces(path):
     surface = _Surface(centre=centre, steps=steps, nominal=_quadratic_design(centre, steps),
                        design=points, values=list(v1), scores=s1, shift=shift, hessian=H,
                        clipped=design["clipped"])  # fmt: skip
-    sandwich, _, _ = iv.sandwich_covariance(surface, names, s2, iv.structural_lag(r.model))
+    lag = iv.structural_lag(r.model)
+    sandwich, _, _ = iv.sandwich_covariance(surface, names, s2, lag)
     big = np.full(len(names), 1e9)
-    u_hat, cov, noise = iv.combine_seeds(surface, shift2, sandwich, [b1, b2], -big, big)
+    _, cubic, _ = iv.combine_seeds(surface, shift2, sandwich, [b1, b2], -big, big)
+    plain = iv.with_plain_bread(surface, v2)
+    fits, _, _ = iv.sandwich_covariance(plain, names, s2, lag)
+    u_hat, cov, noise = iv.combine_seeds(surface, shift2, fits, [b1, b2], -big, big)
     scales = d["scales"]
     truth = np.array([math.log(truth[k]) if scales[k] == "log" else truth[k] for k in names])
     out = dict(names=names, truth=truth, u=u_hat, fits=cov, interval=noise["mc"] is not None
@@ -86,31 +92,14 @@ def pieces(path):
     n = next(iter(r.data.values())).size
     out["rules"] = {
         "sandwich + jackknife": sandwich + mc,
+        "cubic bread + jackknife + difference": cubic,
         "fit's rule": cov,
         "widened + half difference": sandwich * (1 + n / d["n_sim"]) + np.outer(half, half),
         "Hessian + jackknife": np.linalg.inv(-0.5 * (H + H2)) + mc,
     }
-    Hq = _quadratic_hessian(points - centre, 0.5 * (v1 + v2))
-    if np.all(np.linalg.eigvalsh(-Hq) > 0):
-        plain = dataclasses.replace(surface, hessian=Hq)
-        bread, _, _ = iv.sandwich_covariance(plain, names, s2, iv.structural_lag(r.model))
-        jq = [iv._jackknife(plain, b) for b in (b1, b2)]
-        if all(j is not None for j in jq):
-            out["rules"]["quadratic bread + jackknife"] = bread + 0.25 * (jq[0] + jq[1])
+    if plain is not surface:
+        out["rules"]["quadratic bread + jackknife"] = fits + mc
     return out
-
-
-def _quadratic_hessian(offsets, values) -> np.ndarray:
-    """The Hessian of the full quadratic least-squares fit of `values` at `offsets`."""
-    n, k = offsets.shape
-    pairs = [(i, j) for i in range(k) for j in range(i, k)]
-    X = np.column_stack([np.ones(n), offsets] + [offsets[:, i] * offsets[:, j] for i, j in pairs])
-    ok = np.isfinite(values)
-    coef = np.linalg.lstsq(X[ok], values[ok], rcond=None)[0][1 + k :]
-    H = np.zeros((k, k))
-    for (i, j), c in zip(pairs, coef, strict=True):
-        H[i, j] = H[j, i] = 2 * c if i == j else c
-    return H
 
 
 def timing(path) -> None:

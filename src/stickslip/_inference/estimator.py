@@ -32,6 +32,7 @@ from .intervals import (
     sandwich_covariance,
     structural_lag,
     wald,
+    with_plain_bread,
 )
 from .likelihood import JACKKNIFE_BLOCKS, bandwidth_of, jackknife_values, sample, scored_samples
 from .params import (
@@ -346,8 +347,8 @@ def simulated_mle(
     values2, scores2 = evaluate(surface.design, lambda u: loglik(u, seed2), p.data)
     samples, block_values = loglik.design_records(surface.design, (p.seed, seed2))
     # successive rows share a draw where the onset is random (`intervals.structural_lag`)
-    cov, said, dependence = sandwich_covariance(surface, p.names, scores2,
-                                                structural_lag(p.centre))  # fmt: skip
+    cov, said, dependence = sandwich_covariance(with_plain_bread(surface, values2), p.names,
+                                                scores2, structural_lag(p.centre))  # fmt: skip
     caught += said
     shift2, _ = polynomial_vertex(surface.design - surface.centre, np.array(values2),
                                    surface.steps)  # fmt: skip

@@ -1,7 +1,8 @@
 r"""The estimate's uncertainty: 95 % Wald intervals in fit coordinates (so asymmetric in the
 parameter) with the sandwich covariance $H^{-1} J H^{-1}$ (`sandwich_covariance`: per-cycle scores
 summed over the columns, `_score_matrix`; the smoothed likelihood is not a likelihood, and
-the columns of one cycle are dependent), plus the simulation's own noise in the estimate
+the columns of one cycle are dependent; $H$ the curvature of a plain quadratic through both
+seeds' values, `with_plain_bread`), plus the simulation's own noise in the estimate
 (`combine_seeds`): the surface's design evaluated again with a second seed, the estimate
 the mean of the two vertices, its Monte Carlo covariance a jackknife over the cycles
 simulated at the design points (`_jackknife`), which the two seeds' half difference checks
@@ -19,13 +20,14 @@ chain: Bartlett's weights over Newey and West's number of lags (`newey_west_lag`
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
 import numpy as np
 
 from .params import from_fit_coords
-from .surface import polynomial_vertex
+from .surface import polynomial_vertex, quadratic_hessian
 
 Z95 = 1.959963984540054
 # The Monte Carlo noise check: a warning when the estimate's Monte Carlo sd (from two seeds)
@@ -53,6 +55,24 @@ def concave(hessian) -> bool:
     curvature: intervals, and the goodness check's simulation noise, depend on it)."""
     H = np.asarray(hessian, float)
     return bool(np.all(np.linalg.eigvalsh(-0.5 * (H + H.T)) > 0))
+
+
+def with_plain_bread(surface, values2):
+    """The surface with, as its Hessian, the curvature of a plain quadratic fitted to both
+    seeds' mean values over the design (`quadratic_hessian`), where that is concave: the
+    sandwich's bread. The first seed's polynomial at its vertex (a cubic term along each
+    axis) keeps the vertex unbiased, but along a weak direction the vertex lies steps from
+    the design's centre and the cubic terms, noisy, move the curvature there: on an
+    independent generator's random thresholds (28 fits at n_sim 4000) the noise's
+    intervals spread 1.34 times their standard errors under that bread and 0.95 under this
+    one (covered 22 and 27 of 28); on 40 fixed-threshold fits the two agree (z's sd 1.23,
+    1.13, 0.97 against 1.26, 1.13, 1.01). Unchanged where either is not concave (the
+    surface then gives no interval: `sandwich_covariance` says why)."""
+    values = 0.5 * (np.asarray(surface.values, float) + np.asarray(values2, float))
+    H = quadratic_hessian(surface.design - surface.centre, values)
+    if H is None or not concave(H) or not concave(surface.hessian):
+        return surface
+    return dataclasses.replace(surface, hessian=H)
 
 
 def sandwich_covariance(surface, names, scores2=None, lag=0) -> tuple[np.ndarray, list[str], dict]:

@@ -259,6 +259,22 @@ def polynomial_vertex(du, values, steps):
     return x, Q + np.diag(6 * k * x)
 
 
+def quadratic_hessian(du, values) -> np.ndarray | None:
+    """The Hessian of the plain quadratic (no cubic terms) fitted by least squares to
+    `values` at offsets `du` from the design's centre; `None` where fewer points than
+    terms are finite."""
+    p = du.shape[1]
+    ok = np.isfinite(values)
+    X = polynomial_terms(du)[:, : 1 + p + len(_pairs(p))]
+    if np.sum(ok) < X.shape[1]:
+        return None
+    coef = np.linalg.lstsq(X[ok], np.asarray(values, float)[ok], rcond=None)[0]
+    H = np.zeros((p, p))
+    for (i, j), v in zip(_pairs(p), coef[1 + p :], strict=True):
+        H[i, j] = H[j, i] = v
+    return H
+
+
 def _pairs(p: int) -> list[tuple[int, int]]:
     """The curvature's index pairs (i <= j), in `polynomial_terms`' column order."""
     return [(i, j) for i in range(p) for j in range(i, p)]
