@@ -68,14 +68,9 @@ def _scores(data, d, seed_index):
 
 def _secants(nominal, design, centre, scores):
     """The total score's secant along each axis over the design's +-1 step points."""
-    p = centre.size
     out = []
-    for i in range(p):
-        du = nominal - centre
-        axis = np.all(np.isclose(np.delete(du, i, axis=1), 0), axis=1)
-        ends = np.flatnonzero(axis & (np.abs(du[:, i]) > 0))
-        ends = ends[np.argsort(np.abs(du[ends, i]))][:2]
-        plus, minus = sorted(ends, key=lambda j: -du[j, i])
+    for i in range(centre.size):
+        plus, minus = iv.axis_ends(nominal, centre, i)
         out.append((np.sum(scores[plus]) - np.sum(scores[minus]))
                    / (design[plus, i] - design[minus, i]))  # fmt: skip
     return np.array(out)

@@ -290,6 +290,16 @@ def wald(u_hat, cov, names, scales, lo, hi, free, concave=True) -> tuple[dict, l
     return ci, said
 
 
+def axis_ends(nominal, u_hat, i) -> tuple[int, int]:
+    """The indices of the design's +1 and -1 step points along axis `i`."""
+    d = nominal - u_hat
+    axis = np.all(np.isclose(np.delete(d, i, axis=1), 0), axis=1)
+    ends = np.flatnonzero(axis & (np.abs(d[:, i]) > 0))
+    ends = ends[np.argsort(np.abs(d[ends, i]))][:2]  # the +-1 step points
+    plus, minus = sorted(ends, key=lambda j: -d[j, i])
+    return int(plus), int(minus)
+
+
 def _score_matrix(nominal, design, u_hat, scores):
     """The per-cycle scores, one row a cycle (differences between the design's +-1 step
     points along each axis, over their distance where they were evaluated: clipped at the
@@ -297,11 +307,7 @@ def _score_matrix(nominal, design, u_hat, scores):
     p = u_hat.size
     grads = []
     for i in range(p):
-        d = nominal - u_hat
-        axis = np.all(np.isclose(np.delete(d, i, axis=1), 0), axis=1)
-        ends = np.flatnonzero(axis & (np.abs(d[:, i]) > 0))
-        ends = ends[np.argsort(np.abs(d[ends, i]))][:2]  # the +-1 step points
-        plus, minus = sorted(ends, key=lambda j: -d[j, i])
+        plus, minus = axis_ends(nominal, u_hat, i)
         width = design[plus, i] - design[minus, i]
         if width <= 0:  # a box narrower than the design: no difference to take
             grads.append(np.zeros_like(scores[0]))
