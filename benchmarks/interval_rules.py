@@ -25,6 +25,10 @@ simulation's noise).
     python benchmarks/interval_rules.py "kept/fixed-threshold-*.pkl"
     python benchmarks/interval_rules.py "kept/fixed-threshold-*.pkl" --time
 
+`--ratio`: also the log-likelihood at the truth (one evaluation a fit, the fit's seed),
+and whether the truth lies in the likelihood-ratio region the fit's surface calibrates
+(`likelihood_ratio`).
+
 `--time`: what the jackknife costs a design point and seed against scoring the point
 once (the first kept fit's centre; warmed, the median of 7 in this process).
 """
@@ -39,7 +43,11 @@ import sys
 import numpy as np
 
 from stickslip._inference import intervals as iv
-from stickslip._inference.likelihood import jackknife_values, scored_samples
+from stickslip._inference.likelihood import (
+    cycle_log_likelihood,
+    jackknife_values,
+    scored_samples,
+)
 from stickslip._inference.surface import _quadratic_design, _Surface, polynomial_vertex
 
 
@@ -81,7 +89,11 @@ def pieces(path):
     scales = d["scales"]
     truth = np.array([math.log(truth[k]) if scales[k] == "log" else truth[k] for k in names])
     out = dict(names=names, truth=truth, u=u_hat, fits=cov, interval=noise["mc"] is not None
-               and iv.concave(H), check=noise["check"])  # fmt: skip
+               and iv.concave(H), check=noise["check"], bread=plain.hessian,
+               ratio=None)  # fmt: skip
+    if "--ratio" in sys.argv[2:]:  # 2 x the log-likelihood's fall from the estimate to the truth
+        at_truth = cycle_log_likelihood(r, params=kept["truth"]).sum()
+        out["ratio"] = 2.0 * (r.log_likelihood - float(at_truth))
     if shift is None or shift2 is None:
         return out
     jack = [iv._jackknife(surface, b) for b in (b1, b2)]
@@ -122,6 +134,25 @@ def timing(path) -> None:
               f"({min(np.size(sim[k]) for k in r.data)} simulated cycles)")  # fmt: skip
 
 
+def likelihood_ratio(found) -> None:
+    """Whether the truth lies in the likelihood-ratio region the fit's own surface
+    calibrates: 2 (l(estimate) - l(truth)) at the fit's seed against the 95 % point of
+    sum_i lambda_i chi2_1, lambda the eigenvalues of the covariance times the bread's
+    information (H^-1 J for a composite likelihood; the simulation's share included)."""
+    rng = np.random.default_rng(0)
+    covered, rows = 0, []
+    with_interval = [f for f in found if f["interval"]]
+    for f in with_interval:
+        lam = np.linalg.eigvals(f["fits"] @ -f["bread"]).real
+        q = np.quantile((rng.chisquare(1, (100_000, lam.size)) * lam).sum(axis=1), 0.95)
+        covered += f["ratio"] <= q
+        rows.append(f"{f['ratio']:.1f} (95 % {q:.1f})")
+    others = [f"{f['ratio']:.1f}" for f in found if not f["interval"]]
+    print(f"likelihood-ratio region: covers the truth in {covered} of {len(with_interval)} "
+          f"fits with an interval; 2 dlogL (estimate - truth): {', '.join(rows)}; "
+          f"without an interval: {', '.join(others) or 'none'}")  # fmt: skip
+
+
 def main():
     paths = sorted(glob.glob(sys.argv[1]))
     if not paths:
@@ -148,6 +179,8 @@ def main():
     print("fit's rule over all fits: covered " + ", ".join(
         f"{k} {c}/{len(found)}" for k, c in zip(names, covered, strict=True))
         + f"; {sum(not f['interval'] for f in found)} without an interval")  # fmt: skip
+    if "--ratio" in sys.argv[2:]:
+        likelihood_ratio(found)
     checks = np.array([f["check"] for f in found if f["check"] is not None])
     if checks.size:
         print("seeds' half difference / jackknife sd, mean square: " + ", ".join(
