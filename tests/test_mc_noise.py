@@ -3,6 +3,8 @@ simulated at the design points (`intervals._jackknife`), checked against the spr
 vertex itself over many independent draws of the noise (a Monte Carlo of the statistic,
 not of the code's formula)."""
 
+import dataclasses
+
 import numpy as np
 
 from stickslip._inference import intervals
@@ -79,3 +81,72 @@ def test_block_values_are_the_likelihood_without_each_block():
         terms = scored_samples(data, cut, h, None)
         want = sum(np.sum(v) for v in terms.values())
         assert abs(got[b] - want) <= 1e-12 * abs(want)
+
+
+def _cubic_surface(design, centre, A, g, k):
+    du = design - centre
+    return g @ du.T - 0.5 * np.einsum("ji,ik,jk->j", du, A, du) + (du**3) @ k
+
+
+def test_the_plain_bread_is_the_quadratics_curvature_whatever_the_cubic_terms():
+    """On the design's symmetric points a cubic term is odd and the curvature even, so the
+    plain quadratic's least-squares Hessian is the surface's own quadratic part exactly
+    (closed form: -A), where the fit's polynomial at its vertex adds 6 k x; and the bread
+    takes the mean of the two seeds' values (noise of opposite sign cancels)."""
+    from stickslip._inference.surface import quadratic_hessian
+
+    centre, steps = np.zeros(3), np.array([0.3, 0.2, 0.25])
+    design = _quadratic_design(centre, steps)
+    A = np.array([[40.0, -12.0, 3.0], [-12.0, 25.0, -4.0], [3.0, -4.0, 10.0]])
+    f = _cubic_surface(design, centre, A, np.array([2.0, -1.0, 1.5]), np.array([5.0, -8.0, 3.0]))
+    assert np.allclose(quadratic_hessian(design - centre, f), -A, atol=1e-9)
+    x, H_vertex = polynomial_vertex(design - centre, f, steps)
+    assert x is not None and not np.allclose(H_vertex, -A, atol=1e-3)
+    e = np.random.default_rng(5).normal(0.0, 1.0, len(design))
+    surface = dataclasses.replace(_surface(design, centre, steps), values=list(f + e),
+                                  hessian=H_vertex)  # fmt: skip
+    plain = intervals.with_plain_bread(surface, f - e)
+    assert np.allclose(plain.hessian, -A, atol=1e-9)
+    assert plain.shift is surface.shift and plain.values == surface.values
+
+
+def test_no_plain_bread_where_the_quadratic_is_not_concave():
+    """A saddle through both seeds' values (or a polynomial that is not concave) leaves the
+    surface as it was: its own check then gives no interval."""
+    centre, steps = np.zeros(2), np.array([0.3, 0.3])
+    design = _quadratic_design(centre, steps)
+    saddle = _cubic_surface(design, centre, np.diag([10.0, -5.0]), np.zeros(2), np.zeros(2))
+    surface = dataclasses.replace(_surface(design, centre, steps), values=list(saddle),
+                                  hessian=-np.eye(2))  # fmt: skip
+    assert intervals.with_plain_bread(surface, saddle) is surface
+    bowl = _cubic_surface(design, centre, np.diag([10.0, 5.0]), np.zeros(2), np.zeros(2))
+    flat = dataclasses.replace(surface, values=list(bowl), hessian=np.eye(2))
+    assert intervals.with_plain_bread(flat, bowl) is flat
+
+
+def test_the_plain_bread_is_steadier_along_a_weak_direction():
+    """A weak direction whose maximum lies a step from the design's centre, each point's
+    value noisy (the simulation's roughness): over 400 draws the curvature along it varies
+    less from the plain quadratic through the design than from the polynomial at its
+    vertex, whose noisy cubic term moves it there (measured: 5.6 times the variance); the
+    F ratio of the two variances past 1.5, beyond its 0.1 % point (about 1.4 at these
+    degrees of freedom). The plain curvature is unbiased (within 3 standard errors)."""
+    from stickslip._inference.surface import quadratic_hessian
+
+    rng = np.random.default_rng(13)
+    centre, steps = np.zeros(2), np.array([0.3, 0.3])
+    design = _quadratic_design(centre, steps)
+    du = design - centre
+    A = np.diag([200.0, 8.0])
+    truth = -0.5 * np.einsum("ji,ik,jk->j", du - [0.0, 0.3], A, du - [0.0, 0.3])
+    plain, cubic = [], []
+    for _ in range(400):
+        values = truth + rng.normal(0.0, 0.3, len(design))
+        x, H = polynomial_vertex(du, values, steps)
+        if x is None:
+            continue
+        cubic.append(H[1, 1])
+        plain.append(quadratic_hessian(du, values)[1, 1])
+    assert len(cubic) > 300
+    assert np.var(cubic) / np.var(plain) > 1.5, (np.std(cubic), np.std(plain))
+    assert abs(np.mean(plain) + A[1, 1]) < 3 * np.std(plain) / np.sqrt(len(plain))

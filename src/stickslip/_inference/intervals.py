@@ -64,9 +64,9 @@ def with_plain_bread(surface, values2):
     axis) keeps the vertex unbiased, but along a weak direction the vertex lies steps from
     the design's centre and the cubic terms, noisy, move the curvature there: on an
     independent generator's random thresholds (28 fits at n_sim 4000) the noise's
-    intervals spread 1.34 times their standard errors under that bread and 0.95 under this
+    intervals spread 1.34 times their standard errors under that bread and 0.94 under this
     one (covered 22 and 27 of 28); on 40 fixed-threshold fits the two agree (z's sd 1.23,
-    1.13, 0.97 against 1.26, 1.13, 1.01). Unchanged where either is not concave (the
+    1.13, 0.97 against 1.24, 1.09, 0.97). Unchanged where either is not concave (the
     surface then gives no interval: `sandwich_covariance` says why)."""
     values = 0.5 * (np.asarray(surface.values, float) + np.asarray(values2, float))
     H = quadratic_hessian(surface.design - surface.centre, values)
