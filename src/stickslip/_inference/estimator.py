@@ -347,8 +347,11 @@ def simulated_mle(
     values2, scores2 = evaluate(surface.design, lambda u: loglik(u, seed2), p.data)
     samples, block_values = loglik.design_records(surface.design, (p.seed, seed2))
     # successive rows share a draw where the onset is random (`intervals.structural_lag`)
-    cov, said, dependence = sandwich_covariance(with_plain_bread(surface, values2), p.names,
-                                                scores2, structural_lag(p.centre))  # fmt: skip
+    # the curvature the intervals divide by (and the goodness of fit's one-step estimates,
+    # whose scatter the covariance holds: the same bread), `diagnostics.hessian`
+    bread = with_plain_bread(surface, values2)
+    cov, said, dependence = sandwich_covariance(bread, p.names, scores2,
+                                                structural_lag(p.centre))  # fmt: skip
     caught += said
     shift2, _ = polynomial_vertex(surface.design - surface.centre, np.array(values2),
                                    surface.steps)  # fmt: skip
@@ -378,7 +381,7 @@ def simulated_mle(
     for text in caught:
         warnings.warn(f"fit: {text}", stacklevel=STACKLEVEL)
     diagnostics = _diagnostics(
-        p, loglik, surface, cov, optimizer=optimizer, caught=caught, values2=values2,
+        p, loglik, bread, cov, optimizer=optimizer, caught=caught, values2=values2,
         seed2=seed2, samples=samples, mc_noise=mc_noise, dependence=dependence,
         seconds=time.perf_counter() - wall0,
     )  # fmt: skip
