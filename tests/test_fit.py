@@ -41,6 +41,15 @@ def test_one_free_parameter_is_recovered_within_three_standard_errors():
     assert 1.02 < hi / lo < 1.6  # an interval that says something
     assert np.isfinite(r.log_likelihood)
     assert "sandwich" in r.method
+    # the curvature the interval divides by, and the goodness of fit's one-step replicates
+    # use: the plain quadratic through both seeds' values over the design, least squares
+    # written out here (a column per term, the curvature halved on its square)
+    des = r.diagnostics.design
+    du = np.asarray(des.points, float)[:, 0] - des.centre[0]
+    values = np.mean(np.asarray(des.values, float), axis=0)
+    ok = np.isfinite(values)
+    c = np.linalg.lstsq(np.stack([du**0, du, 0.5 * du**2], 1)[ok], values[ok], rcond=None)[0]
+    assert np.asarray(r.diagnostics.hessian)[0, 0] == pytest.approx(c[2], rel=1e-9)
 
 
 @pytest.mark.parametrize(
