@@ -164,12 +164,14 @@ def _fall(x, r, at, other) -> float:
 
 
 def profile_bound(paths, found) -> None:
-    """A lower bound on how often profile-likelihood intervals would cover the random
+    """A rough lower bound on how often profile-likelihood intervals would cover the random
     threshold's mean and sd: the truth's profile statistic 2 (l(estimate) - max l) with
     the parameter at the truth and only its partner (sd, or mean) maximised (bounded
     Brent, to 0.005), omega0 and D at the estimate (not maximising them can only raise
-    the statistic), against 3.84 c, c the parameter's sandwich variance over the bread's
-    inverse (a composite likelihood's scalar adjustment); ~15 evaluations a parameter."""
+    the statistic; l(estimate) is the fit's seed's value at the two seeds' mean vertex,
+    not that seed's maximum, which can lower it by the surface's noise), against 3.84 c,
+    c the parameter's sandwich variance over the bread's inverse (a composite
+    likelihood's scalar adjustment); ~15 evaluations a parameter."""
     from scipy.optimize import minimize_scalar
 
     pairs = (("threshold_params.mean", "threshold_params.sd", (0.1, 1.6)),
@@ -204,9 +206,11 @@ def main():
     print(f"{len(found)} fits, {len(both)} with both seeds' vertices and a jackknife")
     print("| rule | " + " | ".join(f"{k}: z sd, covered" for k in names) + " |")
     print("|---|" + "---|" * len(names))
-    for rule in both[0]["rules"] if both else []:
-        z = np.array([(f["u"] - f["truth"]) / np.sqrt(np.diag(f["rules"][rule])) for f in both])
-        cells = [f"{z[:, i].std():.2f}, {int(np.sum(np.abs(z[:, i]) < iv.Z95))}/{len(both)}"
+    rules = list(dict.fromkeys(rule for f in both for rule in f["rules"]))
+    for rule in rules:  # (a rule a fit could not make is left out of its row: n < all)
+        has = [f for f in both if rule in f["rules"]]
+        z = np.array([(f["u"] - f["truth"]) / np.sqrt(np.diag(f["rules"][rule])) for f in has])
+        cells = [f"{z[:, i].std():.2f}, {int(np.sum(np.abs(z[:, i]) < iv.Z95))}/{len(has)}"
                  for i in range(len(names))]  # fmt: skip
         print(f"| {rule} | " + " | ".join(cells) + " |")
     covered = np.zeros(len(names), int)

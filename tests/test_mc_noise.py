@@ -111,17 +111,25 @@ def test_the_plain_bread_is_the_quadratics_curvature_whatever_the_cubic_terms():
 
 
 def test_no_plain_bread_where_the_quadratic_is_not_concave():
-    """A saddle through both seeds' values (or a polynomial that is not concave) leaves the
-    surface as it was: its own check then gives no interval."""
+    """A saddle through both seeds' values (or a polynomial that is not concave), or
+    values that do not determine the quadratic, leave the surface as it was: its own check
+    then gives no interval."""
     centre, steps = np.zeros(2), np.array([0.3, 0.3])
     design = _quadratic_design(centre, steps)
     saddle = _cubic_surface(design, centre, np.diag([10.0, -5.0]), np.zeros(2), np.zeros(2))
     surface = dataclasses.replace(_surface(design, centre, steps), values=list(saddle),
                                   hessian=-np.eye(2))  # fmt: skip
     assert intervals.with_plain_bread(surface, saddle) is surface
-    bowl = _cubic_surface(design, centre, np.diag([10.0, 5.0]), np.zeros(2), np.zeros(2))
-    flat = dataclasses.replace(surface, values=list(bowl), hessian=np.eye(2))
-    assert intervals.with_plain_bread(flat, bowl) is flat
+    cap = _cubic_surface(design, centre, np.diag([10.0, 5.0]), np.zeros(2), np.zeros(2))
+    upward = dataclasses.replace(surface, values=list(cap), hessian=np.eye(2))
+    assert intervals.with_plain_bread(upward, cap) is upward
+    # a correlated maximum whose pair's diagonal points were lost (a refused model): the
+    # cross term is not determined (least squares would read it as 0); no bread from it
+    lost = _cubic_surface(design, centre, np.array([[10.0, 3.0], [3.0, 5.0]]), np.zeros(2),
+                          np.zeros(2))  # fmt: skip
+    lost[np.all(np.abs(design - centre) > 0, axis=1)] = -np.inf
+    kept = dataclasses.replace(surface, values=list(lost), hessian=-np.eye(2))
+    assert intervals.with_plain_bread(kept, lost) is kept
 
 
 def test_the_plain_bread_is_steadier_along_a_weak_direction():

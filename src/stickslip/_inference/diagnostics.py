@@ -79,7 +79,8 @@ class FitDiagnostics(_Record):
     - the data: `n_data`, `zero_fraction` (of each duration column);
     - the surface: `covariance` and `hessian` (fit coordinates; the curvature the
       covariance divides by: a plain quadratic's through both seeds' values where it is
-      concave, else the fit's polynomial's at its vertex), `points` (every evaluated
+      concave, else the fit's polynomial's at its vertex, or its quadratic part where it
+      has none), `points` (every evaluated
       point and its log-likelihood), `evaluations`, `optimizer` (Nelder-Mead's evaluations
       and cap), `design` (a `Design`);
     - the noise and the rows: `mc_noise` (the second seed's estimate against the first),

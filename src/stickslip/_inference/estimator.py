@@ -5,7 +5,8 @@ subpackage's pieces:
    coordinates (`params`), the simulation settings (`forward.simulation_settings`);
 2. the simulated smoothed likelihood (`likelihood`), maximised by a coarse grid and
    Nelder-Mead (`surface.search`), then a polynomial fitted around the maximum
-   (`surface.local_surface`): its vertex the estimate, its Hessian the information;
+   (`surface.local_surface`): its vertex the estimate; the information a plain
+   quadratic's curvature through both seeds' values (`intervals.with_plain_bread`);
 3. the sandwich covariance, the Monte Carlo noise check with a second seed, and the Wald
    intervals (`intervals`).
 

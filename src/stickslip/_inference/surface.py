@@ -4,7 +4,9 @@ The maximum is found by a coarse grid over the `free` box (`_design`) and Nelder
 its best point (`search`), in fit coordinates (log for positive parameters); then a
 quadratic plus a cubic term per axis is fitted by least squares on a design of steps
 `DESIGN_STEP` around it (`local_surface`: the cubic terms keep the surface's skew out of
-the vertex): the vertex is the estimate, its Hessian the information.
+the vertex): the vertex is the estimate. The information the intervals use is the plain
+quadratic's curvature through both seeds' values (`quadratic_hessian`,
+`intervals.with_plain_bread`).
 """
 
 from __future__ import annotations
@@ -261,14 +263,15 @@ def polynomial_vertex(du, values, steps):
 
 def quadratic_hessian(du, values) -> np.ndarray | None:
     """The Hessian of the plain quadratic (no cubic terms) fitted by least squares to
-    `values` at offsets `du` from the design's centre; `None` where fewer points than
-    terms are finite."""
+    `values` at offsets `du` from the design's centre; `None` where the finite points do
+    not determine it (too few, or a pair's diagonal points lost: its cross term would be
+    read as zero)."""
     p = du.shape[1]
     ok = np.isfinite(values)
     X = polynomial_terms(du)[:, : 1 + p + len(_pairs(p))]
-    if np.sum(ok) < X.shape[1]:
+    coef, _, rank, _ = np.linalg.lstsq(X[ok], np.asarray(values, float)[ok], rcond=None)
+    if rank < X.shape[1]:
         return None
-    coef = np.linalg.lstsq(X[ok], np.asarray(values, float)[ok], rcond=None)[0]
     H = np.zeros((p, p))
     for (i, j), v in zip(_pairs(p), coef[1 + p :], strict=True):
         H[i, j] = H[j, i] = v
