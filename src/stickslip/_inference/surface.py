@@ -241,9 +241,7 @@ def polynomial_vertex(du, values, steps):
     pairs = _pairs(p)
     coef = np.linalg.lstsq(polynomial_terms(du)[ok], values[ok], rcond=None)[0]
     g = coef[1 : 1 + p]
-    Q = np.zeros((p, p))
-    for (i, j), v in zip(pairs, coef[1 + p : 1 + p + len(pairs)], strict=True):
-        Q[i, j] = Q[j, i] = v
+    Q = _curvature(p, coef)
     k = coef[1 + p + len(pairs) :]
     x = np.zeros(p)
     for _ in range(20):
@@ -272,10 +270,16 @@ def quadratic_hessian(du, values) -> np.ndarray | None:
     coef, _, rank, _ = np.linalg.lstsq(X[ok], np.asarray(values, float)[ok], rcond=None)
     if rank < X.shape[1]:
         return None
-    H = np.zeros((p, p))
-    for (i, j), v in zip(_pairs(p), coef[1 + p :], strict=True):
-        H[i, j] = H[j, i] = v
-    return H
+    return _curvature(p, coef)
+
+
+def _curvature(p: int, coef) -> np.ndarray:
+    """The symmetric curvature matrix from a fit's coefficients in `polynomial_terms`'
+    order (the constant, p slopes, then the curvature's `_pairs`)."""
+    Q = np.zeros((p, p))
+    for (i, j), v in zip(_pairs(p), coef[1 + p :], strict=False):
+        Q[i, j] = Q[j, i] = v
+    return Q
 
 
 def _pairs(p: int) -> list[tuple[int, int]]:
