@@ -95,6 +95,9 @@ def pieces(path):
     out = dict(names=names, truth=truth, u=u_hat, fits=cov, interval=noise["mc"] is not None
                and iv.concave(H), check=noise["check"], bread=plain.hessian,
                ratio=None)  # fmt: skip
+    # what the fit's rule was built from, for a rule built otherwise (`ridge_checks.py`)
+    out["parts"] = dict(surface=surface, plain=plain, scores2=s2, blocks=[b1, b2],
+                        shift2=shift2, values=(v1, v2), lag=lag)  # fmt: skip
     if "--ratio" in sys.argv[2:]:  # 2 x the log-likelihood's fall from the estimate to the truth
         at_truth = cycle_log_likelihood(r, params=kept["truth"]).sum()
         out["ratio"] = 2.0 * (r.log_likelihood - float(at_truth))
