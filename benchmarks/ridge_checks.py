@@ -13,11 +13,16 @@ checks on the kept fits (`fit_independent.py --case random --release stick --n-s
   falls by 8): the curvature a quadratic through those points gives against the
   eigenvalue the design gave (per design step squared), and the coverage with it in the
   bread. Two simulations a point (~15 s a fit).
+- `--plain`: the fit's rule with a plain quadratic (no cubic terms) through both seeds'
+  mean values for the vertex as well as the bread, and for the jackknife's and each
+  seed's vertices: how many fits then give an interval (a vertex within two steps,
+  concave), and covered.
 - `--seeds`: 2 (l(estimate) - l(truth)) at the fit's seed and n_sim, at two other seeds,
   and at those seeds with 4 x n_sim: whether the likelihood's preference for a point off
   the truth is the simulation's noise (run it on a few fits: ~30 s each).
 
     python benchmarks/ridge_checks.py "kept/random-stick-*.pkl" --realised --moments --line
+    python benchmarks/ridge_checks.py "kept/random-stick-*.pkl" --plain
     python benchmarks/ridge_checks.py kept/random-stick-{0,8,9,21}.pkl --seeds
 """
 
@@ -186,6 +191,55 @@ def seeds(paths) -> None:
               + "; ".join(cells))  # fmt: skip
 
 
+def _plain_vertex(du, values, steps):
+    """The vertex and Hessian of a plain quadratic fitted to `values` at `du` (`None` for
+    the vertex where it is not concave or lies past two steps)."""
+    from stickslip._inference.surface import _curvature, _pairs, polynomial_terms
+
+    p = du.shape[1]
+    ok = np.isfinite(values)
+    X = polynomial_terms(du)[:, : 1 + p + len(_pairs(p))]
+    coef = np.linalg.lstsq(X[ok], np.asarray(values, float)[ok], rcond=None)[0]
+    Q = _curvature(p, coef)
+    if not iv.concave(Q):
+        return None, Q
+    x = np.linalg.solve(Q, -coef[1 : 1 + p])
+    return (None if np.any(np.abs(x) > 2 * steps) else x), Q
+
+
+def plain(found) -> list[dict]:
+    """`--plain`: each fit's rule rebuilt on plain quadratics."""
+    out = []
+    for f in found:
+        parts, names = f["parts"], f["names"]
+        surface = parts["surface"]
+        du = surface.design - surface.centre
+        v1, v2 = parts["values"]
+        x, Q = _plain_vertex(du, 0.5 * (v1 + v2), surface.steps)
+        seeds = [_plain_vertex(du, v, surface.steps)[0] for v in (v1, v2)]
+        entry = dict(f, interval=False)
+        jack = []
+        for blocks in parts["blocks"]:
+            shifts = [_plain_vertex(du, c, surface.steps)[0] for c in np.asarray(blocks).T]
+            shifts = [s for s in shifts if s is not None]
+            if len(shifts) < iv.JACK_LEAST * np.shape(blocks)[1]:
+                break
+            dev = np.array(shifts) - np.mean(shifts, axis=0)
+            jack.append((np.shape(blocks)[1] - 1) / len(shifts) * (dev.T @ dev))
+        if x is None or any(s is None for s in seeds) or len(jack) < 2:
+            out.append(entry)
+            continue
+        bread = dataclasses.replace(surface, hessian=Q)
+        cov, _, _ = iv.sandwich_covariance(bread, names, parts["scores2"], parts["lag"])
+        mc = 0.25 * (jack[0] + jack[1])
+        half = 0.5 * (seeds[0] - seeds[1])
+        excess = np.sign(half) * np.sqrt(np.maximum(half**2 - np.diag(mc), 0.0))
+        entry.update(u=surface.centre + x, fits=cov + mc + np.outer(excess, excess),
+                     interval=True)  # fmt: skip
+        out.append(entry)
+    return out
+
+
 def covered(found, label) -> None:
     names = found[0]["names"]
     se = [np.sqrt(np.diag(f["fits"])) for f in found]
@@ -206,7 +260,7 @@ def main():
         realised(paths)
     if "--seeds" in flags:
         seeds(paths)
-    if "--moments" not in flags and "--line" not in flags:
+    if not {"--moments", "--line", "--plain"} & set(flags):
         return
     found = []
     for path in paths:
@@ -217,6 +271,11 @@ def main():
     covered(found, "the fit's rule")
     if "--moments" in flags:
         moments(found)
+    if "--plain" in flags:
+        plained = plain(found)
+        covered(plained, "plain quadratics throughout")
+        if "--moments" in flags:
+            moments(plained, "plain quadratics throughout")
     if "--line" in flags:
         lined, ratios = [], []
         for path, f in zip(paths, found, strict=True):
