@@ -273,6 +273,10 @@ def main():
         moments(found)
     if "--plain" in flags:
         plained = plain(found)
+        none = [f["parts"]["surface"] for f in found if f["parts"]["surface"].shift is None]
+        best = sum(int(np.nanargmax(sf.values)) == 0 for sf in none)
+        print(f"the first seed's polynomial has no vertex in {len(none)} fits; the design's "
+              f"centre is its best point in {best} of them")  # fmt: skip
         covered(plained, "plain quadratics throughout")
         if "--moments" in flags:
             moments(plained, "plain quadratics throughout")
