@@ -1,6 +1,7 @@
-"""Where a random threshold's intervals fail on the independent generator's traces, three
-checks on the kept fits (`fit_independent.py --case random --release stick --n-sim 4000
---keep kept`); each reads the fits' kept design samples, so only `--line` simulates.
+"""Where a random threshold's intervals fail on the independent generator's traces: checks
+on the kept fits (`fit_independent.py --case random --release stick --n-sim 4000 --keep
+kept`). `--moments` and `--plain` rebuild the fit's rule from the kept design samples;
+`--realised` makes the traces again, `--line` and `--seeds` simulate.
 
 - `--realised`: the thresholds each trace drew (the generator's own, in the model's
   units) against the fit's estimate, both as the truncated law's own mean and sd (the
@@ -37,11 +38,11 @@ import pickle
 import sys
 
 import numpy as np
-from scipy.stats import truncnorm
 
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 from interval_rules import pieces  # noqa: E402
+from truncated_moments import moments as _moments  # noqa: E402
 
 from stickslip._inference import intervals as iv  # noqa: E402
 from stickslip._inference.likelihood import cycle_log_likelihood  # noqa: E402
@@ -53,10 +54,7 @@ LINE_FALL, LINE_REACH = 8.0, 8.0
 
 def truncated(mean, sd) -> np.ndarray:
     """The mean and sd of a normal (mean, sd) truncated to positive values."""
-    if sd <= 0:
-        return np.array([mean, 0.0])
-    law = truncnorm(-mean / sd, np.inf, loc=mean, scale=sd)
-    return np.array([law.mean(), law.std()])
+    return np.array([mean, 0.0] if sd <= 0 else _moments(mean, sd))
 
 
 def _index(path) -> int:
