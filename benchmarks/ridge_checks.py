@@ -48,7 +48,6 @@ from stickslip._inference import intervals as iv  # noqa: E402
 from stickslip._inference.likelihood import cycle_log_likelihood  # noqa: E402
 
 MEAN, SD = "threshold_params.mean", "threshold_params.sd"
-BOX = {"omega0": (0.5, 3.0), "D": (0.02, 3.0), MEAN: (0.3, 2.0), SD: (0.0, 1.5)}  # the fits'
 LINE_FALL, LINE_REACH = 8.0, 8.0
 
 
@@ -61,10 +60,16 @@ def _index(path) -> int:
     return int(pathlib.Path(path).stem.rsplit("-", 1)[1])
 
 
-def realised(paths) -> None:
+def _study():
+    """`fit_independent.py`, the study whose kept fits these are (its generator, boxes)."""
     spec = importlib.util.spec_from_file_location("fit_independent", HERE / "fit_independent.py")
     fi = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(fi)
+    return fi
+
+
+def realised(paths) -> None:
+    fi = _study()
     rig = fi.rig_of("random")
     drawn, fitted = [], []
     for path in paths:
@@ -121,8 +126,9 @@ def line(path, f) -> tuple[dict, float, float]:
     plain, surface = parts["plain"], parts["surface"]
     scales = d["scales"]
     seeds = (d["seed"], d["mc_noise"]["seed"])
-    lo = np.array([math.log(BOX[k][0]) if scales[k] == "log" else BOX[k][0] for k in names])
-    hi = np.array([math.log(BOX[k][1]) if scales[k] == "log" else BOX[k][1] for k in names])
+    box = _study().problem("random", "stick")[1]  # the fits' free boxes
+    lo, hi = (np.array([math.log(box[k][e]) if scales[k] == "log" else box[k][e] for k in names])
+              for e in (0, 1))  # fmt: skip
 
     def mean_value(u):
         params = {k: math.exp(x) if scales[k] == "log" else float(x)
