@@ -6,9 +6,12 @@ estimate's covariance built by each rule from the same pieces:
   each axis, at its vertex as the bread) and the jackknife over the simulated cycles;
 - `cubic bread + jackknife + difference`: that, plus the part of the two seeds' half
   difference the jackknife does not explain (what `fit` reported before the plain bread);
-- `fit's rule`: the same with the plain bread (`intervals.with_plain_bread`: the
-  curvature of a plain quadratic fitted to both seeds' mean values over the design), what
-  `fit` reports;
+- `fit's rule`: the larger (`intervals.larger_covariance`) of that sandwich and the
+  one with the plain bread (`intervals.with_plain_bread`: the curvature of a plain
+  quadratic fitted to both seeds' mean values over the design), plus the seeds' noise as
+  above: what `fit` reports;
+- `plain bread + jackknife + difference`: the plain bread's sandwich alone, plus the
+  seeds' noise (what `fit` reported before the larger of the two);
 - `widened + half difference`: the sandwich widened by 1 + n/n_sim, plus the square of
   the two seeds' half difference (the rule before the jackknife);
 - `Hessian + jackknife`: the Hessian's inverse instead of the sandwich;
@@ -88,7 +91,9 @@ def pieces(path):
     big = np.full(len(names), 1e9)
     _, cubic, _ = iv.combine_seeds(surface, shift2, sandwich, [b1, b2], -big, big)
     plain = iv.with_plain_bread(surface, v2)
-    fits, _, _ = iv.sandwich_covariance(plain, names, s2, lag)
+    fits = plain_fits = iv.sandwich_covariance(plain, names, s2, lag)[0]
+    if plain is not surface:
+        fits = iv.larger_covariance(plain_fits, sandwich)
     u_hat, cov, noise = iv.combine_seeds(surface, shift2, fits, [b1, b2], -big, big)
     scales = d["scales"]
     truth = np.array([math.log(truth[k]) if scales[k] == "log" else truth[k] for k in names])
@@ -117,7 +122,9 @@ def pieces(path):
         "Hessian + jackknife": np.linalg.inv(-0.5 * (H + H2)) + mc,
     }
     if plain is not surface:
-        out["rules"]["quadratic bread + jackknife"] = fits + mc
+        out["rules"]["quadratic bread + jackknife"] = plain_fits + mc
+        _, out["rules"]["plain bread + jackknife + difference"], _ = iv.combine_seeds(
+            surface, shift2, plain_fits, [b1, b2], -big, big)  # fmt: skip
     return out
 
 

@@ -132,6 +132,30 @@ def test_no_plain_bread_where_the_quadratic_is_not_concave():
     assert intervals.with_plain_bread(kept, lost) is kept
 
 
+def test_the_larger_covariance_bounds_both_and_is_the_least_on_common_axes():
+    """The larger of two covariances is at least each in every direction (both differences
+    positive semidefinite); where they share their axes it is the larger variance on each
+    (closed form: diagonal matrices give the elementwise maximum); and where one already
+    bounds the other it is that one."""
+    rng = np.random.default_rng(11)
+    for _ in range(50):
+        m, n = rng.normal(size=(2, 3, 3))
+        a, b = m @ m.T, n @ n.T
+        c = intervals.larger_covariance(a, b)
+        assert np.allclose(c, c.T, atol=1e-12)
+        for other in (a, b):
+            assert np.min(np.linalg.eigvalsh(c - other)) > -1e-10
+    a, b = np.diag([1.0, 4.0, 0.5]), np.diag([2.0, 1.0, 0.5])
+    assert np.allclose(intervals.larger_covariance(a, b), np.diag([2.0, 4.0, 0.5]))
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    rotate = lambda d: q @ d @ q.T  # noqa: E731  (the same axes, turned)
+    assert np.allclose(intervals.larger_covariance(rotate(a), rotate(b)),
+                       rotate(np.diag([2.0, 4.0, 0.5])))  # fmt: skip
+    small = 0.5 * a
+    assert np.allclose(intervals.larger_covariance(small, a), a)
+    assert np.allclose(intervals.larger_covariance(a, small), a)
+
+
 def test_the_plain_bread_is_steadier_along_a_weak_direction():
     """A weak direction whose maximum lies a step from the design's centre, each point's
     value noisy (the simulation's roughness): over 400 draws the curvature along it varies

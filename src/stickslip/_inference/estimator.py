@@ -5,8 +5,10 @@ subpackage's pieces:
    coordinates (`params`), the simulation settings (`forward.simulation_settings`);
 2. the simulated smoothed likelihood (`likelihood`), maximised by a coarse grid and
    Nelder-Mead (`surface.search`), then a polynomial fitted around the maximum
-   (`surface.local_surface`): its vertex the estimate; the information a plain
-   quadratic's curvature through both seeds' values (`intervals.with_plain_bread`);
+   (`surface.local_surface`): its vertex the estimate; the information that polynomial's
+   curvature at the vertex and a plain quadratic's through both seeds' values
+   (`intervals.with_plain_bread`), the sandwich the larger of the two
+   (`intervals.larger_covariance`);
 3. the sandwich covariance, the Monte Carlo noise check with a second seed, and the Wald
    intervals (`intervals`).
 
@@ -29,6 +31,7 @@ from .forward import simulate_values, simulation_settings
 from .intervals import (
     combine_seeds,
     concave,
+    larger_covariance,
     mc_noise_report,
     sandwich_covariance,
     structural_lag,
@@ -350,9 +353,12 @@ def simulated_mle(
     # successive rows share a draw where the onset is random (`intervals.structural_lag`)
     # the curvature the intervals divide by (and the goodness of fit's one-step estimates,
     # whose scatter the covariance holds: the same bread), `diagnostics.hessian`
+    lag = structural_lag(p.centre)
     bread = with_plain_bread(surface, values2)
-    cov, said, dependence = sandwich_covariance(bread, p.names, scores2,
-                                                structural_lag(p.centre))  # fmt: skip
+    cov, said, dependence = sandwich_covariance(bread, p.names, scores2, lag)
+    if bread is not surface:  # both curvatures, the larger covariance
+        cubic, _, _ = sandwich_covariance(surface, p.names, scores2, lag)
+        cov = larger_covariance(cov, cubic)
     caught += said
     shift2, _ = polynomial_vertex(surface.design - surface.centre, np.array(values2),
                                    surface.steps)  # fmt: skip
