@@ -145,6 +145,34 @@ def test_a_new_process_neither_traces_nor_compiles(tmp_path):
     assert second["slip_time"] == first["slip_time"]
 
 
+SOLVE = """
+import json
+import jax.numpy as jnp
+from stickslip import _compile
+def solve(a, b):  # a linear solve: LAPACK, as the implicit solvers of a model with memory
+    return jnp.linalg.solve(a, b)
+f = _compile.eqx.filter_jit(solve)
+a = jnp.array([[4.0, 1.0, 0.5], [1.0, 3.0, -1.0], [0.5, -1.0, 2.0]])
+b = jnp.array([1.0, -2.0, 0.25])
+x = _compile.call(f, a, b, paths=0)
+print(json.dumps(dict(x=[float(v) for v in x], stats=_compile.stats)))
+"""
+
+
+def test_an_executable_that_calls_lapack_runs_when_loaded_from_disk(tmp_path):
+    """A program with a linear solve, compiled by one process and loaded from disk by the
+    next, which lowers nothing: the second process runs it (it crashed, a segmentation
+    fault, while nothing had bound LAPACK's routines) and gets NumPy's solution."""
+    first = json.loads(new_process(SOLVE, tmp_path))
+    second = json.loads(new_process(SOLVE, tmp_path))
+    assert first["stats"]["compiles"] == 1
+    assert second["stats"]["compiles"] == 0 and second["stats"]["executables_loaded"] == 1
+    a = np.array([[4.0, 1.0, 0.5], [1.0, 3.0, -1.0], [0.5, -1.0, 2.0]])
+    expected = np.linalg.solve(a, [1.0, -2.0, 0.25])
+    np.testing.assert_allclose(second["x"], expected, rtol=1e-12)
+    np.testing.assert_allclose(first["x"], expected, rtol=1e-12)
+
+
 SHARED = """
 import json
 import jax.numpy as jnp

@@ -866,6 +866,7 @@ def _load_executable(file, exported, leaves):
             return None
         from jax.experimental.serialize_executable import deserialize_and_load
 
+        _lapack_ready()
         try:
             return deserialize_and_load(payload, *_trees(exported, leaves))
         except Exception:  # checked, yet not loadable by this runtime: compile again
@@ -873,6 +874,19 @@ def _load_executable(file, exported, leaves):
             return None
     finally:
         seconds["load_seconds"] += time.perf_counter() - start
+
+
+@functools.cache
+def _lapack_ready() -> None:
+    """Bind the LAPACK routines that compiled code calls (a linear solve: the implicit
+    solvers of a model with memory). JAX binds them when it lowers such an operation; an
+    executable loaded from disk lowers nothing, and its first call crashed the process
+    (a segmentation fault) where nothing before had bound them."""
+    try:
+        from jax._src.lax.linalg import initialize_lapack
+    except ImportError:  # (moved in another JAX: then it binds them itself, or we learn)
+        return
+    initialize_lapack()
 
 
 def _save_executable(file, compiled, exported, leaves) -> None:

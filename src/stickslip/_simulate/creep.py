@@ -26,7 +26,7 @@ import equinox as eqx
 import numpy as np
 import optimistix as optx
 
-from .. import _rng
+from .. import _compile, _rng
 from .._errors import ParameterError, check_choice, check_int, check_positive
 from .._jax import jax, jnp
 from .._model import CreepingSlider, to_arrays
@@ -135,7 +135,8 @@ def _controller(noisy: bool, rtol, atol):
 def _segment(model, noisy: bool, y0, t0, sign, key, h, t_end, rtol, atol):
     """Integrate each path from `t0` until `sign * crossing` rises through zero, or to
     `t_end`. Returns the end time and state, whether the event ended it, whether the solve
-    succeeded, and its steps."""
+    succeeded, and its steps. The path axis is every array's last (`_compile.call`'s
+    convention: one trace for every batch size, kept on disk)."""
 
     def one(y0, t0, sign, key):
         def cond(t, y, args, **kwargs):
@@ -159,12 +160,13 @@ def _segment(model, noisy: bool, y0, t0, sign, key, h, t_end, rtol, atol):
         ok = ok | (sol.result == diffrax.RESULTS.event_occurred)
         return sol.ts[-1], y1, hit, ok, more, sol.stats["num_steps"]
 
-    return jax.vmap(one)(y0, t0, sign, key)
+    return jax.vmap(one, in_axes=-1, out_axes=-1)(y0, t0, sign, key)
 
 
 @eqx.filter_jit
 def _dense(model, noisy: bool, y0, key, h, ts, rtol, atol):
-    """Each path's states at the times `ts` (one solve through)."""
+    """Each path's states at the times `ts` (one solve through). Not kept on disk as
+    `_segment` is: diffrax checks the times with a host callback, which cannot be exported."""
 
     def one(y0, key):
         sol = diffrax.diffeqsolve(
@@ -201,16 +203,18 @@ class Motion:
         solve is its own under `vmap`): as paths finish, the solve compiles for a few
         sizes, not for every count of paths still running (~3 s each)."""
         n = t.size
-        pad = np.r_[np.arange(n), np.zeros((1 << (n - 1).bit_length()) - n, dtype=int)]
-        t1, y1, hit, ok, more, steps = _segment(
-            self.model, self.noisy, jnp.asarray(y[pad]), jnp.asarray(t[pad]),
-            jnp.asarray(np.where(slipping[pad], -1.0, 1.0)), keys[pad], jnp.asarray(self.dt),
-            jnp.asarray(self.t_max), RTOL, ATOL,
+        size = 1 << (n - 1).bit_length()
+        pad = np.r_[np.arange(n), np.zeros(size - n, dtype=int)]
+        t1, y1, hit, ok, more, steps = _compile.call(
+            _segment, self.model, self.noisy, jnp.asarray(y[pad].T), jnp.asarray(t[pad]),
+            jnp.asarray(np.where(slipping[pad], -1.0, 1.0)), jnp.asarray(keys[pad].T),
+            jnp.asarray(self.dt), jnp.asarray(self.t_max), RTOL, ATOL, paths=size,
         )  # fmt: skip
         self.stats["segments"] += 1
         self.stats["steps"] += int(np.sum(np.asarray(steps)[:n]))
         self.stats["failed"] += int(np.sum(~np.asarray(ok)[:n]))
-        return (np.array(t1[:n]), np.array(y1[:n]), np.asarray(hit[:n]), np.asarray(more[:n]))
+        y1 = np.array(y1).T[:n]
+        return (np.array(t1[:n]), y1, np.asarray(hit[:n]), np.asarray(more[:n]))
 
     def dense(self, y0, keys, ts) -> np.ndarray:
         ys = _dense(self.model, self.noisy, jnp.asarray(y0), keys, jnp.asarray(self.dt),
