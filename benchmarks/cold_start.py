@@ -2,6 +2,7 @@
 
     python benchmarks/cold_start.py [--runs 3] [--n-paths 100000] [--dt 0.8]
     python benchmarks/cold_start.py --main-job [--runs 3]
+    python benchmarks/cold_start.py --creep [--runs 3] [--before TREE]
 
 Each run makes a new, empty `STICKSLIP_CACHE_DIR` and times, as whole processes (start-up,
 imports and exit included), `import stickslip` + `simulate` of the public set (OU friction
@@ -22,6 +23,13 @@ Prints the median and the spread of each, the compilations and traces of the fir
 --out DIR` as a whole process: `cold` (an empty cache), `warm` (the same cache, once the
 background compiler is done), with the compilations of the cold process, and checks that
 every `results.nc` holds the same numbers (the timings `seconds_*` and `created` aside).
+
+`--creep`: the rate-and-state slider instead (`RateAndState.example()`, 8 paths for 20 s
+of its noise-free cycles: ~30 cycles each), `cold` (an empty cache: the shipped trace
+and a compilation) and `warm` (the same cache again: loaded from disk); with `--before
+TREE`, the same two processes with another checkout's `src` and `plugins` first on the
+path (say the tree before a change: `git worktree add /tmp/before HEAD~1`), alternating
+with this one's, and a check that both give the same cycles.
 """
 
 from __future__ import annotations
@@ -128,6 +136,52 @@ def run_main_job(runs):
     print(f"  the same results.nc in every process: {len(digests) == 1}")
 
 
+CREEP = """
+import hashlib, json, time
+t0 = time.perf_counter()
+import numpy as np
+import stickslip as ss
+m = ss.get_model("rate-and-state").example()
+c = ss.simulate_cycles(m, 8, 1e-3, 20.0, seed=1, progress=False).cycles
+info = ss.cache_info()
+digest = hashlib.sha256(np.nan_to_num(np.stack(
+    [c["slip_time"], c["stick_time"], c["force_drop"]])).tobytes()).hexdigest()
+print(json.dumps(dict(info=info, digest=digest, cycles=int(c["slip_time"].size),
+                      inside=time.perf_counter() - t0)))
+"""
+
+
+def creep_process(cache, tree=None):
+    """One process of the rate-and-state slider's cycles; `(wall seconds, its output)`."""
+    env = dict(os.environ, STICKSLIP_CACHE_DIR=cache)
+    if tree is not None:
+        env["PYTHONPATH"] = os.pathsep.join(
+            [os.path.join(tree, "src"), os.path.join(tree, "plugins")]
+            + [env["PYTHONPATH"]] * bool(env.get("PYTHONPATH")))  # fmt: skip
+    start = time.perf_counter()
+    out = subprocess.run([sys.executable, "-c", CREEP], env=env, capture_output=True, text=True,
+                         check=True)  # fmt: skip
+    return time.perf_counter() - start, json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def run_creep(runs, before=None):
+    trees = {"": None} if before is None else {"": None, "before, ": before}
+    rows = {f"{label}{kind}": [] for label in trees for kind in ("cold", "warm")}
+    digests, cycles = set(), set()
+    for _ in range(runs):
+        for label, tree in trees.items():
+            with tempfile.TemporaryDirectory() as cache:
+                for kind in ("cold", "warm"):
+                    wall, got = creep_process(cache, tree)
+                    rows[f"{label}{kind}"].append(wall)
+                    digests.add(got["digest"])
+                    cycles.add(got["cycles"])
+    print(f"the rate-and-state slider's example, 8 paths for 20 s ({sorted(cycles)} cycles); "
+          f"{runs} runs, each from an empty cache (whole processes, seconds)")  # fmt: skip
+    _print_rows(rows, 13)
+    print(f"  the same cycles in every process: {len(digests) == 1}")
+
+
 def _print_rows(rows: dict, width: int) -> None:
     """Each row's median, min and max (seconds)."""
     for name, values in rows.items():
@@ -142,7 +196,12 @@ def main(argv=None):
     parser.add_argument("--n-paths", type=int, default=100_000)
     parser.add_argument("--dt", type=float, default=0.8)
     parser.add_argument("--main-job", action="store_true", help="time the README's main job")
+    parser.add_argument("--creep", action="store_true", help="time the rate-and-state slider")
+    parser.add_argument("--before", help="with --creep: another checkout to time beside")
     args = parser.parse_args(argv)
+    if args.creep:
+        run_creep(args.runs, args.before)
+        return
     if args.main_job:
         run_main_job(args.runs)
         return

@@ -202,6 +202,7 @@ def test_weighted_median_is_the_median_of_the_values_written_out(weight):
     assert weighted_median(a, None) == np.median(a)
 
 
+@pytest.mark.slow  # (10 s in a cold default tier, most of it compiling a user's model)
 def test_a_model_with_memory_runs_in_short_paths_with_the_same_law(monkeypatch):
     """A random threshold whose stick, past its next threshold, releases from where it is
     (memory of one cycle, written as a user writes it) is measured in paths of 32 cycles

@@ -18,7 +18,7 @@ import stickslip as ss
 
 distributed = pytest.importorskip("distributed")
 
-pytestmark = pytest.mark.early  # (clusters of worker processes: ~10 s in 3 tests)
+pytestmark = pytest.mark.early  # (worker processes: a few seconds in each test)
 
 PUBLIC = dict(omega0=1.0, zeta=0.1, D=0.4, v_b=1.0, x0=1.0, tau=0.1)
 OUTPUTS = ("slip_time", "slip_distance", "stick_time", "period")
@@ -47,8 +47,8 @@ def client():
 
 @pytest.fixture(scope="module")
 def one_worker():
-    """One worker process: the default tier's sweep, whose points still run as tasks in
-    another process (each worker costs ~5 s of CPU: a new process's start and loading)."""
+    """One worker process: the sweep's points still run as tasks in another process (each
+    worker costs ~5 s of CPU: a new process's start and loading)."""
     with _cluster(n_workers=1) as cluster, distributed.Client(cluster) as c:
         yield c
 
@@ -65,7 +65,7 @@ def assert_same(a, b, names):
         assert np.array_equal(x, y, equal_nan=True), name
 
 
-@pytest.mark.slow  # 15 s (the default tier keeps the sweep below, on one worker process)
+@pytest.mark.slow  # 15 s
 def test_ensemble_on_two_worker_processes_is_the_local_one(client, model):
     """The issue's acceptance: 40000 paths, dt 0.01, t_max 30, seed 3 on a 2-process local
     cluster give exactly the local arrays."""
@@ -110,6 +110,7 @@ def test_upcrossings_cycles_and_chains_on_the_cluster(client, model):
     assert np.array_equal(np.concatenate(local.releases), np.concatenate(remote.releases))
 
 
+@pytest.mark.slow  # (12 s: a worker process's start and loading, and the sweep twice)
 def test_sweep_on_the_cluster_writes_the_local_dataset(one_worker, tmp_path):
     """A sweep's points run as tasks; the Dataset written is the local one, bar wall times."""
     import xarray as xr

@@ -27,16 +27,17 @@ def run(study, out, overrides, force, no_figures, quiet, dask):
     from .._output import check_output_dir
     from ..study import load_study, run_study
 
-    # A bad study or --out is reported before anything else (a cluster, the note below).
+    # A bad study, --out or --dask is reported before anything else (a cluster, the note
+    # below), in one line.
     load_study(study, list(overrides))
     check_output_dir(out, inputs=[study], force=force)
-    if not quiet:
-        from .._compile import cold_note
-
-        note = cold_note()
-        if note:
-            click.echo(note, err=True)
     with dask_client(dask) as client:
+        if not quiet:
+            from .._compile import cold_note
+
+            note = cold_note()
+            if note:
+                click.echo(note, err=True)
         run_study(
             study,
             out,
