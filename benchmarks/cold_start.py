@@ -142,7 +142,7 @@ t0 = time.perf_counter()
 import numpy as np
 import stickslip as ss
 m = ss.get_model("rate-and-state").example()
-c = ss.simulate_cycles(m, 8, 1e-3, 20.0, seed=1, progress=False).cycles
+c = ss.simulate_cycles(m, 8, 1e-3, 20.0, seed=1).cycles
 info = ss.cache_info()
 digest = hashlib.sha256(np.nan_to_num(np.stack(
     [c["slip_time"], c["stick_time"], c["force_drop"]])).tobytes()).hexdigest()
@@ -155,9 +155,8 @@ def creep_process(cache, tree=None):
     """One process of the rate-and-state slider's cycles; `(wall seconds, its output)`."""
     env = dict(os.environ, STICKSLIP_CACHE_DIR=cache)
     if tree is not None:
-        env["PYTHONPATH"] = os.pathsep.join(
-            [os.path.join(tree, "src"), os.path.join(tree, "plugins")]
-            + [env["PYTHONPATH"]] * bool(env.get("PYTHONPATH")))  # fmt: skip
+        paths = [os.path.join(tree, "src"), os.path.join(tree, "plugins")]
+        env["PYTHONPATH"] = os.pathsep.join(paths + [p for p in [env.get("PYTHONPATH")] if p])
     start = time.perf_counter()
     out = subprocess.run([sys.executable, "-c", CREEP], env=env, capture_output=True, text=True,
                          check=True)  # fmt: skip
