@@ -483,40 +483,6 @@ def _is_quick(fn) -> bool:
     return _name(fn) in _quick
 
 
-_unchecked: set = set()  # names (`_name`) of the functions traced with `_checks_as_nan`
-
-
-def unchecked(fn):
-    """Trace `fn` (a function of the package's) with equinox's run-time checks returning
-    NaN instead of raising (`_checks_as_nan`): for a program whose checks hold by
-    construction (say diffrax's check that the times it saves at do not decrease, which the
-    caller's grid guarantees). A raising check is a host callback, and a program with one
-    cannot be exported: it would be traced and compiled again in every process. Returns
-    `fn`."""
-    _unchecked.add(_name(fn))
-    return fn
-
-
-@contextlib.contextmanager
-def _checks_as_nan(fn):
-    """Equinox's `error_if` as NaN while `fn` is traced, where `fn` is `unchecked` (an
-    equinox module global, read when a check is traced; if it is gone, the trace keeps
-    its callbacks and is made per process, as before)."""
-    try:
-        from equinox import _errors
-    except ImportError:  # pragma: no cover - another equinox
-        _errors = None
-    if _name(fn) not in _unchecked or not hasattr(_errors, "EQX_ON_ERROR"):
-        yield
-        return
-    before = _errors.EQX_ON_ERROR
-    _errors.EQX_ON_ERROR = "nan"
-    try:
-        yield
-    finally:
-        _errors.EQX_ON_ERROR = before
-
-
 def _options(fn) -> dict:
     """The XLA compile options of `fn`'s executables on disk (see `QUICK`, `_fresh`)."""
     return {**_OWN_KEY, **QUICK} if _is_quick(fn) else _OWN_KEY
@@ -607,7 +573,7 @@ def _trace(fn, specs, treedef, static, file):
         return fn(*eqx.combine(dynamic, static))
 
     try:
-        with _without_source_locations(), _checks_as_nan(fn):
+        with _without_source_locations():
             exported = export.export(jax.jit(flat_fn))(*specs)
     except Exception as err:  # not shape-polymorphic: one trace per shape instead
         warnings.warn(

@@ -163,11 +163,11 @@ def _segment(model, noisy: bool, y0, t0, sign, key, h, t_end, rtol, atol):
     return jax.vmap(one, in_axes=-1, out_axes=-1)(y0, t0, sign, key)
 
 
-@_compile.unchecked  # (diffrax checks that `ts` does not decrease: `dense` makes it so)
 @eqx.filter_jit
 def _dense(model, noisy: bool, y0, key, h, ts, rtol, atol):
-    """Each path's states at the times `ts` (one solve through); the path axis last, as
-    `_segment`'s."""
+    """Each path's states at the times `ts` (one solve through). Traced in each process, not
+    kept on disk as `_segment` is: diffrax checks the times with a host callback, which
+    cannot be exported."""
 
     def one(y0, key):
         sol = diffrax.diffeqsolve(
@@ -177,7 +177,7 @@ def _dense(model, noisy: bool, y0, key, h, ts, rtol, atol):
         )  # fmt: skip
         return sol.ys
 
-    return jax.vmap(one, in_axes=-1, out_axes=-1)(y0, key)
+    return jax.vmap(one)(y0, key)
 
 
 class Motion:
@@ -218,19 +218,9 @@ class Motion:
         return (np.array(t1[:n]), y1, np.asarray(hit[:n]), np.asarray(more[:n]))
 
     def dense(self, y0, keys, ts) -> np.ndarray:
-        """The states `(paths, times, state)` at the increasing times `ts`. The times are
-        padded to a power of two with the last one (saved again), so that a new length
-        compiles again only past the next power of two."""
-        n, m = len(y0), len(ts)
-        size = 1 << (m - 1).bit_length()
-        size *= 1 + (size == n)  # (not the paths' number: that axis alone is symbolic)
-        padded = np.r_[ts, np.full(size - m, ts[-1])]
-        ys = _compile.call(
-            _dense, self.model, self.noisy, jnp.asarray(np.asarray(y0).T),
-            jnp.asarray(np.asarray(keys).T), jnp.asarray(self.dt), jnp.asarray(padded), RTOL,
-            ATOL, paths=n,
-        )  # fmt: skip
-        return np.moveaxis(np.asarray(ys), -1, 0)[:, :m]
+        ys = _dense(self.model, self.noisy, jnp.asarray(y0), keys, jnp.asarray(self.dt),
+                    jnp.asarray(ts), RTOL, ATOL)  # fmt: skip
+        return np.asarray(ys)
 
     def crossing(self, ys) -> np.ndarray:
         return np.asarray(jax.vmap(self.model.crossing)(jnp.asarray(ys)))
