@@ -866,7 +866,8 @@ def _load_executable(file, exported, leaves):
             return None
         from jax.experimental.serialize_executable import deserialize_and_load
 
-        _lapack_ready()
+        if b"lapack" in exported.mlir_module_serialized:  # (its calls name their targets)
+            _lapack_ready()
         try:
             return deserialize_and_load(payload, *_trees(exported, leaves))
         except Exception:  # checked, yet not loadable by this runtime: compile again
@@ -881,7 +882,8 @@ def _lapack_ready() -> None:
     """Bind the LAPACK routines that compiled code calls (a linear solve: the implicit
     solvers of a model with memory). JAX binds them when it lowers such an operation; an
     executable loaded from disk lowers nothing, and its first call crashed the process
-    (a segmentation fault) where nothing before had bound them."""
+    (a segmentation fault) where nothing before had bound them. Only for a program that
+    calls them: binding imports SciPy's LAPACK, ~0.25 s in a new process."""
     try:
         from jax._src.lax.linalg import initialize_lapack
     except ImportError:  # (moved in another JAX: then it binds them itself, or we learn)
