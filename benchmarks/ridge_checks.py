@@ -117,8 +117,9 @@ def moments(found, label="fit's intervals") -> None:
 
 
 def line(path, f) -> tuple[dict, float, float]:
-    """The fit's rule with the bread's weakest eigenvalue replaced by the curvature along
-    its line; (that fit's entry, the eigenvalue before, after)."""
+    """The plain bread's rule (`fit`'s when this was measured, 2026-12-06; `fit` now takes
+    the larger of it and the cubic bread's) with the bread's weakest eigenvalue replaced by
+    the curvature along its line; (that fit's entry, the eigenvalue before, after)."""
     with open(path, "rb") as fh:
         r = pickle.load(fh)["fit"]
     d = r.diagnostics
