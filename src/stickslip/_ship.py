@@ -87,15 +87,16 @@ for K in (16, 40):
 for record_dt in (None, 10.0):
     chain = ss.get_model("burridge-knopoff").example()
     ss.simulate_chain(chain, 1, 0.02, 200.0, seed=1, record_dt=record_dt)
-# The rate-and-state slider's solves of a stick or a slip (its recorded series are traced in
-# each process: diffrax checks their times with a host callback), each state law, noise-free
-# and with friction noise.
+# The rate-and-state slider's solves, each state law: noise-free, a stick or a slip (its
+# recorded series are traced in each process: diffrax checks their times with a host
+# callback); with friction noise, the windows of steps and the events' placing (its recorded
+# series are kept on disk by the number of samples, so not shipped).
 rs = dict(mass=0.0307, stiffness=168.0, v_b=42e-6, normal_force=0.301, mu0=0.3, a=0.01,
           b=0.015, d_c=1e-6, v_ref=1e-6)
 for law in ("aging", "slip"):
     ss.simulate_cycles(ss.get_model("rate-and-state")(**rs, law=law), 2, 1e-3, 1.0, seed=1)
     noisy = ss.get_model("rate-and-state")(**rs, law=law, D=1e-6, tau=2e-3)
-    ss.simulate_cycles(noisy, 2, 2e-4, 0.2, seed=1)
+    ss.simulate_cycles(noisy, 2, 2e-4, 0.2, seed=1, record=False)
 if pathlib.Path(sys.argv[1]).exists():
     ss.run_study(sys.argv[1], progress=False, figures=False)
 """

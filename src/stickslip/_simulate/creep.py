@@ -1,6 +1,5 @@
 r"""The motion of a `CreepingSlider` (friction with memory, e.g. rate-and-state): one
-implicit adaptive integration through stick and slip, with the force's peaks and troughs as
-events.
+implicit integration through stick and slip, with the force's peaks and troughs as events.
 
 Each solve runs every path of a batch (vmapped) from where it is to the end of its slip or
 of its stick: the first time `sign * crossing` rises through zero, with `crossing` the
@@ -9,10 +8,12 @@ speed, the force's trough; sign +1: it outruns the drive again, the next peak). 
 alternate on the host, so a path's state runs on from one cycle into the next.
 
 The creep is stiff: the velocity relaxes in $M v / (N a)$, 1e-8 s at 1 nm/s for a 30 g
-slider, against a stick of seconds. Hence diffrax's `Kvaerno5` (ESDIRK, L-stable) with
-a PID controller. Friction noise is white noise on the grid `dt`, interpolated
-linearly between its nodes (Wong-Zakai), keyed by `(seed, path, node)`: a path's noise does
-not depend on how its solves are cut.
+slider, against a stick of seconds. Hence, without noise, diffrax's `Kvaerno5` (ESDIRK,
+L-stable) with a PID controller. Friction noise is white noise on the grid `dt`,
+interpolated linearly between its nodes (Wong-Zakai), keyed by `(seed, path, node)`: a
+path's noise does not depend on how its solves are cut. With noise the motion goes in
+linearly implicit steps that end at the grid's nodes (`rosenbrock`): an adaptive solver
+shrank its steps at every node's kink (163 000 steps a cycle of the paper-like slider).
 """
 
 from __future__ import annotations
@@ -30,22 +31,30 @@ from .. import _compile, _rng
 from .._errors import ParameterError, check_choice, check_int, check_positive
 from .._jax import jax, jnp
 from .._model import CreepingSlider, to_arrays
+from . import rosenbrock
 
 _NOISE_STREAM = 8  # the noise grid's stream (beside the hybrid simulator's, `_rng`)
 # Relative and absolute tolerances of the integration, of the state in the model's own
 # (O(1)) variables. With them the cycles of the paper-like slider agree with an independent
 # Radau integration at 1e-11 to 1e-5 (slip and stick times, force drops).
 RTOL, ATOL = 1e-8, 1e-8
-# With friction noise the forcing is rough on the grid's scale (its derivative has a kink at
-# every node), so that a fifth-order method gains nothing there: Kvaerno3 at 1e-6. On the
-# paper-like slider (tau 2 ms, grid tau/10): 122 k steps a simulated second and 1.6 s of
-# wall time, against 101 k and 2.2 s for Kvaerno5 at 1e-6 (247 k and 5.4 s at 1e-8).
-NOISY_RTOL = NOISY_ATOL = 1e-6
 # The PID coefficients suggested for stiff problems (Hairer and Wanner): on 15 s of the
 # paper-like slider at 1e-9, 63 k steps with 23 k rejected against 68 k with 37 k for the
 # integral controller.
 _PID = dict(pcoeff=0.3, icoeff=0.4)
+# With friction noise: linearly implicit steps that end at the noise grid's nodes
+# (`rosenbrock`), their local error held to 1e-5 of the state's O(1) variables. On the
+# paper-like slider at k = 1002 N/m (tau 2 ms, grid tau/10, 4 s from a velocity step), the
+# drops of path 0's seven slips above 1 mN moved by at most 3e-3 relative from 1e-4 to
+# 1e-6 and 6e-4 from 1e-5 to 1e-6; one stick time by 3 % from 1e-4 (its end at another of
+# the noise's crossings near the peak), 1.6e-4 from 1e-5. Cost: 1.7 and 2.8 times 1e-4's.
+NOISY_RTOL = NOISY_ATOL = 1e-5
 _MAX_STEPS = 200_000  # steps of one solve (a longer stick or slip takes several)
+# Crossings of the drive's speed a path keeps in one noisy window (`Motion.events`): its
+# paths run on, all busy, until each has as many or reaches t_max (a path that fills its
+# buffer goes on in the next window). The paper-like slider with noise crosses about 4
+# times a cycle (3 of 4 slips of micronewtons, near the force's peak).
+_WINDOW_EVENTS = 128
 # An event's time by bisection on the solver's dense output, to 1e-10 relative (1e-12 s
 # absolute): far below the time scales of a slip (ms) and the tests' 1e-5.
 _EVENT_RTOL, _EVENT_ATOL = 1e-10, 1e-12
@@ -91,61 +100,26 @@ def _noisy(model) -> bool:
     return bool(np.any(np.asarray(model.diffusion(jnp.asarray(y))) != 0.0))
 
 
-def _node(key, j, m):
-    high, low = (j >> 31).astype(jnp.uint32), j.astype(jnp.uint32)
-    k = jax.random.fold_in(jax.random.fold_in(key, high), low)
-    return jax.random.normal(k, (m,), dtype=jnp.float64)
-
-
-def _noise(key, t, h, m):
-    """The white noise at `t`: `m` standard normals at each node of the grid of step `h`
-    (keyed by node), over sqrt(h), interpolated linearly between nodes. The forcing is
-    continuous, so that an implicit adaptive solver does not shrink its steps to find a
-    jump at every node (held constant over each interval instead, the same slider took
-    ~120 steps an interval). Its integral is a Brownian path to O(h): Wong-Zakai."""
-    u = t / h
-    j = jnp.floor(u)
-    frac = u - j
-    j = j.astype(jnp.int64)
-    return ((1.0 - frac) * _node(key, j, m) + frac * _node(key, j + 1, m)) / jnp.sqrt(h)
-
-
-def _term(model, noisy: bool):
-    def vf(t, y, args):
-        key, h = args
-        f = model.drift(y)
-        if noisy:
-            f = f + model.diffusion(y) @ _noise(key, t, h, model.noise_dim)
-        return f
-
-    return diffrax.ODETerm(vf)
-
-
-def _solver(noisy: bool):
-    return diffrax.Kvaerno3() if noisy else diffrax.Kvaerno5()
-
-
-def _controller(noisy: bool, rtol, atol):
-    if noisy:
-        rtol, atol = NOISY_RTOL, NOISY_ATOL
-    return diffrax.PIDController(rtol=rtol, atol=atol, **_PID)
+def _term(model):
+    return diffrax.ODETerm(lambda t, y, args: model.drift(y))
 
 
 @eqx.filter_jit
-def _segment(model, noisy: bool, y0, t0, sign, key, h, t_end, rtol, atol):
-    """Integrate each path from `t0` until `sign * crossing` rises through zero, or to
-    `t_end`. Returns the end time and state, whether the event ended it, whether the solve
-    succeeded, and its steps. The path axis is every array's last (`_compile.call`'s
-    convention: one trace for every batch size, kept on disk)."""
+def _segment(model, y0, t0, sign, t_end, rtol, atol):
+    """Integrate each path of the noise-free motion from `t0` until `sign * crossing` rises
+    through zero, or to `t_end`. Returns the end time and state, whether the event ended
+    it, whether the solve succeeded, and its steps. The path axis is every array's last
+    (`_compile.call`'s convention: one trace for every batch size, kept on disk). With
+    friction noise, `rosenbrock.segment` instead."""
 
-    def one(y0, t0, sign, key):
+    def one(y0, t0, sign):
         def cond(t, y, args, **kwargs):
             return sign * model.crossing(y)
 
         finder = optx.Bisection(rtol=_EVENT_RTOL, atol=_EVENT_ATOL, expand_if_necessary=True)
         sol = diffrax.diffeqsolve(
-            _term(model, noisy), _solver(noisy), t0, t_end, None, y0, args=(key, h),
-            stepsize_controller=_controller(noisy, rtol, atol),
+            _term(model), diffrax.Kvaerno5(), t0, t_end, None, y0,
+            stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol, **_PID),
             event=diffrax.Event(cond, root_finder=finder, direction=True),
             saveat=diffrax.SaveAt(t1=True), max_steps=_MAX_STEPS, throw=False,
         )  # fmt: skip
@@ -154,30 +128,31 @@ def _segment(model, noisy: bool, y0, t0, sign, key, h, t_end, rtol, atol):
         # segment where the crossing vanishes.
         y1 = sol.ys[-1]
         hit = jnp.asarray(sol.event_mask) & (jnp.abs(model.crossing(y1)) < 1e-6)
-        # Out of steps (a long noisy stick): no failure, the next solve goes on from here.
+        # Out of steps (a long stick): no failure, the next solve goes on from here.
         more = ~hit & (sol.result == diffrax.RESULTS.max_steps_reached)
         ok = hit | more | (sol.result == diffrax.RESULTS.successful)
         ok = ok | (sol.result == diffrax.RESULTS.event_occurred)
         return sol.ts[-1], y1, hit, ok, more, sol.stats["num_steps"]
 
-    return jax.vmap(one, in_axes=-1, out_axes=-1)(y0, t0, sign, key)
+    return jax.vmap(one, in_axes=-1, out_axes=-1)(y0, t0, sign)
 
 
 @eqx.filter_jit
-def _dense(model, noisy: bool, y0, key, h, ts, rtol, atol):
-    """Each path's states at the times `ts` (one solve through). Traced in each process, not
-    kept on disk as `_segment` is: diffrax checks the times with a host callback, which
-    cannot be exported."""
+def _dense(model, y0, ts, rtol, atol):
+    """Each path's states of the noise-free motion at the times `ts` (one solve through).
+    Traced in each process, not kept on disk as `_segment` is: diffrax checks the times
+    with a host callback, which cannot be exported. With friction noise,
+    `rosenbrock.dense` instead (kept on disk)."""
 
-    def one(y0, key):
+    def one(y0):
         sol = diffrax.diffeqsolve(
-            _term(model, noisy), _solver(noisy), ts[0], ts[-1], None, y0, args=(key, h),
+            _term(model), diffrax.Kvaerno5(), ts[0], ts[-1], None, y0,
             saveat=diffrax.SaveAt(ts=ts), max_steps=16 * _MAX_STEPS, throw=False,
-            stepsize_controller=_controller(noisy, rtol, atol),
+            stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol, **_PID),
         )  # fmt: skip
         return sol.ys
 
-    return jax.vmap(one)(y0, key)
+    return jax.vmap(one)(y0)
 
 
 class Motion:
@@ -198,8 +173,9 @@ class Motion:
         keys = jax.random.split(jax.random.key(self.seed), n)
         return np.array(jax.vmap(self.model.onset_state)(keys))  # (a copy: written to)
 
-    def segment(self, y, t, slipping, keys):
-        """One solve for these paths: each ends its slip (where `slipping`) or its stick.
+    def segment(self, y, t, slipping):
+        """One noise-free solve for these paths: each ends its slip (where `slipping`) or
+        its stick.
         The batch is padded to a power of two with copies of its first path (each path's
         solve is its own under `vmap`): as paths finish, the solve compiles for a few
         sizes, not for every count of paths still running (~3 s each)."""
@@ -207,9 +183,9 @@ class Motion:
         size = 1 << (n - 1).bit_length()
         pad = np.r_[np.arange(n), np.zeros(size - n, dtype=int)]
         t1, y1, hit, ok, more, steps = _compile.call(
-            _segment, self.model, self.noisy, jnp.asarray(y[pad].T), jnp.asarray(t[pad]),
-            jnp.asarray(np.where(slipping[pad], -1.0, 1.0)), jnp.asarray(keys[pad].T),
-            jnp.asarray(self.dt), jnp.asarray(self.t_max), RTOL, ATOL, paths=size,
+            _segment, self.model, jnp.asarray(y[pad].T), jnp.asarray(t[pad]),
+            jnp.asarray(np.where(slipping[pad], -1.0, 1.0)), jnp.asarray(self.t_max), RTOL,
+            ATOL, paths=size,
         )  # fmt: skip
         self.stats["segments"] += 1
         self.stats["steps"] += int(np.sum(np.asarray(steps)[:n]))
@@ -217,10 +193,59 @@ class Motion:
         y1 = np.array(y1).T[:n]
         return (np.array(t1[:n]), y1, np.asarray(hit[:n]), np.asarray(more[:n]))
 
+    def events(self, y, t, limit, keys):
+        """The noisy motion of these paths on to `t_max` (`rosenbrock.window`), each
+        stopping early once it has `limit` crossings of the drive's speed or
+        `_WINDOW_EVENTS` (then called again from where it stopped). Returns the end times
+        and states and, per path, its events' times, states and directions (+1: a peak)."""
+        n = t.size
+        size = 1 << (n - 1).bit_length()
+        pad = np.r_[np.arange(n), np.zeros(size - n, dtype=int)]
+        t1, y1, buf, count, failed, steps = _compile.call(
+            rosenbrock.window, self.model, jnp.asarray(y[pad].T), jnp.asarray(t[pad]),
+            jnp.asarray(limit[pad]), jnp.asarray(keys[pad].T), jnp.asarray(self.dt),
+            jnp.asarray(self.t_max), NOISY_RTOL, NOISY_ATOL, _MAX_STEPS, _WINDOW_EVENTS,
+            paths=size,
+        )  # fmt: skip
+        count = np.asarray(count)[:n]
+        self.stats["segments"] += 1
+        self.stats["steps"] += int(np.sum(np.asarray(steps)[:n]))
+        self.stats["failed"] += int(np.sum(np.asarray(failed)[:n]))
+        # the events' brackets, path by path, to `locate` in one batch
+        path = np.repeat(np.arange(n), count)
+        row = np.concatenate([np.arange(c) for c in count]) if n else np.zeros(0, int)
+        found = {k: np.asarray(v)[row, :, path] if np.ndim(v) == 3 else
+                 np.asarray(v)[row, path] for k, v in buf.items()}  # fmt: skip
+        t_ev, y_ev = self._locate(found)
+        up = found["up"]
+        split = np.cumsum(count)[:-1]
+        events = [(a, b, c) for a, b, c in zip(np.split(t_ev, split), np.split(y_ev, split),
+                                                np.split(up, split), strict=True)]  # fmt: skip
+        return np.array(t1[:n]), np.array(y1).T[:n], events, np.asarray(failed)[:n]
+
+    def _locate(self, b):
+        k = b["ta"].size
+        if k == 0:
+            return np.zeros(0), np.zeros((0, self.model.steady_state().shape[0]))
+        size = 1 << (k - 1).bit_length()
+        pad = np.r_[np.arange(k), np.zeros(size - k, dtype=int)]
+        args = [jnp.asarray(b[x][pad].T) for x in ("ta", "ya", "xa", "tb", "yb", "xb", "up")]
+        t_ev, y_ev = _compile.call(rosenbrock.locate, self.model, *args, paths=size)
+        return np.asarray(t_ev)[:k], np.asarray(y_ev).T[:k]
+
     def dense(self, y0, keys, ts) -> np.ndarray:
-        ys = _dense(self.model, self.noisy, jnp.asarray(y0), keys, jnp.asarray(self.dt),
-                    jnp.asarray(ts), RTOL, ATOL)  # fmt: skip
-        return np.asarray(ys)
+        """Each path's states at the times `ts`, shape `(paths, len(ts), d)`."""
+        if not self.noisy:
+            return np.asarray(_dense(self.model, jnp.asarray(y0), jnp.asarray(ts), RTOL, ATOL))
+        n = y0.shape[0]
+        size = 1 << (n - 1).bit_length()
+        pad = np.r_[np.arange(n), np.zeros(size - n, dtype=int)]
+        ys = _compile.call(
+            rosenbrock.dense, self.model, jnp.asarray(np.asarray(y0)[pad].T),
+            jnp.asarray(np.asarray(keys)[pad].T), jnp.asarray(self.dt), jnp.asarray(ts),
+            NOISY_RTOL, NOISY_ATOL, _MAX_STEPS, paths=size,
+        )  # fmt: skip
+        return np.moveaxis(np.asarray(ys), -1, 0)[:n]
 
     def crossing(self, ys) -> np.ndarray:
         return np.asarray(jax.vmap(self.model.crossing)(jnp.asarray(ys)))
@@ -239,6 +264,9 @@ def run_cycles(owner, model, n_paths, dt, t_max, seed, max_cycles, first_only=Fa
     keys = motion.keys(np.arange(n_paths, dtype=np.uint32))
     y = motion.onsets(n_paths)
     y_start = y.copy()
+    if motion.noisy:
+        rows = _noisy_rows(motion, keys, y, max_cycles, first_only)
+        return _join(rows, y.shape[1]), y_start, _warned(owner, motion)
     t = np.zeros(n_paths)
     slipping = motion.crossing(y) > 0.0
     alive = np.ones(n_paths, dtype=bool)
@@ -250,7 +278,7 @@ def run_cycles(owner, model, n_paths, dt, t_max, seed, max_cycles, first_only=Fa
     rows: list[dict[str, np.ndarray]] = []
     while alive.any():
         idx = np.nonzero(alive)[0]
-        t1, y1, hit, more = motion.segment(y[idx], t[idx], slipping[idx], keys[idx])
+        t1, y1, hit, more = motion.segment(y[idx], t[idx], slipping[idx])
         slip_end = slipping[idx] & hit
         stick_end = ~slipping[idx] & hit
         trough_t[idx[slip_end]], trough_y[idx[slip_end]] = t1[slip_end], y1[slip_end]
@@ -282,14 +310,81 @@ def run_cycles(owner, model, n_paths, dt, t_max, seed, max_cycles, first_only=Fa
                 count[o],
             )  # fmt: skip
         )
-    table = _join(rows, y.shape[1])
+    return _join(rows, y.shape[1]), y_start, _warned(owner, motion)
+
+
+def _warned(owner, motion) -> dict:
+    """The run's costs; a warning where a solve failed."""
     if motion.stats["failed"]:
         warnings.warn(
             f"{owner}: {motion.stats['failed']} solve(s) of the creeping slider failed (an "
             "implicit step that did not converge at the smallest step); their paths end there",
-            stacklevel=3,
+            stacklevel=4,
         )
-    return table, y_start, dict(motion.stats)
+    return dict(motion.stats)
+
+
+def _noisy_rows(motion, keys, y, max_cycles, first_only) -> list:
+    """The cycle rows of the noisy motion: each path run on through its events in windows
+    (`Motion.events`), its crossings of the drive's speed read in order as `run_cycles`
+    reads a solve's events (up: a peak, the slip's start; down: a trough, its end)."""
+    n = y.shape[0]
+    t = np.zeros(n)
+    y0 = y.copy()
+    slipping = motion.crossing(y) > 0.0
+    # crossings a path needs: a peak where it starts in a stick, then two a cycle
+    need = (~slipping).astype(np.int64) + 2 * (1 if first_only else max_cycles)
+    need = np.minimum(need, np.iinfo(np.int32).max)
+    got = [[] for _ in range(n)]
+    alive = np.ones(n, dtype=bool)
+    count = np.zeros(n, dtype=np.int64)
+    while alive.any():
+        idx = np.nonzero(alive)[0]
+        t1, y1, events, failed = motion.events(y[idx], t[idx], need[idx] - count[idx], keys[idx])
+        for i, ev in zip(idx, events, strict=True):
+            got[i].append(ev)
+        count[idx] += [ev[0].size for ev in events]
+        t[idx], y[idx] = t1, y1
+        alive[idx] = (t1 < motion.t_max) & (count[idx] < need[idx]) & ~failed
+    rows = []
+    for p in range(n):
+        ts = np.concatenate([e[0] for e in got[p]]) if got[p] else np.zeros(0)
+        ys = np.concatenate([e[1] for e in got[p]]) if got[p] else np.zeros((0, y.shape[1]))
+        ups = np.concatenate([e[2] for e in got[p]]) if got[p] else np.zeros(0, bool)
+        start = (0.0, y0[p]) if slipping[p] else None
+        rows += _path_rows(motion.model, p, ts, ys, ups, start, max_cycles, first_only)
+    return rows
+
+
+def _path_rows(model, p, ts, ys, ups, start, max_cycles, first_only) -> list:
+    """One path's cycle rows from its crossings in order: a slip from a peak (an up
+    crossing, or the start where the path starts in a slip) to the next trough, and the
+    stick from there to the next peak; a last slip whose stick outlasts the run, a row
+    without its stick. `start`: `(0, state)` where the path starts in a slip."""
+    one = np.array([p])
+    peak, trough = start, None
+    rows, cycle = [], 0
+    for k in range(ts.size):
+        if cycle >= max_cycles or (first_only and cycle > 0):
+            return rows
+        if ups[k]:
+            if peak is not None and trough is not None:
+                rows.append(_rows(model, one, _at(peak), _at(trough), _at((ts[k], ys[k])),
+                                  np.array([cycle])))  # fmt: skip
+                cycle += 1
+            peak, trough = (ts[k], ys[k]), None
+        elif peak is not None:
+            trough = (ts[k], ys[k])
+    if peak is not None and trough is not None and cycle < max_cycles:
+        if not (first_only and cycle > 0):
+            nowhere = (np.full(1, np.nan), np.full((1, ys.shape[1]), np.nan))
+            rows.append(_rows(model, one, _at(peak), _at(trough), nowhere, np.array([cycle])))
+    return rows
+
+
+def _at(point):
+    t, y = point
+    return np.array([t]), np.asarray(y)[None]
 
 
 def _join(rows, d: int) -> dict[str, np.ndarray]:
@@ -358,9 +453,13 @@ def cycle_series(model, n_paths, dt, t_max, seed, record: bool, max_cycles: int)
 
 
 def info(model, dt, t_max, seed, **extra) -> dict:
+    """A run's settings: the solver is Kvaerno5 without noise, ROS2 (`rosenbrock`) with."""
+    noisy = _noisy(model)
+    tol = NOISY_RTOL if noisy else RTOL
     return dict(
-        model=type(model).__name__, params=model.params(), solver="kvaerno5",
-        monitor="events", dt=dt, t_max=t_max, seed=seed, rtol=RTOL, atol=ATOL, **extra,
+        model=type(model).__name__, params=model.params(),
+        solver="ros2" if noisy else "kvaerno5", monitor="events", dt=dt, t_max=t_max,
+        seed=seed, rtol=tol, atol=NOISY_ATOL if noisy else ATOL, **extra,
     )  # fmt: skip
 
 
