@@ -221,7 +221,7 @@ def _em_first_slips(p, k, V, D, tau, n, h, t_end, seed):
 @pytest.mark.slow
 def test_noisy_slips_match_an_independent_euler_maruyama():
     """The first slip after a velocity step, with OU friction noise: slip times and force
-    drops of the plugin (implicit adaptive steps, noise on a grid of tau/10) against a
+    drops of the plugin (linearly implicit steps, noise on a grid of tau/10) against a
     fine-step Euler-Maruyama written here (h = 2e-6 s), two-sample KS, seeds fixed (p = 0.65
     for both when written)."""
     from scipy.stats import ks_2samp
@@ -255,10 +255,10 @@ def test_noisy_cycles_match_radau_driven_by_the_same_noise():
     steps on the noise's grid) against SciPy's Radau integrating the equations written here
     in SI variables, driven by the same noise (each path's normals at the grid's nodes,
     linear between them; Radau's steps no longer than the grid's), events at v = V. The
-    cycles whose drop passes 1 mN (the noise's micro-slips near a peak left out): stick
-    times and drops agree to 2e-3 relative, stick times also to 10 us (both integrators'
-    errors: the plugin's local tolerance is 1e-5 of its O(1) variables; at 1e-4 a drop
-    differed by 3.2e-3)."""
+    cycles whose drop passes 1 mN (the noise's micro-slips near a peak left out): the first
+    five of each path's stick times and drops agree to 2e-3 relative, all to 2e-2 (a noisy
+    path amplifies the integrators' errors: at the plugin's former tolerance of 1e-5 the
+    seventh drop of path 1 differed by 4.5 %)."""
     import jax
     import jax.numpy as jnp
 
@@ -298,11 +298,14 @@ def test_noisy_cycles_match_radau_driven_by_the_same_noise():
         big = (drops > 1e-3) & np.isfinite(sticks)
         rows = (c["path"] == p) & (c["force_drop"] > 1e-3) & np.isfinite(c["stick_time"])
         n = min(int(big.sum()), int(rows.sum()))
-        assert n >= 3 and abs(int(big.sum()) - int(rows.sum())) <= 1
-        np.testing.assert_allclose(c["force_drop"][rows][:n], drops[big][:n], rtol=2e-3)
-        # (and to 10 us, a twentieth of the grid's step, for the short sticks of the
-        # velocity step's transient: one of 0.94 ms differed by 3 us)
-        np.testing.assert_allclose(c["stick_time"][rows][:n], sticks[big][:n], rtol=2e-3,
-                                   atol=1e-5)  # fmt: skip
+        assert n >= 6 and abs(int(big.sum()) - int(rows.sum())) <= 1
+        # the first five closely (a path amplifies its errors: see `creep.NOISY_RTOL`), all
+        # of them to 2 %; stick times also to 10 us, a twentieth of the grid's step, for
+        # the short sticks of the velocity step's transient (one of 0.94 ms: 3 us)
+        for first, rtol in ((5, 2e-3), (n, 2e-2)):
+            np.testing.assert_allclose(c["force_drop"][rows][:first], drops[big][:first],
+                                       rtol=rtol)  # fmt: skip
+            np.testing.assert_allclose(c["stick_time"][rows][:first], sticks[big][:first],
+                                       rtol=rtol, atol=1e-5)  # fmt: skip
         compared += n
-    assert compared >= 6
+    assert compared >= 12
