@@ -309,3 +309,27 @@ def test_noisy_cycles_match_radau_driven_by_the_same_noise():
                                        rtol=rtol, atol=1e-5)  # fmt: skip
         compared += n
     assert compared >= 12
+
+
+def test_fit_refuses_a_creeping_slider_in_one_line():
+    """Its cycles carry the state of the ones before and a run starts in a velocity step's
+    transient: neither the per-cycle simulation nor a trace's measurement takes that out,
+    so `fit` and `measured_cycles` refuse it, naming the model, before simulating."""
+    data = {"stick_time": np.full(20, 1.0), "force_drop": np.full(20, 0.01)}
+    with pytest.raises(ss.ParameterError, match="model.*creeping slider") as err:
+        ss.fit(
+            "rate-and-state",
+            data,
+            free={"a": (0.005, 0.02)},
+            fixed=dict(stiffness=168.0, v_b=42e-6, **{k: v for k, v in PAPER.items() if k != "a"}),
+        )
+    assert "\n" not in str(err.value)
+    from stickslip._inference.measurement import measured_cycles
+
+    with pytest.raises(ss.ParameterError, match="model.*creeping slider"):
+        measured_cycles(
+            RS(stiffness=168.0, v_b=42e-6, **PAPER),
+            ss.Measurement(signal="force", sampling_interval=1e-3),
+            100,
+            seed=0,
+        )

@@ -58,11 +58,6 @@ from ..quantities import names
 
 OWNER = "Measurement"
 CYCLE_COLUMNS = names("measurement")
-# A creeping slider's paths (one integrated motion, not counted cycles) last their share of
-# the cycles times the mean period of this many independent pilot cycles (`simulate`): its
-# relative error, cv / 32 (cv ~ 1), moves the number of simulated cycles by ~3 %, which
-# only sets the Monte Carlo sample size.
-_PILOT_PATHS = 1024
 # Longest slip followed, in slow time scales (fit's default is 50; the slider's slips last
 # 3-7 of them, its sticks some 100): a slip still going there ends its path's trace (and
 # the trace is refused where fewer than half the cycles stick), as it ended the pilot's.
@@ -294,7 +289,7 @@ def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
     made noisy as `measurement` says; see `measured_cycles`. `sticks="cut"` (a force trace
     with a given `window`): the middles of the long sticks left out (`cut_grid`), each
     trace's `cut` saying which samples of the whole trace were kept."""
-    from .._model import CreepingSlider, time_scales
+    from .._model import time_scales
 
     owner = "measured_cycles"
     names, n_cycles, seed = _checked(owner, model, measurement, n_cycles, seed, sticks)
@@ -304,7 +299,7 @@ def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
     if dt is None:
         dt = min(max(h, _FINEST * fast), fast) / _STEPS_PER_SAMPLE
     dt = check_positive(owner, "dt", dt)
-    short = model.carries_state and not isinstance(model, CreepingSlider)
+    short = model.carries_state
     per_path = _CYCLES_PER_PATH_MEMORY if short else _CYCLES_PER_PATH
     n_paths = int(min(_MAX_PATHS, max(1, round(n_cycles / per_path))))
     horizon = max(_PILOT_HORIZON * slow, 2 * dt)
@@ -332,10 +327,14 @@ def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
 
 def _checked(owner, model, measurement, n_cycles, seed, sticks):
     """`measured_trace`'s arguments checked: the model's state names, `n_cycles`, `seed`."""
-    from .._model import FrictionModel
+    from .._model import CreepingSlider, FrictionModel
+    from .params import CREEPING_NOT_FITTED
 
     if not isinstance(model, FrictionModel):
         raise ParameterError(owner, "model", "must be a FrictionModel instance")
+    if isinstance(model, CreepingSlider):
+        raise ParameterError(owner, "model",
+                             CREEPING_NOT_FITTED.format(name=type(model).__name__))  # fmt: skip
     names = tuple(model.state_names)
     if "x" not in names or "v" not in names:
         raise ParameterError(
@@ -353,26 +352,10 @@ def _checked(owner, model, measurement, n_cycles, seed, sticks):
 
 
 def _series(owner, model, n_cycles, n_paths, dt, horizon, seed, h):
-    """The model's successive cycles on `n_paths` paths, their slips recorded (a creeping
-    slider's whole motion), each path's trace checked against the memory limit first."""
-    from .._model import CreepingSlider
-    from .._simulate import simulate, simulate_cycles
+    """The model's successive cycles on `n_paths` paths, their slips recorded, each path's
+    trace checked against the memory limit first."""
     from .._simulate.cycles import counted_cycles
 
-    if isinstance(model, CreepingSlider):
-        # one integrated motion: each path's duration, its share of the cycles times the
-        # mean period of pilot cycles
-        pilot = simulate(model, _PILOT_PATHS, dt, horizon, seed)
-        period = np.asarray(pilot.period, float)
-        period = period[np.isfinite(period)]
-        if period.size < _PILOT_PATHS // 2 or not np.mean(period) > 0:
-            raise DataError(
-                f"{owner}: the model sticks again within {_PILOT_HORIZON:g} slow time scales "
-                f"in {period.size} of {_PILOT_PATHS} cycles: no stick-slip trace to measure"
-            )  # fmt: skip
-        t_max = math.ceil(n_cycles / n_paths) * float(np.mean(period))
-        _check_trace(owner, n_paths * t_max, n_cycles, h)
-        return simulate_cycles(model, n_paths, dt, t_max, seed, record=True)
     # each path's share of the cycles, counted (`counted_cycles`), their trace's size
     # checked before their slips are recorded
     count = math.ceil(n_cycles / n_paths)

@@ -58,6 +58,7 @@ _MAX_STEPS = 200_000  # steps of one solve (a longer stick or slip takes several
 # buffer goes on in the next window). The paper-like slider with noise crosses about 4
 # times a cycle (3 of 4 slips of micronewtons, near the force's peak).
 _WINDOW_EVENTS = 128
+_BATCH = 4096  # paths a window runs at once (their buffers: 13 kB a path for 4 state variables)
 # An event's time by bisection on the solver's dense output, to 1e-10 relative (1e-12 s
 # absolute): far below the time scales of a slip (ms) and the tests' 1e-5.
 _EVENT_RTOL, _EVENT_ATOL = 1e-10, 1e-12
@@ -329,15 +330,33 @@ def _warned(owner, motion) -> dict:
 
 def _noisy_rows(motion, keys, y, max_cycles, first_only) -> list:
     """The cycle rows of the noisy motion: each path run on through its events in windows
-    (`Motion.events`), its crossings of the drive's speed read in order as `run_cycles`
-    reads a solve's events (up: a peak, the slip's start; down: a trough, its end)."""
-    n = y.shape[0]
-    t = np.zeros(n)
+    (`Motion.events`, `_BATCH` paths at a time), its crossings of the drive's speed read in
+    order as `run_cycles` reads a solve's events (up: a peak, the slip's start; down: a
+    trough, its end)."""
+    n, d = y.shape
     y0 = y.copy()
     slipping = motion.crossing(y) > 0.0
     # crossings a path needs: a peak where it starts in a stick, then two a cycle
     need = (~slipping).astype(np.int64) + 2 * (1 if first_only else max_cycles)
     need = np.minimum(need, np.iinfo(np.int32).max)
+    found = []
+    for lo in range(0, n, _BATCH):
+        part = np.arange(lo, min(n, lo + _BATCH))
+        got = _events(motion, keys[part], y[part], need[part])
+        for p, (ts, ys, ups) in zip(part, got, strict=True):
+            start = (0.0, y0[p]) if slipping[p] else None
+            found += _path_cycles(p, ts, ys, ups, start, max_cycles, first_only)
+    if not found:
+        return []
+    p, cycle, t0, y0_, t1, y1, t2, y2 = (np.array(v) for v in zip(*found, strict=True))
+    return [_rows(motion.model, p, (t0, y0_), (t1, y1), (t2, y2.reshape(-1, d)), cycle)]
+
+
+def _events(motion, keys, y, need) -> list:
+    """Each path's crossings of the drive's speed, `(times, states, up)`, in order, until
+    it has `need` of them or reaches `t_max`."""
+    n = y.shape[0]
+    y, t = y.copy(), np.zeros(n)
     got = [[] for _ in range(n)]
     alive = np.ones(n, dtype=bool)
     count = np.zeros(n, dtype=np.int64)
@@ -349,45 +368,33 @@ def _noisy_rows(motion, keys, y, max_cycles, first_only) -> list:
         count[idx] += [ev[0].size for ev in events]
         t[idx], y[idx] = t1, y1
         alive[idx] = (t1 < motion.t_max) & (count[idx] < need[idx]) & ~failed
-    rows = []
-    for p in range(n):
-        ts = np.concatenate([e[0] for e in got[p]]) if got[p] else np.zeros(0)
-        ys = np.concatenate([e[1] for e in got[p]]) if got[p] else np.zeros((0, y.shape[1]))
-        ups = np.concatenate([e[2] for e in got[p]]) if got[p] else np.zeros(0, bool)
-        start = (0.0, y0[p]) if slipping[p] else None
-        rows += _path_rows(motion.model, p, ts, ys, ups, start, max_cycles, first_only)
-    return rows
+    d = y.shape[1]
+    return [tuple(np.concatenate(part) for part in zip(*g, strict=True)) if g else
+            (np.zeros(0), np.zeros((0, d)), np.zeros(0, bool)) for g in got]  # fmt: skip
 
 
-def _path_rows(model, p, ts, ys, ups, start, max_cycles, first_only) -> list:
-    """One path's cycle rows from its crossings in order: a slip from a peak (an up
+def _path_cycles(p, ts, ys, ups, start, max_cycles, first_only) -> list:
+    """One path's cycles from its crossings in order, each `(path, cycle, peak time,
+    state, trough time, state, next peak's time, state)`: a slip from a peak (an up
     crossing, or the start where the path starts in a slip) to the next trough, and the
-    stick from there to the next peak; a last slip whose stick outlasts the run, a row
-    without its stick. `start`: `(0, state)` where the path starts in a slip."""
-    one = np.array([p])
+    stick from there to the next peak; a last slip whose stick outlasts the run, without
+    its stick (nan). `start`: `(0, state)` where the path starts in a slip."""
     peak, trough = start, None
-    rows, cycle = [], 0
+    out, cycle = [], 0
+    last = 1 if first_only else max_cycles
     for k in range(ts.size):
-        if cycle >= max_cycles or (first_only and cycle > 0):
-            return rows
+        if cycle >= last:
+            return out
         if ups[k]:
             if peak is not None and trough is not None:
-                rows.append(_rows(model, one, _at(peak), _at(trough), _at((ts[k], ys[k])),
-                                  np.array([cycle])))  # fmt: skip
+                out.append((p, cycle, *peak, *trough, ts[k], ys[k]))
                 cycle += 1
             peak, trough = (ts[k], ys[k]), None
         elif peak is not None:
             trough = (ts[k], ys[k])
-    if peak is not None and trough is not None and cycle < max_cycles:
-        if not (first_only and cycle > 0):
-            nowhere = (np.full(1, np.nan), np.full((1, ys.shape[1]), np.nan))
-            rows.append(_rows(model, one, _at(peak), _at(trough), nowhere, np.array([cycle])))
-    return rows
-
-
-def _at(point):
-    t, y = point
-    return np.array([t]), np.asarray(y)[None]
+    if peak is not None and trough is not None and cycle < last:
+        out.append((p, cycle, *peak, *trough, np.nan, np.full(ys.shape[1], np.nan)))
+    return out
 
 
 def _join(rows, d: int) -> dict[str, np.ndarray]:
