@@ -229,7 +229,7 @@ def test_noisy_slips_match_an_independent_euler_maruyama():
     V, k, tau = 42e-6, 168.0, 2e-3
     D = (0.3 * PAPER["normal_force"] * PAPER["a"] / PAPER["mass"]) ** 2 * tau
     m = RS(stiffness=k, v_b=V, D=D, tau=tau, **PAPER)
-    e = ss.simulate(m, 300, tau / 10, 0.6, seed=11)  # (80 s on 2 cores)
+    e = ss.simulate(m, 300, tau / 10, 0.6, seed=11)  # (the whole test: ~30 s on 2 cores)
     assert e.fraction_stuck == 1.0
     t_em, drop_em = _em_first_slips(PAPER, k, V, D, tau, 1000, 2e-6, 0.6, seed=12)
     assert np.all(np.isfinite(t_em))
