@@ -1,11 +1,13 @@
 r"""The motion of a `CreepingSlider` (friction with memory, e.g. rate-and-state): one
 implicit integration through stick and slip, with the force's peaks and troughs as events.
 
-Each solve runs every path of a batch (vmapped) from where it is to the end of its slip or
-of its stick: the first time `sign * crossing` rises through zero, with `crossing` the
-slider's velocity over the drive's less one (sign -1: the slider falls back to the drive's
-speed, the force's trough; sign +1: it outruns the drive again, the next peak). The solves
-alternate on the host, so a path's state runs on from one cycle into the next.
+Without noise, each solve runs every path of a batch (vmapped) from where it is to the end
+of its slip or of its stick: the first time `sign * crossing` rises through zero, with
+`crossing` the slider's velocity over the drive's less one (sign -1: the slider falls back
+to the drive's speed, the force's trough; sign +1: it outruns the drive again, the next
+peak). The solves alternate on the host, so a path's state runs on from one cycle into the
+next. With noise, every path runs on through its crossings to `t_max` in windows
+(`rosenbrock.window`), and the cycles are read from the crossings in order.
 
 The creep is stiff: the velocity relaxes in $M v / (N a)$, 1e-8 s at 1 nm/s for a 30 g
 slider, against a stick of seconds. Hence, without noise, diffrax's `Kvaerno5` (ESDIRK,
@@ -55,8 +57,9 @@ NOISY_RTOL = NOISY_ATOL = 1e-6
 _MAX_STEPS = 200_000  # steps of one solve (a longer stick or slip takes several)
 # Crossings of the drive's speed a path keeps in one noisy window (`Motion.events`): its
 # paths run on, all busy, until each has as many or reaches t_max (a path that fills its
-# buffer goes on in the next window). The paper-like slider with noise crosses about 4
-# times a cycle (3 of 4 slips of micronewtons, near the force's peak).
+# buffer goes on in the next window). The paper-like slider with noise at k = 1002 N/m
+# makes 5.7 cycles for each slip above 1 mN (the others the noise's micro-slips near the
+# force's peak): about 37 a path in 4 s.
 _WINDOW_EVENTS = 128
 _BATCH = 4096  # paths a window runs at once (their buffers: 13 kB a path for 4 state variables)
 # An event's time by bisection on the solver's dense output, to 1e-10 relative (1e-12 s
@@ -114,7 +117,7 @@ def _segment(model, y0, t0, sign, t_end, rtol, atol):
     through zero, or to `t_end`. Returns the end time and state, whether the event ended
     it, whether the solve succeeded, and its steps. The path axis is every array's last
     (`_compile.call`'s convention: one trace for every batch size, kept on disk). With
-    friction noise, `rosenbrock.segment` instead."""
+    friction noise, `rosenbrock.window` instead."""
 
     def one(y0, t0, sign):
         def cond(t, y, args, **kwargs):
@@ -159,6 +162,14 @@ def _dense(model, y0, ts, rtol, atol):
     return jax.vmap(one)(y0)
 
 
+def _padded(n: int):
+    """A batch of `n` padded to the next power of two with copies of its first member:
+    `(size, rows)` (each member's solve is its own under `vmap`, so that as paths finish
+    the solves compile for a few sizes, not for every count still running)."""
+    size = 1 << (n - 1).bit_length()
+    return size, np.r_[np.arange(n), np.zeros(size - n, dtype=int)]
+
+
 class Motion:
     """One configured run of a creeping slider: `(model, dt, t_max, seed)`, its paths' noise
     keys, and the solves that advance them (with what they cost, `stats`)."""
@@ -179,13 +190,9 @@ class Motion:
 
     def segment(self, y, t, slipping):
         """One noise-free solve for these paths: each ends its slip (where `slipping`) or
-        its stick.
-        The batch is padded to a power of two with copies of its first path (each path's
-        solve is its own under `vmap`): as paths finish, the solve compiles for a few
-        sizes, not for every count of paths still running (~3 s each)."""
+        its stick (the batch `_padded`: a new size compiles in ~3 s)."""
         n = t.size
-        size = 1 << (n - 1).bit_length()
-        pad = np.r_[np.arange(n), np.zeros(size - n, dtype=int)]
+        size, pad = _padded(n)
         t1, y1, hit, ok, more, steps = _compile.call(
             _segment, self.model, jnp.asarray(y[pad].T), jnp.asarray(t[pad]),
             jnp.asarray(np.where(slipping[pad], -1.0, 1.0)), jnp.asarray(self.t_max), RTOL,
@@ -203,8 +210,7 @@ class Motion:
         `_WINDOW_EVENTS` (then called again from where it stopped). Returns the end times
         and states and, per path, its events' times, states and directions (+1: a peak)."""
         n = t.size
-        size = 1 << (n - 1).bit_length()
-        pad = np.r_[np.arange(n), np.zeros(size - n, dtype=int)]
+        size, pad = _padded(n)
         t1, y1, buf, count, failed, steps = _compile.call(
             rosenbrock.window, self.model, jnp.asarray(y[pad].T), jnp.asarray(t[pad]),
             jnp.asarray(limit[pad]), jnp.asarray(keys[pad].T), jnp.asarray(self.dt),
@@ -231,8 +237,7 @@ class Motion:
         k = b["ta"].size
         if k == 0:
             return np.zeros(0), np.zeros((0, self.model.steady_state().shape[0]))
-        size = 1 << (k - 1).bit_length()
-        pad = np.r_[np.arange(k), np.zeros(size - k, dtype=int)]
+        size, pad = _padded(k)
         args = [jnp.asarray(b[x][pad].T) for x in ("ta", "ya", "xa", "tb", "yb", "xb", "up")]
         t_ev, y_ev = _compile.call(rosenbrock.locate, self.model, *args, paths=size)
         return np.asarray(t_ev)[:k], np.asarray(y_ev).T[:k]
@@ -242,8 +247,7 @@ class Motion:
         if not self.noisy:
             return np.asarray(_dense(self.model, jnp.asarray(y0), jnp.asarray(ts), RTOL, ATOL))
         n = y0.shape[0]
-        size = 1 << (n - 1).bit_length()
-        pad = np.r_[np.arange(n), np.zeros(size - n, dtype=int)]
+        size, pad = _padded(n)
         ys = _compile.call(
             rosenbrock.dense, self.model, jnp.asarray(np.asarray(y0)[pad].T),
             jnp.asarray(np.asarray(keys)[pad].T), jnp.asarray(self.dt), jnp.asarray(ts),
