@@ -50,7 +50,8 @@ _UNROLLED = 8  # Gaussian elimination written out up to this dimension
 def _solve(W, b):
     """`W x = b` for one small system: elimination without pivoting, written out.
     `W = I - gamma h J` of a damped motion has positive leading minors (the spring's
-    coupling adds `(gamma h)^2 k / M` to the slider's)."""
+    coupling adds `(gamma h)^2 k / M` to the slider's); where a pivot vanishes the step
+    is not finite, fails its error test and shrinks, and W tends to I."""
     d = b.shape[0]
     if d > _UNROLLED:
         return jnp.linalg.solve(W, b)
