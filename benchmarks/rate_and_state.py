@@ -3,6 +3,7 @@ events), at equal accuracy, in one process: noise-free, and with friction noise.
 
     python benchmarks/rate_and_state.py            # the paper-like slider, k 168 N/m, 42 um/s
     python benchmarks/rate_and_state.py --quick    # fewer paths
+    python benchmarks/rate_and_state.py --before TREE [--runs 3]   # noisy, against a tree
 
 Noise-free: `simulate_cycles` runs `--paths` paths of the slider (identical without noise:
 the work is that of as many different slider runs) for `--cycles` cycles each; the baseline
@@ -20,12 +21,21 @@ plugin's normals at the grid's nodes, linear between them), Radau with events, s
 longer than the grid's. Accuracy: stick times and drops of the slips above 1 mN against
 Radau at rtol 1e-8, the baseline at the loosest tolerance whose error is no larger than
 ours.
+
+`--before TREE`: the noisy slider alone (k = 1002 N/m, 8 paths for 2 s), each run a whole
+process that warms (0.3 s) and then times `simulate_cycles`, with another checkout's `src`
+first on the path (say the tree before a change: `git worktree add /tmp/before HEAD~1`),
+alternating with this one's; the cycles' counts and medians of each.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
+import os
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -82,7 +92,12 @@ def main(argv=None):
     parser.add_argument("--noisy-time", type=float, default=4.0,
                         help="how long the noisy runs are (s)")  # fmt: skip
     parser.add_argument("--skip-noisy", action="store_true")
+    parser.add_argument("--before", help="the noisy slider against another checkout only")
+    parser.add_argument("--runs", type=int, default=3, help="with --before")
     args = parser.parse_args(argv)
+    if args.before:
+        before(args.before, args.runs)
+        return
     paths = 32 if args.quick else args.paths
     m = ss.get_model("rate-and-state")(stiffness=K, v_b=V, **P)
     period = 6.3  # (about: the noise-free limit cycle's, s)
@@ -218,6 +233,51 @@ def noisy(args):
                   f"cycles/s; ratio {rate / base:.0f}x")  # fmt: skip
             return
     print("no Radau tolerance tried was as accurate as ours")
+
+
+# One process of `--before`: the noisy slider's cycles, warmed, then timed.
+NOISY_RUN = """
+import json, time
+import numpy as np
+import stickslip as ss
+P = dict(mass=0.0307, normal_force=0.301, mu0=0.3, a=0.01, b=0.015, d_c=1e-6, v_ref=1e-6)
+tau = 2e-3
+D = (0.3 * P["normal_force"] * P["a"] / P["mass"]) ** 2 * tau
+m = ss.get_model("rate-and-state")(stiffness=1002.0, v_b=42e-6, D=D, tau=tau, **P)
+ss.simulate_cycles(m, 8, tau / 10, 0.3, seed=0, record=False)
+t0 = time.perf_counter()
+c = ss.simulate_cycles(m, 8, tau / 10, 2.0, seed=5, record=False).cycles
+secs = time.perf_counter() - t0
+done = np.isfinite(c["stick_time"])
+big = done & (c["force_drop"] > 1e-3)
+print(json.dumps(dict(seconds=secs, cycles=int(done.sum()), big=int(big.sum()),
+                      drop=float(np.median(c["force_drop"][big])),
+                      stick=float(np.median(c["stick_time"][big])))))
+"""
+
+
+def before(tree, runs):
+    """`--before`: this tree's noisy runs against `tree`'s, alternating (whole processes)."""
+    got = {"this tree": [], "before": []}
+    for _ in range(runs):
+        for label, src in (("this tree", None), ("before", os.path.join(tree, "src"))):
+            env = dict(os.environ)
+            if src is not None:
+                rest = [p for p in [env.get("PYTHONPATH")] if p]
+                env["PYTHONPATH"] = os.pathsep.join([src, *rest])
+            out = subprocess.run([sys.executable, "-c", NOISY_RUN], env=env, check=True,
+                                 capture_output=True, text=True)  # fmt: skip
+            got[label].append(json.loads(out.stdout.strip().splitlines()[-1]))
+    print(f"noisy slider, k {K_NOISY:g} N/m, 8 paths for 2 s, {runs} runs each (seconds)")
+    for label, rows in got.items():
+        secs = sorted(r["seconds"] for r in rows)
+        r = rows[0]
+        print(f"  {label:9s} median {secs[len(secs) // 2]:6.1f} (min {secs[0]:.1f}, max "
+              f"{secs[-1]:.1f}); {r['cycles']} cycles, {r['big']} above 1 mN, median drop "
+              f"{r['drop']:.6g} N, stick {r['stick']:.6g} s")  # fmt: skip
+    a = sorted(r["seconds"] for r in got["this tree"])
+    b = sorted(r["seconds"] for r in got["before"])
+    print(f"  ratio of the medians: {b[len(b) // 2] / a[len(a) // 2]:.1f}x")
 
 
 if __name__ == "__main__":
