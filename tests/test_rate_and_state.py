@@ -257,7 +257,7 @@ def test_noisy_cycles_match_radau_driven_by_the_same_noise():
     linear between them; Radau's steps no longer than the grid's), events at v = V. The
     cycles whose drop passes 1 mN (the noise's micro-slips near a peak left out): the first
     five of each path's stick times and drops agree to 2e-3 relative, all to 2e-2 (a noisy
-    path amplifies the integrators' errors: at the plugin's former tolerance of 1e-5 the
+    path amplifies the integrators' errors: without its steps' extrapolation, at 1e-5 the
     seventh drop of path 1 differed by 4.5 %)."""
     import jax
     import jax.numpy as jnp
