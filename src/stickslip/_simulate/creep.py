@@ -239,7 +239,7 @@ class Motion:
         if k == 0:
             return np.zeros(0), np.zeros((0, self.model.steady_state().shape[0]))
         size, pad = _padded(k)
-        args = [jnp.asarray(b[x][pad].T) for x in ("ta", "ya", "xa", "tb", "yb", "xb", "up")]
+        args = [jnp.asarray(b[x][pad].T) for x in rosenbrock.BRACKET]
         t_ev, y_ev = _compile.call(rosenbrock.locate, self.model, *args, paths=size)
         return np.asarray(t_ev)[:k], np.asarray(y_ev).T[:k]
 

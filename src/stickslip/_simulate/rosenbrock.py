@@ -153,13 +153,15 @@ def _step(model, key, h, t_end, rtol, atol, s):
         dt=jnp.minimum(h, jnp.where(ok, grown, dt * jnp.minimum(grow, 0.5))),
         steps=s["steps"] + 1,
     )  # fmt: skip
-    half = ((t, y, xi0), (0.5 * (t + t1), ym, 0.5 * (xi0 + xi1)), (t1, y1, xi1))
+    # (the end as taken, extrapolated: the next step starts there, so that a crossing
+    # between two steps falls in one half or the other)
+    half = ((t, y, xi0), (0.5 * (t + t1), ym, 0.5 * (xi0 + xi1)), (t1, y1 + est, xi1))
     return out, ok, failed, half
 
 
 # What a window keeps of each event: the half step that holds it (start and end times,
 # states and noises) and its direction (+1: the slider outruns the drive, a force peak).
-_BRACKET = ("ta", "ya", "xa", "tb", "yb", "xb", "up")
+BRACKET = ("ta", "ya", "xa", "tb", "yb", "xb", "up")
 
 
 _CARRIED = ("t", "y", "j", "z0", "z1", "dt", "steps")
@@ -172,7 +174,7 @@ def window(model, y0, t0, limit, key, h, t_stop, rtol, atol, max_steps, max_even
     holds it (`locate` places it), up to `max_events`; a path stops early once it has
     `limit` of them or its buffer is nearly full, or after `max_steps`. The motion runs on
     through its events (the path does not depend on where they are, or on the windows).
-    Returns each path's end time and state, its events' brackets (`_BRACKET`, each of
+    Returns each path's end time and state, its events' brackets (`BRACKET`, each of
     `max_events` rows), their count, whether a step failed, and the steps taken. The path
     axis is every array's last (`_compile.call`'s convention).
 
@@ -197,12 +199,12 @@ def window(model, y0, t0, limit, key, h, t_stop, rtol, atol, max_steps, max_even
         room = (s["n"] < limit) & (s["n"] + 2 <= E)
         return (s["t"] < t_stop) & room & (s["steps"] < max_steps) & ~s["failed"]
 
-    def write(bn, half, events):
+    def write(bn, half, c, events):
         b, n = bn
-        for (a, z), ev in zip(half, events, strict=True):
-            at = jnp.where(ev, n, E)  # (E: past the end, dropped)
+        for i, ev in enumerate(events):
+            (a, z), at = half[i : i + 2], jnp.where(ev, n, E)  # (E: past the end, dropped)
             row = dict(ta=a[0], ya=a[1].T, xa=a[2].T, tb=z[0], yb=z[1].T, xb=z[2].T,
-                       up=crossing(z[1]) > 0.0)  # fmt: skip
+                       up=c[i + 1] > 0.0)  # fmt: skip
             b = {k: (b[k].at[at, lanes] if b[k].ndim == 2 else b[k].at[at, :, lanes]).set(
                 row[k], mode="drop") for k in b}  # fmt: skip
             n = n + ev
@@ -213,10 +215,10 @@ def window(model, y0, t0, limit, key, h, t_stop, rtol, atol, max_steps, max_even
         out, ok, failed, half = step({k: s[k] for k in _CARRIED}, key)
         out = {k: jnp.where(go, out[k], s[k]) for k in _CARRIED}
         taken = go & ok
-        pairs = ((half[0], half[1]), (half[1], half[2]))
-        events = [taken & ((crossing(a[1]) <= 0.0) != (crossing(z[1]) <= 0.0)) for a, z in pairs]
+        c = [crossing(x[1]) for x in half]  # at the step's start, middle and end
+        events = [taken & ((c[i] <= 0.0) != (c[i + 1] <= 0.0)) for i in (0, 1)]
         b, n = jax.lax.cond(jnp.any(events[0] | events[1]),
-                            lambda bn: write(bn, pairs, events), lambda bn: bn,
+                            lambda bn: write(bn, half, c, events), lambda bn: bn,
                             (s["buf"], s["n"]))  # fmt: skip
         return dict(out, n=n, failed=s["failed"] | (go & failed), buf=b)
 
