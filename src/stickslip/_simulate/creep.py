@@ -186,7 +186,9 @@ class Motion:
         return jax.vmap(lambda p: jax.random.fold_in(jnp.asarray(root), p))(jnp.asarray(paths))
 
     def onsets(self, n: int) -> np.ndarray:
-        keys = jax.random.split(jax.random.key(self.seed), n)
+        # (the seed's root key, as the noise's: any seed in [0, 2**64))
+        root = _rng.stream_key(_rng.seed_key(self.seed), _rng.ONSET)
+        keys = jax.random.split(jax.random.wrap_key_data(jnp.asarray(root)), n)
         return np.array(jax.vmap(self.model.onset_state)(keys))  # (a copy: written to)
 
     def segment(self, y, t, slipping):
