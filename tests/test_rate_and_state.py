@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import benchmark_module
 from scipy.integrate import solve_ivp
 
 import stickslip as ss
@@ -311,25 +312,133 @@ def test_noisy_cycles_match_radau_driven_by_the_same_noise():
     assert compared >= 12
 
 
-def test_fit_refuses_a_creeping_slider_in_one_line():
-    """Its cycles carry the state of the ones before and a run starts in a velocity step's
-    transient: neither the per-cycle simulation nor a trace's measurement takes that out,
-    so `fit` and `measured_cycles` refuse it, naming the model, before simulating."""
-    data = {"stick_time": np.full(20, 1.0), "force_drop": np.full(20, 0.01)}
-    with pytest.raises(ss.ParameterError, match="model.*creeping slider") as err:
-        ss.fit(
-            "rate-and-state",
-            data,
-            free={"a": (0.005, 0.02)},
-            fixed=dict(stiffness=168.0, v_b=42e-6, **{k: v for k, v in PAPER.items() if k != "a"}),
-        )
-    assert "\n" not in str(err.value)
+def _force_cycles(k, V, n=4000, h=5e-4, seed=0):
+    """A force trace's cycles (SI) for the refusals: sticks loading at k V, slips of 20 ms
+    releasing their load, and noise."""
+    t = h * np.arange(n)
+    period, slip = 0.5, 0.02
+    phase = t % period
+    rise = k * V * (period - slip)
+    load = np.where(phase < period - slip, k * V * phase, rise * (period - phase) / slip)
+    F = 0.08 + load + 1e-4 * np.random.default_rng(seed).standard_normal(n)
+    return ss.extract_cycles(t, force=F, stiffness=k, v_b=V)
+
+
+def test_fit_of_a_creeping_slider_refuses_what_it_cannot_fit_in_one_line():
+    """A creeping slider's cycles carry the state of the ones before and a run starts in
+    a velocity step's transient: it is fitted only through a force trace's measurement,
+    to its stationary motion, in SI (its units follow from its fixed stiffness), one run
+    at a time; `measured_cycles` measures it as a force trace only."""
+    k, V = 1002.0, 42e-6
+    fixed = dict(stiffness=k, v_b=V, **{key: v for key, v in PAPER.items() if key != "a"})
+    free = {"a": (0.005, 0.02)}
+    cycles = _force_cycles(k, V)
+    per_cycle = {"stick_time": np.linspace(0.4, 0.6, 20), "slip_distance": np.full(20, 1e-5)}
+    no_k = {key: v for key, v in fixed.items() if key != "stiffness"}
+    slider = ss.Slider(mass=0.03, stiffness=k, damping=0.0, static_friction=0.1,
+                       kinetic_friction=0.08, v_b=V)  # fmt: skip
+    cases = [
+        (dict(data=per_cycle), "'data'.*Cycles of a force trace"),
+        (dict(data=cycles, scales=slider), "'scales'.*SI"),
+        (dict(data=cycles, fixed=no_k), "'fixed'.*stiffness"),
+        (dict(data=[cycles, cycles]), "'data'.*one run at a time"),
+    ]
+    for given, match in cases:
+        args = dict(dict(data=cycles, free=free, fixed=fixed), **given)
+        with pytest.raises(ss.ParameterError, match=match) as err:
+            ss.fit("rate-and-state", args.pop("data"), **args)
+        assert "\n" not in str(err.value)
     from stickslip._inference.measurement import measured_cycles
 
-    with pytest.raises(ss.ParameterError, match="model.*creeping slider"):
-        measured_cycles(
-            RS(stiffness=168.0, v_b=42e-6, **PAPER),
-            ss.Measurement(signal="force", sampling_interval=1e-3),
-            100,
-            seed=0,
-        )
+    with pytest.raises(ss.ParameterError, match="'measurement'.*force trace only"):
+        measurement = ss.Measurement(signal="x", sampling_interval=1e-3)
+        measured_cycles(RS(stiffness=k, v_b=V, **PAPER), measurement, 100, seed=0)
+
+
+def test_cycles_read_from_a_recorded_creep_match_the_closed_form():
+    """`creeping.sampled_cycles` on v = V (1 + A sin(2 pi t / T)): the slider outruns the
+    drive over each first half period (a slip of T / 2, then a stick of T / 2), the
+    extension falling by V A T / pi over it (its integral of V - v); crossings placed
+    between samples to O(h^2)."""
+    from stickslip._inference.creeping import sampled_cycles
+
+    V, A, T, h = 2.0, 0.3, 1.0, 1e-3
+    t = np.arange(0.25, 10.0, h)  # (starts inside a slip: the first cycle starts at t = 1)
+    w = 2 * np.pi / T
+    v = V * (1 + A * np.sin(w * t))
+    x = V * A / w * (np.cos(w * t) - 1.0)
+    c = sampled_cycles(t, x, v, V)
+    n = c["release_time"].size
+    assert n == 9
+    np.testing.assert_allclose(c["release_time"], np.arange(1, 10) * T, atol=1e-6)
+    np.testing.assert_allclose(c["slip_time"], T / 2, atol=1e-6)
+    np.testing.assert_allclose(c["stick_time"][:-1], T / 2, atol=1e-6)
+    assert np.isnan(c["stick_time"][-1])  # the last stick outlasts the trace
+    np.testing.assert_allclose(c["force_drop"], V * A * T / np.pi, rtol=1e-6)
+    np.testing.assert_allclose(c["period"][:-1], T, atol=1e-6)
+
+
+@pytest.mark.slow  # (~15 s: Radau to 9 s, the measured trace's recorded solve compiled)
+def test_a_measured_trace_is_the_stationary_motion():
+    """`measured_cycles` of the noise-free slider (a force trace at 2 kHz, noise-free) is
+    its limit cycle, every cycle: the periods Radau finds from the onset (a velocity step)
+    settle from 0.31 s to 0.6605 s over some ten cycles, and each measured period (release
+    to release, from the extraction's fits of a sampled trace) lies within a twentieth of a
+    sample of the settled one, the first as the last: the burn-in left the transient out."""
+    from stickslip._inference.measurement import measured_cycles
+
+    k, V = 1002.0, 42e-6
+    peaks, _, _ = _radau_cycles(PAPER, k, V, _steady(PAPER, k, 1.5 * V), 9.0)
+    periods = np.diff(peaks)
+    settled = periods[-1]
+    assert abs(periods[-2] - settled) < 1e-5 * settled  # Radau's own convergence
+    assert abs(periods[0] - settled) > 0.3 * settled  # what a burn-in must leave out
+    h = 5e-4
+    measurement = ss.Measurement(signal="force", sampling_interval=h)
+    sim = measured_cycles(RS(stiffness=k, v_b=V, **PAPER), measurement, 40, seed=0)
+    assert sim["period"].size >= 30
+    np.testing.assert_allclose(sim["period"], settled, atol=h / 20)
+
+
+def test_any_seed_below_2_64_runs():
+    """A fit's second seed lies anywhere in [0, 2**64): the onsets' keys come from the
+    seed's root key, as the noise's do (a seed past 2**63 overflowed before)."""
+    m = RS(stiffness=1002.0, v_b=42e-6, **PAPER)
+    c = ss.simulate_cycles(m, 2, 1e-3, 0.1, seed=2**64 - 1, record=False).cycles
+    assert c["slip_time"].size == 2 and np.all(np.isfinite(c["slip_time"]))
+
+
+@pytest.mark.slow  # (~5 min: some 30 points of 1000 simulated cycles through the measurement)
+def test_fit_recovers_the_critical_distance_from_an_independent_generator(tmp_path):
+    """`fit` of the noisy slider to a force trace it did not make
+    (`benchmarks/rate_and_state_fit.py`: 30 s of an Euler-Maruyama run in SI variables,
+    steps of 1 us with its own noise, at k = 1002 N/m, 300 um/s: ~310 cycles of 96 ms),
+    sampled at 2 kHz with white sensor noise, the onset's transient left out. The
+    critical distance d_c, searched over a box not centred on the truth, is recovered
+    within three of its standard errors (the 95 % interval's half width over 1.96), with
+    an interval; the fit predicts steady sliding above the critical stiffness of the
+    linear analysis and stick-slip below, the same once saved and loaded."""
+    gen = benchmark_module("rate_and_state_fit")
+    cycles = gen.data(seed=1)
+    assert cycles.table["period"].size > 250
+    fixed = dict(gen.truth(), stiffness=gen.K, v_b=gen.V, tau=gen.TAU)
+    fixed.pop("d_c")
+    r = ss.fit("rate-and-state", cycles, free={"d_c": gen.BOXES["d_c"]}, fixed=fixed,
+               n_sim=1000, seed=11, check=False)  # fmt: skip
+    lo, hi = r.ci["d_c"]
+    se = (hi - lo) / (2 * 1.96)
+    assert 0 < se < 0.1 * PAPER["d_c"]
+    assert abs(r.estimate["d_c"] - PAPER["d_c"]) < 3 * se
+    # predicted about the critical stiffness of the linear analysis, written out here:
+    # k_c = N (b - a) / d_c (1 + M V^2 / (N a d_c)) at the estimate (2.9 kN/m)
+    N, M, a, b = (PAPER[x] for x in ("normal_force", "mass", "a", "b"))
+    d_c = r.estimate["d_c"]
+    k_c = N * (b - a) / d_c * (1 + M * gen.V**2 / (N * a * d_c))
+    assert r.predict(stiffness=2 * k_c, v_b=gen.V, n_sim=100).regime == "steady sliding"
+    below = r.predict(stiffness=0.5 * k_c, v_b=gen.V, n_sim=200)
+    assert below.regime == "stick-slip" and below.cycles["force_drop"].size > 100
+    # saved and loaded, it predicts the same
+    path = tmp_path / "fit.json"
+    r.save(path)
+    again = ss.load_fit(path).predict(stiffness=0.5 * k_c, v_b=gen.V, n_sim=200)
+    np.testing.assert_array_equal(again.cycles["force_drop"], below.cycles["force_drop"])

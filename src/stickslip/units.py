@@ -105,6 +105,16 @@ class Scales:
     force_offset: float
     noise: float
 
+    @classmethod
+    def si(cls, stiffness: float) -> Scales:
+        """The units of a model written in SI (a creeping slider: rate-and-state) as a
+        force trace's cycles meet it: seconds, metres, and forces over the spring's
+        `stiffness` (N/m), so that a force drop reads as the extension it releases (its
+        `slip_distance`, m) and the force trace as the spring's extension."""
+        k = check_positive("Scales.si", "stiffness", stiffness)
+        return cls(omega0=1.0, time=1.0, length=1.0, velocity=1.0, force=float(k),
+                   force_offset=0.0, noise=1.0)  # fmt: skip
+
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class SliderCycles:

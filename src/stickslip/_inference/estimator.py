@@ -25,6 +25,7 @@ import warnings
 import numpy as np
 
 from .._errors import DataError, ParameterError, check_int, check_positive
+from .._model import CreepingSlider
 from .data import LOG_KINDS, check_data, looks_sampled, measurement_of, to_fit_scale
 from .diagnostics import Design, FitDiagnostics
 from .forward import simulate_values, simulation_settings
@@ -45,6 +46,7 @@ from .params import (
     check_fixed,
     check_free,
     check_n_sim_memory,
+    creeping_scales,
     from_fit_coords,
     kwargs_of,
     model_class,
@@ -133,8 +135,10 @@ def problem(
     """`fit`'s arguments checked, each refusal one line naming the argument (see
     `simulated_mle`)."""
     owner = "fit"
-    units = scales  # (a Slider or Scales)
     Model = model_class(model)
+    if issubclass(Model, CreepingSlider):  # in SI: forces over its stiffness
+        scales = creeping_scales(Model, data, fixed, free, scales, runs)
+    units = scales  # (a Slider or Scales)
     if runs is None:
         data, measured = measurement_of(data, trace, sampling, scales, owner)
         if measurement is not None:

@@ -56,7 +56,13 @@ def fit(
     **Arguments:**
 
     - `model`: a model name (`"langevin"`) or class with a linear-Gaussian slip or not
-      (any model `simulate` runs; exact stepping where it applies).
+      (any model `simulate` runs; exact stepping where it applies). A creeping slider
+      (`"rate-and-state"`, in SI) is fitted to the `Cycles` of one force trace only,
+      through its measurement, as its stationary motion: each simulated path leaves out
+      the time its noise-free motion takes to settle from the onset (`measured_cycles`);
+      its units follow from its fixed `stiffness` (`Scales.si`: leave `scales` out), its
+      `n_sim` counts periods of its noise-free cycle, and its sticks are not checked
+      against `v_b` (they creep: the loading slope is a little below the drive's).
     - `data`: the cycles, one row per cycle, any of the columns `slip_time`,
       `slip_distance`, `stick_time` (zeros included: a point mass), `period`, all of one
       length, fitted jointly. Either
@@ -145,7 +151,13 @@ def fit(
     if isinstance(data, (list, tuple)):
         return _joint(model, data, free, fixed, seed=seed, n_sim=n_sim, dt=dt, scales=scales,
                       check=check, progress=progress, wall0=wall0)  # fmt: skip
-    loading = _loading_speed_mismatch(data, fixed, scales)
+    from .._model import CreepingSlider
+    from .params import model_class
+
+    # (a creeping slider loads its sticks slower than v_b, creeping: its own trace is read
+    # by the same extraction)
+    creeping = issubclass(model_class(model), CreepingSlider)
+    loading = None if creeping else _loading_speed_mismatch(data, fixed, scales)
     if loading is not None:  # said now: the fit may take minutes
         warnings.warn(f"fit: {loading}", stacklevel=2)
     result = simulated_mle(
@@ -159,9 +171,12 @@ def fit(
 
 def _joint(model, data, free, fixed, *, seed, n_sim, dt, scales, check, progress, wall0):
     """`fit` of one SI parameter set to several runs (`joint`)."""
+    from .._model import CreepingSlider
     from .joint import Runs
-    from .params import model_class
+    from .params import creeping_scales, model_class
 
+    if issubclass(model_class(model), CreepingSlider):
+        creeping_scales(model_class(model), data, fixed, free, scales, runs=data)  # (refused)
     if scales is not None:
         raise ParameterError(
             "fit", "scales", "applies to one run: with several, each run's reference Slider "

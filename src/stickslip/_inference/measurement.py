@@ -289,10 +289,14 @@ def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
     made noisy as `measurement` says; see `measured_cycles`. `sticks="cut"` (a force trace
     with a given `window`): the middles of the long sticks left out (`cut_grid`), each
     trace's `cut` saying which samples of the whole trace were kept."""
-    from .._model import time_scales
+    from .._model import CreepingSlider, time_scales
 
     owner = "measured_cycles"
     names, n_cycles, seed = _checked(owner, model, measurement, n_cycles, seed, sticks)
+    if isinstance(model, CreepingSlider):  # its stationary motion, after a burn-in
+        from .creeping import creeping_trace
+
+        return creeping_trace(owner, model, measurement, n_cycles, seed, dt, sticks)
     h = measurement.sampling_interval
     scales = time_scales(model)
     fast, slow = (1.0, 1.0) if scales is None else scales
@@ -328,15 +332,11 @@ def measured_trace(model, measurement: Measurement, n_cycles: int, seed: int, *,
 def _checked(owner, model, measurement, n_cycles, seed, sticks):
     """`measured_trace`'s arguments checked: the model's state names, `n_cycles`, `seed`."""
     from .._model import CreepingSlider, FrictionModel
-    from .params import CREEPING_NOT_FITTED
 
     if not isinstance(model, FrictionModel):
         raise ParameterError(owner, "model", "must be a FrictionModel instance")
-    if isinstance(model, CreepingSlider):
-        raise ParameterError(owner, "model",
-                             CREEPING_NOT_FITTED.format(name=type(model).__name__))  # fmt: skip
     names = tuple(model.state_names)
-    if "x" not in names or "v" not in names:
+    if not isinstance(model, CreepingSlider) and ("x" not in names or "v" not in names):
         raise ParameterError(
             owner, "model", "must have states x and v (a single-block model): the trace "
             f"records them (states: {', '.join(names)})",
@@ -533,13 +533,16 @@ def measured_cycles(model, measurement: Measurement, n_cycles: int, seed: int, *
 
     **Arguments:**
 
-    - `model`: a single-block model instance (states `x` and `v`);
+    - `model`: a single-block model instance (states `x` and `v`), or a creeping slider
+      in SI (rate-and-state) measured as a force trace: its stationary motion, each path
+      after a burn-in as long as its noise-free motion takes to settle from the onset, in
+      SI units with forces over the stiffness (`stickslip.units.Scales.si`: the
+      data's `Measurement.from_cycles(cycles, scales=Scales.si(k))`);
     - `measurement`: a `Measurement` (`Measurement.from_cycles(data)`);
     - `n_cycles`: how many model cycles to simulate ($\ge 10$), shared among a few paths
-      (a creeping slider's paths last their share times the mean period of 1024 pilot
-      cycles: about as many). The measured cycles are fewer where the measurement joins
-      cycles (a zero-length stick, a stick shorter than `min_stick` samples) or drops a
-      path's cut ends;
+      (a creeping slider's paths last their share times its noise-free period). The
+      measured cycles are fewer where the measurement joins cycles (a zero-length stick,
+      a stick shorter than `min_stick` samples) or drops a path's cut ends;
     - `seed`: the simulation's seed, and the noise's (its own stream): the same seed gives
       the same cycles, and the same noise draws at every parameter value;
     - `dt`: the simulator's step (default: half the sampling interval, within an eighth

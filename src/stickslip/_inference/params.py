@@ -23,7 +23,7 @@ MAX_SIM_PATHS = 2**32 - 1  # the simulator numbers its paths with 32 bits
 
 
 def model_class(model):
-    from .._model import ChainModel, CreepingSlider, FrictionModel
+    from .._model import ChainModel, FrictionModel
     from .._registry import get_model
 
     if isinstance(model, str):
@@ -36,18 +36,38 @@ def model_class(model):
         raise ParameterError(
             "fit", "model", f"{Model.__name__} is a chain of blocks: fit needs a single-block model"
         )
-    if issubclass(Model, CreepingSlider):
-        raise ParameterError("fit", "model", CREEPING_NOT_FITTED.format(name=Model.__name__))
     return Model
 
 
-# Why a creeping slider is not fitted (`fit` and `measured_cycles` refuse it in one line).
-CREEPING_NOT_FITTED = (
-    "{name} is a creeping slider (friction with memory through its sticks, as "
-    "rate-and-state): its cycles carry the state of the ones before and a run starts in a "
-    "velocity step's transient, which neither the per-cycle simulation nor a trace's "
-    "measurement takes out yet; compare its simulate_cycles with the data by hand"
-)
+def creeping_scales(Model, data, fixed, free, scales, runs):
+    """The units a creeping slider (`CreepingSlider`, in SI) meets a force trace's cycles in
+    (`Scales.si` of its fixed stiffness); each refusal one line: per-cycle values (its
+    cycles carry the state of the ones before, and a run starts in a velocity step's
+    transient: only a measured trace's stationary cycles are fitted), several runs, a
+    `scales` given, a stiffness not fixed."""
+    from .._extract import Cycles
+    from ..units import Scales
+
+    name = Model.__name__
+    if runs is not None:
+        raise ParameterError("fit", "data", f"is several runs: {name} (a creeping slider) is "
+                             "fitted to one run at a time")  # fmt: skip
+    if not isinstance(data, Cycles):
+        raise ParameterError(
+            "fit", "data", f"must be the Cycles of a force trace for {name}: a creeping "
+            "slider's cycles carry the state of the ones before and a run starts in a "
+            "velocity step's transient, so it is fitted through the trace's measurement, "
+            "to its stationary motion, not to per-cycle values",
+        )  # fmt: skip
+    if scales is not None:
+        raise ParameterError("fit", "scales", f"must be left out for {name}: a creeping "
+                             "slider is in SI, its units follow from its stiffness")  # fmt: skip
+    if "stiffness" in free or not hasattr(fixed, "get") or fixed.get("stiffness") is None:
+        raise ParameterError(
+            "fit", "fixed", f"must give {name}'s stiffness (N/m, the trace's spring): the "
+            "force trace is read as its extension",
+        )  # fmt: skip
+    return Scales.si(fixed["stiffness"])
 
 
 def check_fixed(fixed, Model) -> dict[str, Any]:

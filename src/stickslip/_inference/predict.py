@@ -25,6 +25,7 @@ import numpy as np
 
 from .._errors import ParameterError, StickSlipError, check_int, check_positive
 from .._trace_kind import kind_of_signal
+from .measurement import Measurement
 
 OWNER = "FitResult.predict"
 # The parameters `Slider.si_parameters` maps; the others of a model (`eta0`) are settings.
@@ -41,9 +42,10 @@ class Prediction:
     """What a fitted model predicts at a stiffness and driving speed (`FitResult.predict`).
 
     - `slider`: the predicted slider in SI (the fit's physical parameters at `stiffness`
-      and `v_b`);
+      and `v_b`; for a creeping slider, the fitted model at them);
     - `regime`: `"stick-slip"`; `"no stick"` where the slider does not stick again within
-      the simulated time; `"unresolved"` where the run's measurement shows no cycles of
+      the simulated time; `"steady sliding"` where a creeping slider's noise-free motion
+      settles into it; `"unresolved"` where the run's measurement shows no cycles of
       the predicted slider (its p-values are then 0); and `evidence`, the numbers or the
       extraction's reason that decided it;
     - `cycles`: the predicted per-cycle values in SI (`stick_time`, `slip_time` in s,
@@ -82,11 +84,13 @@ class Prediction:
 
 def predict(result, run=None, *, stiffness=None, v_b=None, n_sim=None, seed=None) -> Prediction:
     """`FitResult.predict`: see its docstring."""
+    from .._model import CreepingSlider
     from ..units import Slider
     from .params import model_kwargs
 
     slider = result.diagnostics.units
-    if not isinstance(slider, Slider):
+    creeping = isinstance(result.model, CreepingSlider)
+    if not creeping and not isinstance(slider, Slider):
         raise ParameterError(
             OWNER, "result", "must be a fit in physical units: fit(..., cycles, scales="
             "Slider(...)) (its Slider maps the estimate to a mass, a noise and a threshold)",
@@ -99,7 +103,9 @@ def predict(result, run=None, *, stiffness=None, v_b=None, n_sim=None, seed=None
             raise ParameterError(OWNER, "run", "must be a Cycles of a force trace (from "
                                  "extract_cycles or analyse_run), in s, m and N")  # fmt: skip
         stiffness = info["stiffness"] if stiffness is None else stiffness
-        v_b = info.get("v_b_estimated") if v_b is None else v_b
+        # (a creeping slider loads its sticks slower than it is driven: the given speed)
+        speed = info.get("v_b") if creeping else info.get("v_b_estimated")
+        v_b = speed if v_b is None else v_b
     if stiffness is None or v_b is None:
         raise ParameterError(OWNER, "stiffness" if stiffness is None else "v_b",
                              "is required without a run")  # fmt: skip
@@ -109,6 +115,8 @@ def predict(result, run=None, *, stiffness=None, v_b=None, n_sim=None, seed=None
     n_sim = d.n_sim if n_sim is None else check_int(OWNER, "n_sim", n_sim, minimum=100)
     # a seed other than the fit's: the check does not reuse the draws it was tuned on
     seed = int(d.seed) + 1 if seed is None else check_int(OWNER, "seed", seed, minimum=0)
+    if creeping:
+        return _creeping(result.model, run, stiffness, v_b, n_sim, seed)
     params = model_kwargs(result.model)
     si = slider.si_parameters({k: v for k, v in params.items() if k in _PHYSICAL})
     si.pop("v_b", None)
@@ -127,7 +135,43 @@ def predict(result, run=None, *, stiffness=None, v_b=None, n_sim=None, seed=None
            "stiffness and speed, seed {seed}")  # fmt: skip
     if run is None:
         return _per_cycle(predicted, n_sim, seed, how.format(seed=seed))
-    return _through(type(result.model), predicted, run, n_sim, seed, how.format(seed=seed))
+    Model = type(result.model)
+    measurement = Measurement.from_cycles(run, scales=predicted)
+    return _through(Model(**predicted.dimensionless()), predicted.scales, predicted,
+                    measurement, run, n_sim, seed, how.format(seed=seed))  # fmt: skip
+
+
+def _creeping(model, run, stiffness, v_b, n_sim, seed) -> Prediction:
+    """A fitted creeping slider (in SI) at `stiffness` and `v_b`: its stationary cycles
+    through `run`'s measurement, or without a run through a noise-free force trace sampled
+    at a fortieth of its noise-free slip; `"steady sliding"` where its noise-free motion
+    settles into it (`creeping.limit_cycle`)."""
+    from .._errors import DataError
+    from ..units import Scales
+    from .creeping import limit_cycle
+    from .params import model_kwargs
+
+    try:
+        predicted = type(model)(**dict(model_kwargs(model), stiffness=stiffness, v_b=v_b))
+    except ParameterError as err:
+        raise ParameterError(OWNER, "stiffness, v_b", f"give a slider the model refuses: "
+                             f"{err.parameter} {err.reason}") from None  # fmt: skip
+    how = (f"the fitted {type(model).__name__} at the given stiffness and speed (its "
+           f"stationary motion, each path after a burn-in), seed {seed}")  # fmt: skip
+    try:
+        cycle = limit_cycle(predicted, OWNER)
+    except DataError as err:
+        empty = {k: np.zeros(0) for k in _OBSERVABLES}
+        p = None if run is None else {k: 0.0 for k in _OBSERVABLES}
+        data = None if run is None else {k: np.asarray(run[k], float) for k in _OBSERVABLES}
+        return Prediction(predicted, "steady sliding", str(err), empty, data, p, how)
+    if run is None:
+        measurement = Measurement(signal="force", sampling_interval=cycle.slip_time / 40)
+        how += f", as a noise-free force trace sampled every {cycle.slip_time / 40:.3g} s"
+    else:
+        measurement = Measurement.from_cycles(run, scales=Scales.si(stiffness))
+    return _through(predicted, Scales.si(stiffness), predicted, measurement, run, n_sim, seed,
+                    how)  # fmt: skip
 
 
 def _per_cycle(slider, n_sim, seed, how) -> Prediction:
@@ -143,30 +187,32 @@ def _per_cycle(slider, n_sim, seed, how) -> Prediction:
                       f"{n} independent cycles of {how}")  # fmt: skip
 
 
-def _through(Model, slider, run, n_sim, seed, how) -> Prediction:
-    """The slider's cycles through `run`'s measurement, in SI, against the run's: the
-    fitted model's class (`random-threshold-held` releases as it does) with the slider's
-    parameters."""
+def _through(model, s, slider, measurement, run, n_sim, seed, how) -> Prediction:
+    """The `model`'s cycles (in the units `s`, a `Scales`) through `measurement` (`run`'s,
+    or a noise-free one without a run), in SI, against the run's: the fitted model's class
+    (`random-threshold-held` releases as it does) with the predicted slider's parameters."""
     from scipy import stats
 
-    from .measurement import Measurement, measured_cycles
+    from .measurement import measured_cycles
 
-    measurement = Measurement.from_cycles(run, scales=slider)
-    s = slider.scales
-    data = {k: np.asarray(run[k], float) for k in _OBSERVABLES}
+    data = None if run is None else {k: np.asarray(run[k], float) for k in _OBSERVABLES}
+    whose = "the run's" if run is not None else "a"
     try:
-        sim = measured_cycles(Model(**slider.dimensionless()), measurement, n_sim, seed)
+        sim = measured_cycles(model, measurement, n_sim, seed)
     except StickSlipError as err:  # (a DataError: no cycles through the measurement)
         # no cycles through the run's measurement: the run's stick-slip is not predicted
         empty = {k: np.zeros(0) for k in _OBSERVABLES}
-        method = f"{n_sim} model cycles of {how}, through the run's measurement"
-        return Prediction(slider, "unresolved", str(err), empty, data,
-                          {k: 0.0 for k in _OBSERVABLES}, method)  # fmt: skip
+        method = f"{n_sim} model cycles of {how}, through {whose} measurement"
+        p = None if run is None else {k: 0.0 for k in _OBSERVABLES}
+        return Prediction(slider, "unresolved", str(err), empty, data, p, method)
     cycles = {"stick_time": np.asarray(sim["stick_time"]) * s.time,
               "slip_time": np.asarray(sim["slip_time"]) * s.time,
               "force_drop": np.asarray(sim["slip_distance"]) * s.force}  # fmt: skip
+    evidence = f"{cycles['slip_time'].size} cycles through {whose} measurement"
+    if run is None:
+        return Prediction(slider, "stick-slip", evidence, cycles, None, None,
+                          f"{n_sim} model cycles of {how}")  # fmt: skip
     p = {k: float(stats.ks_2samp(data[k], cycles[k]).pvalue) for k in _OBSERVABLES}
-    evidence = f"{cycles['slip_time'].size} cycles through the run's measurement"
     method = (f"{n_sim} model cycles of {how}, through the run's measurement (its sampling, "
               "noise, spikes, lines and extraction settings); p-values: two-sample "
               "Kolmogorov-Smirnov against the run's cycles, at the estimate")  # fmt: skip

@@ -99,7 +99,10 @@ class FitResult:
         - `n_sim`, `seed`: the simulation (default the fit's `n_sim`, its seed plus 1).
 
         **Returns:** a `Prediction` (`regime`, `cycles` in SI, `p_values`, `summary()`).
-        Needs a fit made with `scales=Slider(...)`."""
+        Needs a fit made with `scales=Slider(...)`, or a creeping slider's fit (in SI: its
+        fitted model at the stiffness and speed, the run's given `v_b` rather than its
+        sticks' slope, which creep; its stationary motion after a burn-in; without a
+        run, through a noise-free force trace sampled at a fortieth of its slip)."""
         from .predict import predict
 
         return predict(self, run, stiffness=stiffness, v_b=v_b, n_sim=n_sim, seed=seed)

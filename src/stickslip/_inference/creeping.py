@@ -1,0 +1,277 @@
+r"""A creeping slider (friction with memory, e.g. rate-and-state) as a measured force trace.
+
+A creeping slider's cycles carry the state of the ones before, and a run starts in a
+velocity step's transient (`CreepingSlider.onset_state`). What a measured run shows is the
+stationary motion, so its forward measurement (`creeping_trace`) is built from that:
+
+1. the noise-free motion from the onset (`limit_cycle`: its successive slips, solved to
+   their events) until two successive cycles agree in force drop and period to
+   `LIMIT_RTOL`: its period sets how long a path runs for a number of cycles, and the time
+   it took sets the **burn-in**, the stretch of every path left out before the trace
+   starts (the noise moves the motion about the same limit cycle; a model whose
+   noise-free motion settles into steady sliding has no stick-slip trace to measure);
+2. the motion, noise included, recorded at the data's sampling interval in chunks of
+   `CHUNK` samples (the state carried from one to the next: one compiled solve for any
+   length), every path from the onset, its burn-in dropped;
+3. the force trace is the spring's extension, the force over the stiffness, in the units
+   `si_scales` gives the data (a force over k, a time in seconds); its cycles for the
+   keyed noise and the cut grid are read from the samples, where the slider outruns the
+   drive (a slip) and falls back (a stick), placed between samples linearly.
+
+What follows is a force trace's measurement as for any model (`TraceKind.synthesise`, then
+`extract_cycles` with the data's settings).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import warnings
+
+import numpy as np
+
+from .._errors import DataError, ParameterError, check_positive
+
+# Successive noise-free cycles agree in force drop and period to this (relative) where the
+# motion has reached its limit cycle: the velocity step's transient at the rate-and-state
+# example's k = 1002 N/m grows its drops for some 7 cycles, by 1.6 % in the last of them.
+LIMIT_RTOL = 1e-3
+# The noise-free cycles followed at most; a motion that has not settled by then (a period
+# doubling, chaos) is warned about, its burn-in all of them.
+LIMIT_CYCLES = 200
+# A noise-free motion whose force drops fall below this fraction of the first is settling
+# into steady sliding (a decaying oscillation about the drive's speed).
+DECAYED = 1e-4
+# Samples of one recorded solve (each path's state carried into the next): a fixed count,
+# so that the recorded motion compiles once for any trace's length.
+CHUNK = 4096
+# Paths of a measured trace: each pays its own burn-in, so a path runs at least this many
+# burn-ins' worth of cycles beyond it (and at least `MIN_PATH_CYCLES`), in at most
+# `MAX_PATHS` paths (the recorded solve runs the paths side by side).
+BURN_SHARE = 10
+MIN_PATH_CYCLES = 50
+MAX_PATHS = 32
+# Bytes a recorded sample costs, all paths counted: the position and velocity kept, the
+# chunk's states, the synthesised trace's arrays (about ten at a time, as for other models).
+_SAMPLE_BYTES = 8 * 12
+
+
+@dataclasses.dataclass(frozen=True)
+class LimitCycle:
+    """The noise-free motion's stationary cycle (`limit_cycle`): its `period`, `drop` (N)
+    and `slip_time` (s), the `burn_in` (s) its transient takes from the onset, the
+    `cycles` followed and whether they `settled` to `LIMIT_RTOL`."""
+
+    period: float
+    drop: float
+    slip_time: float
+    burn_in: float
+    cycles: int
+    settled: bool
+
+
+def limit_cycle(model, owner: str = "measured_cycles") -> LimitCycle:
+    """The noise-free motion of `model` from its onset state, followed slip by slip (each
+    solve to its event, `creep.Motion.segment`) until two successive cycles agree in force
+    drop and period to `LIMIT_RTOL` (a warning where they do not within `LIMIT_CYCLES`).
+    A `DataError` where the motion settles into steady sliding (its drops fall below
+    `DECAYED` of the first, or a stick outlasts any bound the earlier motion suggests)."""
+    from .._jax import jax, jnp
+    from .._simulate.creep import Motion
+
+    rates = np.abs(np.real(np.asarray(model.linear_rates())))
+    slow = 1.0 / float(np.min(rates[rates > 0])) if np.any(rates > 0) else 1.0
+    motion = Motion(model, 1.0, math.inf, 0)
+    motion.noisy = False  # the drift alone (`segment` solves the noise-free motion)
+    force = jax.vmap(motion.model.spring_force)
+    y = motion.onsets(1)
+    t = np.zeros(1)
+    slipping = motion.crossing(y) > 0.0
+    peaks: list[tuple[float, float]] = []  # (time, force) at each slip's start
+    drops: list[float] = []
+    periods: list[float] = []
+    slips: list[float] = []
+    longest = 100.0 * slow
+    while len(drops) < LIMIT_CYCLES:
+        motion.t_max = float(t[0]) + max(longest, 100.0 * slow)
+        t1, y1, hit, more = motion.segment(y, t, slipping)
+        if not hit[0] and not more[0]:
+            raise DataError(
+                f"{owner}: the noise-free {type(model).__name__} settles into steady sliding "
+                f"(no crossing of the drive's speed within {motion.t_max - t[0]:.3g} s after "
+                f"t = {t[0]:.4g} s): no stick-slip trace to measure"
+            )  # fmt: skip
+        if hit[0]:
+            F = float(np.asarray(force(jnp.asarray(y1)))[0])
+            if slipping[0] and peaks:  # a slip ended: its drop
+                drops.append(peaks[-1][1] - F)
+                slips.append(float(t1[0]) - peaks[-1][0])
+            elif not slipping[0]:  # a stick ended: the next slip starts
+                if peaks:
+                    periods.append(float(t1[0]) - peaks[-1][0])
+                    longest = max(longest, 10.0 * periods[-1])
+                peaks.append((float(t1[0]), F))
+            slipping = ~slipping
+        t, y = t1, y1
+        if len(drops) >= 3 and drops[-1] < DECAYED * drops[0]:
+            raise DataError(
+                f"{owner}: the noise-free {type(model).__name__} settles into steady sliding "
+                f"(its force drops fall from {drops[0]:.3g} to {drops[-1]:.3g} N in "
+                f"{len(drops)} cycles): no stick-slip trace to measure"
+            )  # fmt: skip
+        if len(periods) >= 2 and len(drops) >= 2 and not slipping[0]:
+            if _agree(drops[-2:]) and _agree(periods[-2:]):
+                return LimitCycle(periods[-1], drops[-1], slips[-1], peaks[-1][0],
+                                  len(drops), True)  # fmt: skip
+    warnings.warn(
+        f"{owner}: the noise-free {type(model).__name__}'s cycles do not settle within "
+        f"{LIMIT_CYCLES} cycles (successive drops {drops[-2]:.4g}, {drops[-1]:.4g} N; periods "
+        f"{periods[-2]:.4g}, {periods[-1]:.4g} s): each path's first {peaks[-1][0]:.4g} s "
+        "are left out as its transient",
+        stacklevel=3,
+    )  # fmt: skip
+    return LimitCycle(periods[-1], drops[-1], slips[-1], peaks[-1][0], len(drops), False)
+
+
+def _agree(pair) -> bool:
+    a, b = pair
+    return abs(a - b) <= LIMIT_RTOL * max(abs(a), abs(b))
+
+
+def plan(model, n_cycles: int, h: float, owner: str):
+    """How a measured trace of about `n_cycles` cycles runs: `(cycle, n_paths, samples,
+    burn)`, the noise-free `LimitCycle`, the paths, the samples each records (from its
+    onset) and the first of them kept (its burn-in over)."""
+    from .._memory import check_memory
+
+    cycle = limit_cycle(model, owner)
+    burn_cycles = max(cycle.cycles, 1)
+    per_path = max(MIN_PATH_CYCLES, BURN_SHARE * burn_cycles)
+    n_paths = int(min(MAX_PATHS, max(1, round(n_cycles / per_path))))
+    share = math.ceil(n_cycles / n_paths)
+    burn = int(math.ceil(cycle.burn_in / h))
+    samples = burn + int(math.ceil(share * cycle.period / h)) + 1
+    check_memory(
+        owner, f"a trace of {n_paths} x {samples:.3g} samples ({n_cycles} cycles of "
+        f"{cycle.period:.3g} s at an interval of {h:.3g} s, each path after a burn-in of "
+        f"{cycle.burn_in:.3g} s)", _SAMPLE_BYTES * n_paths * samples, "take fewer cycles",
+    )  # fmt: skip
+    return cycle, n_paths, samples, burn
+
+
+def recorded(model, n_paths: int, samples: int, h: float, dt: float, seed: int):
+    """Each path's extension (the force over the stiffness) and velocity at the times
+    `k h`, `k < samples`, from the onset: shape `(n_paths, samples)` each, recorded in
+    chunks of `CHUNK` samples (`creep.Motion.dense`, the noise on the grid `dt` keyed by
+    `(seed, path, node)`). `nan` after a stretch the solver could not cross."""
+    from .._jax import jax, jnp
+    from .._simulate.creep import Motion
+
+    motion = Motion(model, dt, samples * h, seed)
+    keys = motion.keys(np.arange(n_paths, dtype=np.uint32))
+    y = motion.onsets(n_paths)
+    position = jax.jit(jax.vmap(jax.vmap(motion.model.position)))
+    velocity = jax.jit(jax.vmap(jax.vmap(motion.model.slider_velocity)))
+    x = np.empty((n_paths, samples))
+    v = np.empty((n_paths, samples))
+    step = np.arange(CHUNK + 1) * h
+    for start in range(0, samples - 1, CHUNK):
+        ys = motion.dense(y, keys, start * h + step)  # (paths, CHUNK + 1, d)
+        stop = min(samples, start + CHUNK + 1)
+        x[:, start:stop] = np.asarray(position(jnp.asarray(ys)))[:, : stop - start]
+        v[:, start:stop] = np.asarray(velocity(jnp.asarray(ys)))[:, : stop - start]
+        y = ys[:, -1]
+    if motion.stats["failed"]:
+        warnings.warn(
+            f"measured_cycles: the recorded motion of the creeping slider failed on "
+            f"{motion.stats['failed']} stretch(es); their paths end there",
+            stacklevel=3,
+        )
+    return x, v
+
+
+def sampled_cycles(t, x, v, v_b: float) -> dict[str, np.ndarray]:
+    """The cycles of one recorded path: a slip where the slider outruns the drive
+    (`v > v_b`) from its start to its end, then the stick to the next slip's start, each
+    crossing placed linearly between its samples; a trace that starts inside a slip
+    starts its first cycle at the next slip, and the last slip's stick, unfinished, is
+    `nan`. Returns `release_time`, `slip_time`, `stick_time`, `period`, `force_drop`
+    (in the trace's units: the extension released) and `peak_force`."""
+    c = v / v_b - 1.0
+    up = np.flatnonzero((c[:-1] <= 0.0) & (c[1:] > 0.0))
+    down = np.flatnonzero((c[:-1] > 0.0) & (c[1:] <= 0.0))
+
+    def at(i):
+        return t[i] + (t[i + 1] - t[i]) * c[i] / (c[i] - c[i + 1])
+
+    if up.size == 0:
+        empty = np.zeros(0)
+        return dict(release_time=empty, slip_time=empty, stick_time=empty, period=empty,
+                    force_drop=empty, peak_force=empty)  # fmt: skip
+    down = down[down > up[0]]
+    n = min(up.size, down.size)
+    release, end = at(up[:n]), at(down[:n])
+    nxt = np.full(n, np.nan)
+    m = min(n, up.size - 1)
+    nxt[:m] = at(up[1 : m + 1])
+    peak = np.interp(release, t, x)
+    trough = np.interp(end, t, x)
+    return dict(
+        release_time=release, slip_time=end - release, stick_time=nxt - end,
+        period=nxt - release, force_drop=peak - trough, peak_force=peak,
+    )  # fmt: skip
+
+
+def default_dt(model, h: float) -> float:
+    """The noise's grid: half the sampling interval, at most a tenth of the noise's
+    correlation time `tau` (where it has one)."""
+    tau = getattr(model, "tau", None)
+    dt = 0.5 * h
+    return dt if tau is None else min(dt, 0.1 * float(tau))
+
+
+def creeping_trace(owner, model, measurement, n_cycles: int, seed: int, dt, sticks):
+    """`measured_trace` of a creeping slider (the module's steps): a `MeasuredTrace`."""
+    from .._keyed import NOISE_STREAM
+    from .._trace_kind import SimulatedPath
+    from .measurement import MeasuredTrace
+
+    if measurement.signal != "force":
+        raise ParameterError(
+            owner, "measurement", f"is of a {measurement.signal} trace: a creeping slider "
+            f"({type(model).__name__}) is measured as a force trace only",
+        )  # fmt: skip
+    h = measurement.sampling_interval
+    dt = default_dt(model, h) if dt is None else check_positive(owner, "dt", dt)
+    tau = getattr(model, "tau", None)
+    if tau is not None and dt > 0.5 * float(tau):
+        raise ParameterError(owner, "dt", f"is the friction noise's grid: at most tau / 2 = "
+                             f"{0.5 * float(tau):.3g}", dt)  # fmt: skip
+    cycle, n_paths, samples, burn = plan(model, n_cycles, h, owner)
+    x, v = recorded(model, n_paths, samples, h, dt, seed)
+    kind = measurement.kind
+    kind.prepare(measurement, seed)
+    v_b = float(model.v_b)
+    traces, truth = [], []
+    for p in range(n_paths):
+        keep = np.isfinite(x[p, burn:]) & np.isfinite(v[p, burn:])
+        n = int(np.argmin(keep)) if not keep.all() else keep.size
+        t = h * np.arange(n)
+        xp, vp = x[p, burn : burn + n], v[p, burn : burn + n]
+        table = sampled_cycles(t, xp, vp, v_b)
+        if table["release_time"].size == 0 or n < 2:
+            continue
+        truth.append(dict(table, path=np.full(table["period"].size, p),
+                          cycle=np.arange(table["period"].size)))  # fmt: skip
+        traces.append(kind.synthesise(measurement, SimulatedPath(
+            t=t, x=xp, v=vp, release=table["release_time"], slip=table["slip_time"],
+            stick=table["stick_time"], seed=seed, path=p, v_b=v_b,
+            rng=np.random.default_rng([seed, NOISE_STREAM, p]), cut=sticks == "cut",
+        )))  # fmt: skip
+    if not traces:
+        raise DataError(
+            f"{owner}: the simulated {type(model).__name__} does not cross the drive's speed "
+            "after its burn-in: no stick-slip trace to measure"
+        )
+    joined = {k: np.concatenate([c[k] for c in truth]) for k in truth[0]}
+    return MeasuredTrace(tuple(traces), joined, measurement, dt)
