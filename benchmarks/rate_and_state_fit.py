@@ -3,6 +3,7 @@
     python benchmarks/rate_and_state_fit.py [--free d_c D] [--seeds 1] [--n-sim 1000]
         [--log FILE.jsonl]
     python benchmarks/rate_and_state_fit.py --summary FILE.jsonl
+    python benchmarks/rate_and_state_fit.py --point [--runs 2] [--n-sim 1000]
 
 The data: `force_trace`, an independent generator (Euler-Maruyama in SI variables
 (e, v, theta, eta), steps of 1 us with white-noise increments of its own, from steady
@@ -13,7 +14,10 @@ Ornstein-Uhlenbeck friction noise (tau 2 ms, sd 0.3 N a). `fit` searches the `--
 parameters over boxes not centred on the truth, the others fixed at it, and prints the
 estimate, its 95 % interval, whether it covers the truth, the evaluated points and the
 seconds each cost; with `--log`, one JSON line a trace, which `--summary` counts
-(coverage of each parameter, estimates above the truth, z-scores' sd).
+(coverage of each parameter, estimates above the truth, z-scores' sd). `--point` times
+one evaluated point instead: `n_sim` model cycles of the orientation set (with the noise
+above) through the measurement of the public k = 1002 N/m, 42 um/s run
+(`examples/data/slider_paper_on_paper`), warmed once, then `--runs` times.
 """
 
 from __future__ import annotations
@@ -97,9 +101,13 @@ def main():
     ap.add_argument("--n-sim", type=int, default=1000)
     ap.add_argument("--log", help="append one JSON line a trace")
     ap.add_argument("--summary", help="count a --log file's coverage and stop")
+    ap.add_argument("--point", action="store_true", help="time one point on the real run")
+    ap.add_argument("--runs", type=int, default=2)
     args = ap.parse_args()
     if args.summary:
         return summary(args.summary)
+    if args.point:
+        return point(args.n_sim, args.runs)
     true = truth()
     for seed in args.seeds:
         with warnings.catch_warnings():
@@ -130,6 +138,40 @@ def main():
                         warnings=list(r.diagnostics.warnings))  # fmt: skip
             with open(args.log, "a") as f:
                 f.write(json.dumps(line) + "\n")
+
+
+RUN = "examples/data/slider_paper_on_paper/k1002Nm_v42.mat"
+RUN_SCALE = 0.301167  # its force column is F / (m g): m g in N
+
+
+def point(n_sim: int, runs: int):
+    """`--point`: one fit point's forward model through a measured run's measurement."""
+    import pathlib
+    import warnings
+
+    from scipy.io import loadmat
+
+    import stickslip as ss
+    from stickslip._inference.measurement import measured_cycles
+    from stickslip.units import Scales
+
+    path = pathlib.Path(__file__).resolve().parents[1] / RUN
+    mat = loadmat(path)
+    k = 1002.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        run = ss.extract_cycles(mat["t"][:, 0], force=mat["Fnorm"][:, 0] * RUN_SCALE,
+                                stiffness=k, v_b=42e-6)  # fmt: skip
+        measurement = ss.Measurement.from_cycles(run, scales=Scales.si(k))
+        model = ss.get_model("rate-and-state")(stiffness=k, v_b=42e-6, D=D, tau=TAU, **PAPER)
+        measured_cycles(model, measurement, n_sim, seed=0)  # warm
+        for i in range(runs):
+            t0 = time.perf_counter()
+            sim = measured_cycles(model, measurement, n_sim, seed=1 + i)
+            secs = time.perf_counter() - t0
+            medians = ", ".join(f"{c} {np.median(sim[c]):.4g}" for c in ("stick_time", "slip_time"))
+            print(f"{n_sim} model cycles through the run's measurement: {secs:.1f} s "
+                  f"({sim['period'].size} measured cycles; medians {medians})")  # fmt: skip
 
 
 def summary(path):
