@@ -17,7 +17,9 @@ seconds each cost; with `--log`, one JSON line a trace, which `--summary` counts
 (coverage of each parameter, estimates above the truth, z-scores' sd). `--point` times
 one evaluated point instead: `n_sim` model cycles of the orientation set (with the noise
 above) through the measurement of the public k = 1002 N/m, 42 um/s run
-(`examples/data/slider_paper_on_paper`), warmed once, then `--runs` times.
+(`examples/data/slider_paper_on_paper`), this version's split into paths against the first
+version's (ten burn-ins' worth of cycles a path), both warmed, then alternated `--runs`
+times with the same seeds.
 """
 
 from __future__ import annotations
@@ -152,6 +154,7 @@ def point(n_sim: int, runs: int):
     from scipy.io import loadmat
 
     import stickslip as ss
+    from stickslip._inference import creeping
     from stickslip._inference.measurement import measured_cycles
     from stickslip.units import Scales
 
@@ -164,14 +167,29 @@ def point(n_sim: int, runs: int):
                                 stiffness=k, v_b=42e-6)  # fmt: skip
         measurement = ss.Measurement.from_cycles(run, scales=Scales.si(k))
         model = ss.get_model("rate-and-state")(stiffness=k, v_b=42e-6, D=D, tau=TAU, **PAPER)
-        measured_cycles(model, measurement, n_sim, seed=0)  # warm
+        rules = {"this version": creeping.paths, "before (paths of 10 burn-ins)": _paths_before}
+        for rule in rules.values():  # warm both (each path count compiles once)
+            creeping.paths = rule
+            measured_cycles(model, measurement, n_sim, seed=0)
         for i in range(runs):
-            t0 = time.perf_counter()
-            sim = measured_cycles(model, measurement, n_sim, seed=1 + i)
-            secs = time.perf_counter() - t0
-            medians = ", ".join(f"{c} {np.median(sim[c]):.4g}" for c in ("stick_time", "slip_time"))
-            print(f"{n_sim} model cycles through the run's measurement: {secs:.1f} s "
-                  f"({sim['period'].size} measured cycles; medians {medians})")  # fmt: skip
+            for name, rule in rules.items():  # alternating, the same seed
+                creeping.paths = rule
+                t0 = time.perf_counter()
+                sim = measured_cycles(model, measurement, n_sim, seed=1 + i)
+                secs = time.perf_counter() - t0
+                medians = ", ".join(f"{c} {np.median(sim[c]):.4g}"
+                                    for c in ("stick_time", "slip_time"))  # fmt: skip
+                print(
+                    f"{name}: {n_sim} model cycles through the run's measurement in "
+                    f"{secs:.1f} s ({sim['period'].size} cycles measured; {medians})"
+                )
+        creeping.paths = rules["this version"]
+
+
+def _paths_before(n_cycles: int, burn_cycles: int) -> int:
+    """The path count of the first version: each path ten burn-ins' worth of cycles (at
+    least 50), at most 32 (then padded to a power of two by the solve)."""
+    return int(min(32, max(1, round(n_cycles / max(50, 10 * burn_cycles)))))
 
 
 def summary(path):

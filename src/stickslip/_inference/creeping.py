@@ -45,11 +45,14 @@ DECAYED = 1e-4
 # Samples of one recorded solve (each path's state carried into the next): a fixed count,
 # so that the recorded motion compiles once for any trace's length.
 CHUNK = 4096
-# Paths of a measured trace: each pays its own burn-in, so a path runs at least this many
-# burn-ins' worth of cycles beyond it (and at least `MIN_PATH_CYCLES`), in at most
-# `MAX_PATHS` paths (the recorded solve runs the paths side by side).
-BURN_SHARE = 10
-MIN_PATH_CYCLES = 50
+# Paths of a measured trace, run side by side by the recorded solve (padded to a power of
+# two, `creep._padded`): as many as keep every path's burn-in within `BURN_SHARE` of the
+# cycles kept and at least `MIN_PATH_CYCLES` cycles a path, a power of two up to
+# `MAX_PATHS`. The solve's throughput grows with the paths (the noisy slider at k = 1002
+# N/m: 9-11, 13-16 and 26-28 path-seconds a second at 8, 16 and 32 paths): 1000 cycles
+# after a burn-in of 9 go faster as 32 paths (1288 path-cycles) than as 11 padded to 16.
+BURN_SHARE = 0.3
+MIN_PATH_CYCLES = 20
 MAX_PATHS = 32
 # Bytes a recorded sample costs, all paths counted: the position and velocity kept, the
 # chunk's states, the synthesised trace's arrays (about ten at a time, as for other models).
@@ -138,6 +141,17 @@ def _agree(pair) -> bool:
     return abs(a - b) <= LIMIT_RTOL * max(abs(a), abs(b))
 
 
+def paths(n_cycles: int, burn_cycles: int) -> int:
+    """How many paths a trace of `n_cycles` cycles runs as, each after `burn_cycles`: the
+    most, a power of two up to `MAX_PATHS`, whose burn-ins stay within `BURN_SHARE` of the
+    cycles and whose paths keep `MIN_PATH_CYCLES` each."""
+    n = 1
+    while (2 * n <= MAX_PATHS and 2 * n * burn_cycles <= BURN_SHARE * n_cycles
+           and n_cycles / (2 * n) >= MIN_PATH_CYCLES):  # fmt: skip
+        n *= 2
+    return n
+
+
 def plan(model, n_cycles: int, h: float, owner: str):
     """How a measured trace of about `n_cycles` cycles runs: `(cycle, n_paths, samples,
     burn)`, the noise-free `LimitCycle`, the paths, the samples each records (from its
@@ -145,9 +159,7 @@ def plan(model, n_cycles: int, h: float, owner: str):
     from .._memory import check_memory
 
     cycle = limit_cycle(model, owner)
-    burn_cycles = max(cycle.cycles, 1)
-    per_path = max(MIN_PATH_CYCLES, BURN_SHARE * burn_cycles)
-    n_paths = int(min(MAX_PATHS, max(1, round(n_cycles / per_path))))
+    n_paths = paths(n_cycles, max(cycle.cycles, 1))
     share = math.ceil(n_cycles / n_paths)
     burn = int(math.ceil(cycle.burn_in / h))
     samples = burn + int(math.ceil(share * cycle.period / h)) + 1
