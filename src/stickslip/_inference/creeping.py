@@ -25,6 +25,7 @@ What follows is a force trace's measurement as for any model (`TraceKind.synthes
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import warnings
 
@@ -176,22 +177,20 @@ def recorded(model, n_paths: int, samples: int, h: float, dt: float, seed: int):
     `k h`, `k < samples`, from the onset: shape `(n_paths, samples)` each, recorded in
     chunks of `CHUNK` samples (`creep.Motion.dense`, the noise on the grid `dt` keyed by
     `(seed, path, node)`). `nan` after a stretch the solver could not cross."""
-    from .._jax import jax, jnp
     from .._simulate.creep import Motion
 
     motion = Motion(model, dt, samples * h, seed)
     keys = motion.keys(np.arange(n_paths, dtype=np.uint32))
     y = motion.onsets(n_paths)
-    position = jax.jit(jax.vmap(jax.vmap(motion.model.position)))
-    velocity = jax.jit(jax.vmap(jax.vmap(motion.model.slider_velocity)))
     x = np.empty((n_paths, samples))
     v = np.empty((n_paths, samples))
     step = np.arange(CHUNK + 1) * h
     for start in range(0, samples - 1, CHUNK):
         ys = motion.dense(y, keys, start * h + step)  # (paths, CHUNK + 1, d)
         stop = min(samples, start + CHUNK + 1)
-        x[:, start:stop] = np.asarray(position(jnp.asarray(ys)))[:, : stop - start]
-        v[:, start:stop] = np.asarray(velocity(jnp.asarray(ys)))[:, : stop - start]
+        xs, vs = _extension_velocity()(motion.model, ys)
+        x[:, start:stop] = np.asarray(xs)[:, : stop - start]
+        v[:, start:stop] = np.asarray(vs)[:, : stop - start]
         y = ys[:, -1]
     if motion.stats["failed"]:
         warnings.warn(
@@ -200,6 +199,22 @@ def recorded(model, n_paths: int, samples: int, h: float, dt: float, seed: int):
             stacklevel=3,
         )
     return x, v
+
+
+@functools.cache
+def _extension_velocity():
+    """`(model, ys) -> (extension, velocity)` of states `ys` (paths, samples, d), compiled
+    once for a model class and shape (its parameters are inputs; jax imported on first
+    use)."""
+    import equinox as eqx
+
+    from .._jax import jax
+
+    @eqx.filter_jit
+    def both(model, ys):
+        return jax.vmap(jax.vmap(lambda y: (model.position(y), model.slider_velocity(y))))(ys)
+
+    return both
 
 
 def sampled_cycles(t, x, v, v_b: float) -> dict[str, np.ndarray]:
