@@ -31,7 +31,7 @@ import warnings
 
 import numpy as np
 
-from .._errors import DataError, ParameterError, check_positive
+from .._errors import DataError, ParameterError
 
 # Successive noise-free cycles agree in force drop and period to this (relative) where the
 # motion has reached its limit cycle: the velocity step's transient at the rate-and-state
@@ -259,7 +259,9 @@ def default_dt(model, h: float) -> float:
 
 def creeping_trace(owner, model, measurement, n_cycles: int, seed: int, dt, sticks):
     """`measured_trace` of a creeping slider (the module's steps): a `MeasuredTrace`."""
+    from .._cpu import on_two_threads
     from .._keyed import NOISE_STREAM
+    from .._simulate.creep import check_args
     from .._trace_kind import SimulatedPath
     from .measurement import MeasuredTrace
 
@@ -269,36 +271,37 @@ def creeping_trace(owner, model, measurement, n_cycles: int, seed: int, dt, stic
             f"({type(model).__name__}) is measured as a force trace only",
         )  # fmt: skip
     h = measurement.sampling_interval
-    dt = default_dt(model, h) if dt is None else check_positive(owner, "dt", dt)
-    tau = getattr(model, "tau", None)
-    if tau is not None and dt > 0.5 * float(tau):
-        raise ParameterError(owner, "dt", f"is the friction noise's grid: at most tau / 2 = "
-                             f"{0.5 * float(tau):.3g}", dt)  # fmt: skip
+    dt = default_dt(model, h) if dt is None else dt
+    check_args(owner, model, 1, dt, h, seed, "auto", "continuous")  # (dt: the noise's grid)
     cycle, n_paths, samples, burn = plan(model, n_cycles, h, owner)
     x, v = recorded(model, n_paths, samples, h, dt, seed)
-    kind = measurement.kind
-    kind.prepare(measurement, seed)
     v_b = float(model.v_b)
-    traces, truth = [], []
+    paths = []  # (path, times, extension, velocity, its cycles) after the burn-in
     for p in range(n_paths):
         keep = np.isfinite(x[p, burn:]) & np.isfinite(v[p, burn:])
         n = int(np.argmin(keep)) if not keep.all() else keep.size
-        t = h * np.arange(n)
-        xp, vp = x[p, burn : burn + n], v[p, burn : burn + n]
+        t, xp, vp = h * np.arange(n), x[p, burn : burn + n], v[p, burn : burn + n]
         table = sampled_cycles(t, xp, vp, v_b)
-        if table["release_time"].size == 0 or n < 2:
-            continue
-        truth.append(dict(table, path=np.full(table["period"].size, p),
-                          cycle=np.arange(table["period"].size)))  # fmt: skip
-        traces.append(kind.synthesise(measurement, SimulatedPath(
-            t=t, x=xp, v=vp, release=table["release_time"], slip=table["slip_time"],
-            stick=table["stick_time"], seed=seed, path=p, v_b=v_b,
-            rng=np.random.default_rng([seed, NOISE_STREAM, p]), cut=sticks == "cut",
-        )))  # fmt: skip
-    if not traces:
+        if n >= 2 and table["release_time"].size:
+            paths.append((p, t, xp, vp, table))
+    if not paths:
         raise DataError(
             f"{owner}: the simulated {type(model).__name__} does not cross the drive's speed "
             "after its burn-in: no stick-slip trace to measure"
         )
+    kind = measurement.kind
+    kind.prepare(measurement, seed)  # (here, not by two paths' threads at once)
+
+    def signals(i):
+        p, t, xp, vp, table = paths[i]
+        return kind.synthesise(measurement, SimulatedPath(
+            t=t, x=xp, v=vp, release=table["release_time"], slip=table["slip_time"],
+            stick=table["stick_time"], seed=seed, path=p, v_b=v_b,
+            rng=np.random.default_rng([seed, NOISE_STREAM, p]), cut=sticks == "cut",
+        ))  # fmt: skip
+
+    traces = on_two_threads(signals, len(paths))
+    truth = [dict(c, path=np.full(c["period"].size, p), cycle=np.arange(c["period"].size))
+             for p, _, _, _, c in paths]  # fmt: skip
     joined = {k: np.concatenate([c[k] for c in truth]) for k in truth[0]}
     return MeasuredTrace(tuple(traces), joined, measurement, dt)
