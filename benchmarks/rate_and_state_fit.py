@@ -4,6 +4,8 @@
         [--log FILE.jsonl]
     python benchmarks/rate_and_state_fit.py --summary FILE.jsonl
     python benchmarks/rate_and_state_fit.py --point [--runs 2] [--n-sim 1000]
+    python benchmarks/rate_and_state_fit.py --law [--grids 10 20 40 80] [--n-sim 3000]
+    python benchmarks/rate_and_state_fit.py --profile --grids 10 40 [--n-sim 2000]
 
 The data: `force_trace`, an independent generator (Euler-Maruyama in SI variables
 (e, v, theta, eta), steps of 1 us with white-noise increments of its own, from steady
@@ -19,7 +21,17 @@ one evaluated point instead: `n_sim` model cycles of the orientation set (with t
 above) through the measurement of the public k = 1002 N/m, 42 um/s run
 (`examples/data/slider_paper_on_paper`), this version's split into paths against the first
 version's (ten burn-ins' worth of cycles a path), both warmed, then alternated `--runs`
-times with the same seeds.
+times with the same seeds. `--law` sets the model's measured cycles against the
+generator's, with no fit: one long trace of the generator (300 s, ~3100 cycles) read by
+`extract_cycles`, and `n_sim` model cycles at the truth through its measurement on noise
+grids of tau over each of `--grids` (and `--rtol`, the noisy steps' tolerance): each
+column's mean difference in standard errors and ratio of sds (1 where the model's law is
+the generator's). `--profile` asks where the likelihood of D peaks on data of a fit's
+size, at the model's noise grid of tau over each of `--grids`: one 300 s trace cut into
+ten 30 s segments, each read by `extract_cycles` and scored against `n_sim` model cycles
+through its own measurement at D 0.8, 1 and 1.25 times the truth (the rest at it; the same
+seed); the vertex of the parabola in log D through the three, per segment, and their
+geometric mean with its standard error.
 """
 
 from __future__ import annotations
@@ -105,7 +117,15 @@ def main():
     ap.add_argument("--summary", help="count a --log file's coverage and stop")
     ap.add_argument("--point", action="store_true", help="time one point on the real run")
     ap.add_argument("--runs", type=int, default=2)
+    ap.add_argument("--law", action="store_true", help="the model's cycles against the data's")
+    ap.add_argument("--profile", action="store_true", help="D's likelihood on 30 s segments")
+    ap.add_argument("--grids", type=float, nargs="+", default=[10, 20, 40, 80])
+    ap.add_argument("--rtol", type=float, help="the noisy steps' tolerance (default: the solver's)")
     args = ap.parse_args()
+    if args.law:
+        return law(args.grids, 3000 if args.n_sim == 1000 else args.n_sim, args.rtol)
+    if args.profile:
+        return profile(args.grids, 2000 if args.n_sim == 1000 else args.n_sim)
     if args.summary:
         return summary(args.summary)
     if args.point:
@@ -184,6 +204,88 @@ def point(n_sim: int, runs: int):
                     f"{secs:.1f} s ({sim['period'].size} cycles measured; {medians})"
                 )
         creeping.paths = rules["this version"]
+
+
+def law(grids, n_sim: int, rtol: float | None):
+    """`--law`: the model's measured cycles at the truth against the generator's."""
+    import warnings
+
+    import stickslip as ss
+    from stickslip._inference.measurement import measured_cycles
+    from stickslip._simulate import creep
+    from stickslip.units import Scales
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cycles = data(1, t_end=300.0)
+    measurement = ss.Measurement.from_cycles(cycles, scales=Scales.si(K))
+    columns = ("force_drop", "slip_time", "stick_time")
+    ref = {c: np.asarray(cycles.table[c], float) for c in columns}
+    ref["force_drop"] = ref["force_drop"] / K  # (the model's measured drops are over k)
+    print(f"generator: {ref['force_drop'].size} cycles")
+    if rtol is not None:
+        creep.NOISY_RTOL = creep.NOISY_ATOL = rtol
+    model = ss.get_model("rate-and-state")(stiffness=K, v_b=V, D=D, tau=TAU, **PAPER)
+    for grid in grids:
+        t0 = time.perf_counter()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            sim = measured_cycles(model, measurement, n_sim, seed=5, dt=TAU / grid)
+        parts = []
+        for c in columns:
+            x, y = sim[c][np.isfinite(sim[c])], ref[c]
+            se = math.hypot(x.std() / math.sqrt(x.size), y.std() / math.sqrt(y.size))
+            sd_se = math.sqrt(0.5 / x.size + 0.5 / y.size)
+            parts.append(f"{c} mean {(x.mean() - y.mean()) / se:+.1f} SE, "
+                         f"sd x{x.std() / y.std():.3f} (+-{sd_se:.3f})")  # fmt: skip
+        print(f"grid tau/{grid:g}: {sim['period'].size} cycles in "
+              f"{time.perf_counter() - t0:.0f} s; " + "; ".join(parts), flush=True)  # fmt: skip
+
+
+def profile(grids, n_sim: int, segments: int = 10):
+    """`--profile`: the vertex in D of the likelihood on `segments` pieces of a 300 s trace."""
+    import warnings
+
+    import stickslip as ss
+    from stickslip._inference import creeping, estimator, likelihood
+    from stickslip._inference.data import to_fit_scale
+
+    F = force_trace(PAPER, K, V, D, TAU, 300.0, H, 1e-6, 1, burn=2.0)
+    F = F + SENSOR_SD * np.random.default_rng([1, 101]).standard_normal(F.size)
+    t = H * np.arange(F.size)
+    fixed = {k: v for k, v in dict(truth(), stiffness=K, v_b=V, tau=TAU).items() if k != "D"}
+    Model = ss.get_model("rate-and-state")
+    factors = (0.8, 1.0, 1.25)
+    n = F.size // segments
+    before = creeping.NOISE_GRID
+    for grid in grids:
+        creeping.NOISE_GRID = grid
+        t0 = time.perf_counter()
+        vertices = []
+        for i in range(segments):
+            cut = slice(i * n, (i + 1) * n)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                cycles = ss.extract_cycles(t[cut] - t[cut][0], force=F[cut], stiffness=K, v_b=V)
+                p = estimator.problem("rate-and-state", cycles, {"D": BOXES["D"]}, fixed,
+                                      n_sim=n_sim)  # fmt: skip
+                bw = {k: likelihood.bandwidth_of(to_fit_scale(k, p.data[k]), n_sim)
+                      for k in p.data}  # fmt: skip
+                L = []
+                for f in factors:
+                    sim = likelihood.sample(Model(**dict(fixed, D=D * f)), n_sim, p.dt, None,
+                                            11, p.measured)  # fmt: skip
+                    terms = likelihood.scored_samples(p.data, sim, bw, p.measured)
+                    L.append(sum(float(np.sum(v)) for v in terms.values()))
+            slope, curve = (L[2] - L[0]) / 2, (L[2] + L[0]) / 2 - L[1]
+            vertices.append(-slope / (2 * curve) * math.log(1.25) if curve < 0 else math.nan)
+        v = np.array(vertices)
+        print(f"grid tau/{grid:g}: D's vertex / truth per segment "
+              + " ".join(f"{math.exp(x):.3f}" for x in v)
+              + f"; geometric mean {math.exp(np.nanmean(v)):.3f} (log SE "
+              f"{np.nanstd(v, ddof=1) / math.sqrt(np.isfinite(v).sum()):.3f}); "
+              f"{time.perf_counter() - t0:.0f} s", flush=True)  # fmt: skip
+    creeping.NOISE_GRID = before
 
 
 def _paths_before(n_cycles: int, burn_cycles: int) -> int:
