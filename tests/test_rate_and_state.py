@@ -411,6 +411,41 @@ def test_any_seed_below_2_64_runs():
     assert c["slip_time"].size == 2 and np.all(np.isfinite(c["slip_time"]))
 
 
+@pytest.mark.slow  # (~2 min: 300 s of the generator, 3000 model cycles through its measurement)
+def test_the_measured_trace_has_the_independent_generators_law():
+    """The model's cycles through a trace's measurement against the trace's own, at the
+    truth: 300 s of the independent generator (`benchmarks/rate_and_state_fit.py`, ~3100
+    cycles) and 3000 model cycles on the default noise grid. The three columns' means
+    (drop, slip, stick) together: their difference's chi-square in the covariance of the
+    two samples' means below the 0.1 % point of chi-square with 3 degrees of freedom; each
+    column's sd within three standard errors of the ratio. (A noise grid of tau/10, its
+    means 2.3-3.0 standard errors off column by column, also passes: the grid's effect is
+    measured by the benchmark's `--law` and `--profile`.)"""
+    from scipy.stats import chi2
+
+    from stickslip._inference.measurement import measured_cycles
+    from stickslip.units import Scales
+
+    gen = benchmark_module("rate_and_state_fit")
+    cycles = gen.data(seed=1, t_end=300.0)
+    measurement = ss.Measurement.from_cycles(cycles, scales=Scales.si(gen.K))
+    model = ss.get_model("rate-and-state")(stiffness=gen.K, v_b=gen.V, D=gen.D, tau=gen.TAU,
+                                           **PAPER)  # fmt: skip
+    sim = measured_cycles(model, measurement, 3000, seed=5)
+    columns = ("force_drop", "slip_time", "stick_time")
+    y = np.column_stack([np.asarray(cycles.table[c], float) for c in columns])
+    y[:, 0] /= gen.K  # (the model's drops are over k)
+    x = np.column_stack([sim[c] for c in columns])
+    x, y = x[np.all(np.isfinite(x), axis=1)], y[np.all(np.isfinite(y), axis=1)]
+    assert x.shape[0] > 2500 and y.shape[0] > 2500
+    d = x.mean(axis=0) - y.mean(axis=0)
+    cov = np.cov(x.T) / x.shape[0] + np.cov(y.T) / y.shape[0]
+    assert d @ np.linalg.solve(cov, d) < chi2.ppf(0.999, 3), d / np.sqrt(np.diag(cov))
+    ratio = x.std(axis=0) / y.std(axis=0)
+    ratio_se = np.sqrt(0.5 / x.shape[0] + 0.5 / y.shape[0])
+    assert np.all(np.abs(ratio - 1) < 3 * ratio_se), ratio
+
+
 @pytest.mark.slow  # (~5 min: some 30 points of 1000 simulated cycles through the measurement)
 def test_fit_recovers_the_critical_distance_from_an_independent_generator(tmp_path):
     """`fit` of the noisy slider to a force trace it did not make
