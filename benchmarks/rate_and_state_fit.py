@@ -6,6 +6,7 @@
     python benchmarks/rate_and_state_fit.py --point [--runs 2] [--n-sim 1000]
     python benchmarks/rate_and_state_fit.py --law [--grids 10 20 40 80] [--n-sim 3000]
     python benchmarks/rate_and_state_fit.py --profile --grids 10 40 [--n-sim 2000]
+    python benchmarks/rate_and_state_fit.py --point-grids --grids 10 40 [--runs 1]
 
 The data: `force_trace`, an independent generator (Euler-Maruyama in SI variables
 (e, v, theta, eta), steps of 1 us with white-noise increments of its own, from steady
@@ -31,7 +32,9 @@ size, at the model's noise grid of tau over each of `--grids`: one 300 s trace c
 ten 30 s segments, each read by `extract_cycles` and scored against `n_sim` model cycles
 through its own measurement at D 0.8, 1 and 1.25 times the truth (the rest at it; the same
 seed); the vertex of the parabola in log D through the three, per segment, and their
-geometric mean with its standard error.
+geometric mean with its standard error. `--point-grids` times `--point`'s point on the
+noise grids of tau over each of `--grids` instead (all warmed, then alternated `--runs`
+times with the same seeds).
 """
 
 from __future__ import annotations
@@ -119,11 +122,14 @@ def main():
     ap.add_argument("--runs", type=int, default=2)
     ap.add_argument("--law", action="store_true", help="the model's cycles against the data's")
     ap.add_argument("--profile", action="store_true", help="D's likelihood on 30 s segments")
+    ap.add_argument("--point-grids", action="store_true", help="a point's cost per noise grid")
     ap.add_argument("--grids", type=float, nargs="+", default=[10, 20, 40, 80])
     ap.add_argument("--rtol", type=float, help="the noisy steps' tolerance (default: the solver's)")
     args = ap.parse_args()
     if args.law:
         return law(args.grids, 3000 if args.n_sim == 1000 else args.n_sim, args.rtol)
+    if args.point_grids:
+        return point_grids(args.grids, args.n_sim, args.runs)
     if args.profile:
         return profile(args.grids, 2000 if args.n_sim == 1000 else args.n_sim)
     if args.summary:
@@ -204,6 +210,41 @@ def point(n_sim: int, runs: int):
                     f"{secs:.1f} s ({sim['period'].size} cycles measured; {medians})"
                 )
         creeping.paths = rules["this version"]
+
+
+def point_grids(grids, n_sim: int, runs: int):
+    """`--point-grids`: `--point`'s point on each noise grid."""
+    import pathlib
+    import warnings
+
+    from scipy.io import loadmat
+
+    import stickslip as ss
+    from stickslip._inference import creeping
+    from stickslip._inference.measurement import measured_cycles
+    from stickslip.units import Scales
+
+    mat = loadmat(pathlib.Path(__file__).resolve().parents[1] / RUN)
+    k = 1002.0
+    before = creeping.NOISE_GRID
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        run = ss.extract_cycles(mat["t"][:, 0], force=mat["Fnorm"][:, 0] * RUN_SCALE,
+                                stiffness=k, v_b=42e-6)  # fmt: skip
+        measurement = ss.Measurement.from_cycles(run, scales=Scales.si(k))
+        model = ss.get_model("rate-and-state")(stiffness=k, v_b=42e-6, D=D, tau=TAU, **PAPER)
+        for grid in grids:  # warm each
+            creeping.NOISE_GRID = grid
+            measured_cycles(model, measurement, n_sim, seed=0)
+        for i in range(runs):
+            for grid in grids:
+                creeping.NOISE_GRID = grid
+                t0 = time.perf_counter()
+                sim = measured_cycles(model, measurement, n_sim, seed=1 + i)
+                print(f"grid tau/{grid:g}: {n_sim} model cycles through the run's measurement "
+                      f"in {time.perf_counter() - t0:.1f} s (median drop "
+                      f"{np.median(sim['force_drop']) * k * 1e3:.2f} mN)", flush=True)  # fmt: skip
+    creeping.NOISE_GRID = before
 
 
 def law(grids, n_sim: int, rtol: float | None):
