@@ -61,7 +61,7 @@ MAX_PATHS = 32
 # mean drop by -3.0 standard errors, the slip by +2.6, the stick by -2.3 (at tau / 20: -2.1,
 # +3.6, -1.3; at tau / 40: within 1.0; at tau / 80: within 0.7), and a fit of the noise
 # intensity D came out 4-22 % low on six traces. A tolerance of the steps 100 times
-# tighter changed nothing: it is the grid. The cost: 1.7-2.2 times tau / 10's a trace.
+# tighter changed nothing: it is the grid. The cost: 1.7-2.6 times tau / 10's a trace.
 NOISE_GRID = 40
 # Bytes a recorded sample costs, all paths counted: the position and velocity kept, the
 # chunk's states, the synthesised trace's arrays (about ten at a time, as for other models).
