@@ -172,27 +172,40 @@ RUN = "examples/data/slider_paper_on_paper/k1002Nm_v42.mat"
 RUN_SCALE = 0.301167  # its force column is F / (m g): m g in N
 
 
-def point(n_sim: int, runs: int):
-    """`--point`: one fit point's forward model through a measured run's measurement."""
+RUN_K = 1002.0  # N/m, its spring
+
+
+def _real_run():
+    """The measured k = 1002 N/m, 42 um/s run's `Measurement` (SI, forces over k) and the
+    model of the orientation set with the noise above on that spring and speed."""
     import pathlib
     import warnings
 
     from scipy.io import loadmat
 
     import stickslip as ss
-    from stickslip._inference import creeping
-    from stickslip._inference.measurement import measured_cycles
     from stickslip.units import Scales
 
-    path = pathlib.Path(__file__).resolve().parents[1] / RUN
-    mat = loadmat(path)
-    k = 1002.0
+    mat = loadmat(pathlib.Path(__file__).resolve().parents[1] / RUN)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         run = ss.extract_cycles(mat["t"][:, 0], force=mat["Fnorm"][:, 0] * RUN_SCALE,
-                                stiffness=k, v_b=42e-6)  # fmt: skip
-        measurement = ss.Measurement.from_cycles(run, scales=Scales.si(k))
-        model = ss.get_model("rate-and-state")(stiffness=k, v_b=42e-6, D=D, tau=TAU, **PAPER)
+                                stiffness=RUN_K, v_b=42e-6)  # fmt: skip
+        measurement = ss.Measurement.from_cycles(run, scales=Scales.si(RUN_K))
+    model = ss.get_model("rate-and-state")(stiffness=RUN_K, v_b=42e-6, D=D, tau=TAU, **PAPER)
+    return measurement, model
+
+
+def point(n_sim: int, runs: int):
+    """`--point`: one fit point's forward model through a measured run's measurement."""
+    import warnings
+
+    from stickslip._inference import creeping
+    from stickslip._inference.measurement import measured_cycles
+
+    measurement, model = _real_run()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
         rules = {"this version": creeping.paths, "before (paths of 10 burn-ins)": _paths_before}
         for rule in rules.values():  # warm both (each path count compiles once)
             creeping.paths = rule
@@ -214,25 +227,15 @@ def point(n_sim: int, runs: int):
 
 def point_grids(grids, n_sim: int, runs: int):
     """`--point-grids`: `--point`'s point on each noise grid."""
-    import pathlib
     import warnings
 
-    from scipy.io import loadmat
-
-    import stickslip as ss
     from stickslip._inference import creeping
     from stickslip._inference.measurement import measured_cycles
-    from stickslip.units import Scales
 
-    mat = loadmat(pathlib.Path(__file__).resolve().parents[1] / RUN)
-    k = 1002.0
+    measurement, model = _real_run()
     before = creeping.NOISE_GRID
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        run = ss.extract_cycles(mat["t"][:, 0], force=mat["Fnorm"][:, 0] * RUN_SCALE,
-                                stiffness=k, v_b=42e-6)  # fmt: skip
-        measurement = ss.Measurement.from_cycles(run, scales=Scales.si(k))
-        model = ss.get_model("rate-and-state")(stiffness=k, v_b=42e-6, D=D, tau=TAU, **PAPER)
         for grid in grids:  # warm each
             creeping.NOISE_GRID = grid
             measured_cycles(model, measurement, n_sim, seed=0)
@@ -241,9 +244,10 @@ def point_grids(grids, n_sim: int, runs: int):
                 creeping.NOISE_GRID = grid
                 t0 = time.perf_counter()
                 sim = measured_cycles(model, measurement, n_sim, seed=1 + i)
+                drop = np.median(sim["force_drop"]) * RUN_K * 1e3
                 print(f"grid tau/{grid:g}: {n_sim} model cycles through the run's measurement "
-                      f"in {time.perf_counter() - t0:.1f} s (median drop "
-                      f"{np.median(sim['force_drop']) * k * 1e3:.2f} mN)", flush=True)  # fmt: skip
+                      f"in {time.perf_counter() - t0:.1f} s (median drop {drop:.2f} mN)",
+                      flush=True)  # fmt: skip
     creeping.NOISE_GRID = before
 
 
