@@ -411,7 +411,7 @@ def test_any_seed_below_2_64_runs():
     assert c["slip_time"].size == 2 and np.all(np.isfinite(c["slip_time"]))
 
 
-@pytest.mark.slow  # (~2 min: 300 s of the generator, 3000 model cycles through its measurement)
+@pytest.mark.slow  # (~1 min: 300 s of the generator, 3000 model cycles through its measurement)
 def test_the_measured_trace_has_the_independent_generators_law():
     """The model's cycles through a trace's measurement against the trace's own, at the
     truth: 300 s of the independent generator (`benchmarks/rate_and_state_fit.py`, ~3100
@@ -446,7 +446,7 @@ def test_the_measured_trace_has_the_independent_generators_law():
     assert np.all(np.abs(ratio - 1) < 3 * ratio_se), ratio
 
 
-@pytest.mark.slow  # (~5 min: some 30 points of 1000 simulated cycles through the measurement)
+@pytest.mark.slow  # (~5.5 min: some 30 points of 1000 simulated cycles through the measurement)
 def test_fit_recovers_the_critical_distance_from_an_independent_generator(tmp_path):
     """`fit` of the noisy slider to a force trace it did not make
     (`benchmarks/rate_and_state_fit.py`: 30 s of an Euler-Maruyama run in SI variables,
