@@ -94,13 +94,20 @@ def force_trace(p, k, v_b, D, tau, t_end, h_out, h_em, seed, burn):
     return np.asarray(F)[int(round(burn / h_out)) :]
 
 
+def measured(seed: int, t_end: float = 30.0):
+    """One generated trace as the sensor gives it: `(t, force)` in s and N, its white
+    sensor noise keyed by `seed`."""
+    F = force_trace(PAPER, K, V, D, TAU, t_end, H, 1e-6, seed, burn=2.0)
+    F = F + SENSOR_SD * np.random.default_rng([seed, 101]).standard_normal(F.size)
+    return H * np.arange(F.size), F
+
+
 def data(seed: int, t_end: float = 30.0):
     """The cycles of one generated trace (`extract_cycles`, SI)."""
     import stickslip as ss
 
-    F = force_trace(PAPER, K, V, D, TAU, t_end, H, 1e-6, seed, burn=2.0)
-    F = F + SENSOR_SD * np.random.default_rng([seed, 101]).standard_normal(F.size)
-    return ss.extract_cycles(H * np.arange(F.size), force=F, stiffness=K, v_b=V)
+    t, F = measured(seed, t_end)
+    return ss.extract_cycles(t, force=F, stiffness=K, v_b=V)
 
 
 def truth() -> dict:
@@ -295,9 +302,7 @@ def profile(grids, n_sim: int, segments: int = 10):
     from stickslip._inference import creeping, estimator, likelihood
     from stickslip._inference.data import to_fit_scale
 
-    F = force_trace(PAPER, K, V, D, TAU, 300.0, H, 1e-6, 1, burn=2.0)
-    F = F + SENSOR_SD * np.random.default_rng([1, 101]).standard_normal(F.size)
-    t = H * np.arange(F.size)
+    t, F = measured(1, 300.0)
     fixed = {k: v for k, v in dict(truth(), stiffness=K, v_b=V, tau=TAU).items() if k != "D"}
     Model = ss.get_model("rate-and-state")
     factors = (0.8, 1.0, 1.25)
