@@ -208,9 +208,8 @@ def test_the_slider_fit_example_end_to_end(tmp_path):
     row = record["si"]["natural frequency omega_eff"]
     assert row["estimate"] == pytest.approx(estimate["omega0"] * omega, rel=1e-9)
     warned = record["candidates"][chosen]["warnings"]
-    if any(w.startswith(("the polynomial fitted", "the log-likelihood is not concave"))
-           for w in warned):  # fmt: skip
-        assert all(math.isnan(c) for c in row["ci"])  # the fit said: no intervals
+    if any("no interval" in w for w in warned):  # the fit said why it gave none
+        assert all(math.isnan(c) for c in row["ci"])
         assert "none (see the warnings)" in text
     else:
         assert row["ci"] == pytest.approx([c * omega for c in ci["omega0"]], rel=1e-9)
