@@ -7,6 +7,7 @@ random threshold (sd 0.2 of its mean).
 """
 
 import dataclasses
+import math
 import time
 import warnings
 
@@ -400,3 +401,40 @@ def test_polynomial_max_with_cubic_terms_against_closed_form():
         # on the 17-point grid (steps of 1/4): below the maximum by at most the curvature
         # over an eighth of a step
         assert exact - 0.5 * 8 * 0.125**2 <= got[s] <= exact + 1e-9
+
+
+def test_the_smoothed_likelihood_in_other_units_moves_by_the_jacobian():
+    """The fit's smoothed log-likelihood of data in other units (every value, data and
+    simulated, times a unit c per column) is that in the first units less log c for each
+    value a density scores (a duration's zeros, an atom, score none): the change of
+    variables of a density, which `compare_fits` applies to fits in other units
+    (`si_shift`). Checked here on the estimator itself: its bandwidths, table, floor and
+    defensive normal all scale with the values."""
+    from stickslip._inference.compare import si_shift
+    from stickslip._inference.data import to_fit_scale
+    from stickslip._inference.likelihood import bandwidth_of, scored_samples
+
+    rng = np.random.default_rng(4)
+    stick = np.where(rng.random(300) < 0.2, 0.0, rng.gamma(3.0, 0.5, 300))
+    data = {"slip_time": rng.gamma(9.0, 0.1, 120), "stick_time": stick[:120],
+            "slip_distance": rng.normal(2.0, 0.4, 120)}  # fmt: skip
+    sim = {"slip_time": rng.gamma(8.0, 0.11, 4000),
+           "stick_time": np.where(rng.random(4000) < 0.25, 0.0, rng.gamma(3.0, 0.55, 4000)),
+           "slip_distance": rng.normal(2.1, 0.45, 4000)}  # fmt: skip
+    unit = {"slip_time": 0.0135, "stick_time": 0.0135, "slip_distance": 3.0e-5}
+
+    def loglik(d, s):
+        h = {k: bandwidth_of(to_fit_scale(k, d[k]), 4000) for k in d}
+        return sum(float(np.sum(v)) for v in scored_samples(d, s, h, None).values())
+
+    in_units = loglik(data, sim)
+    in_si = loglik({k: v * unit[k] for k, v in data.items()},
+                   {k: v * unit[k] for k, v in sim.items()})  # fmt: skip
+    positive = int(np.sum(stick[:120] > 0))  # the stick times a density scores
+    assert 70 < positive < 120
+    expected = -sum(
+        n * math.log(unit[k])
+        for k, n in (("slip_time", 120), ("stick_time", positive), ("slip_distance", 120))
+    )
+    assert in_si - in_units == pytest.approx(expected, rel=1e-9, abs=1e-6)
+    assert si_shift([data], [unit])[0] == pytest.approx(expected, rel=1e-12)

@@ -66,6 +66,10 @@ cycles (run 0 from the test's stream, the others from streams of their own); eac
 design cycles are simulated again. $T$ is not clipped at 0 there (nesting is not checked
 in SI values).
 
+Fits in other units (a creeping slider in SI, a slider in its reference `Slider`'s):
+the richer candidate scores the sets converted into its units, and each set's statistic
+is that of its values in SI (`si_shift`: $-\log u$ for each value a density scores).
+
 What it assumes: the replicates' cycles are dependent as the data's are (through a
 measurement a replicate is a stretch of the model's own successive cycles: a random
 threshold couples neighbouring rows in both; per-cycle values given as a dict are
@@ -88,6 +92,7 @@ from typing import Any
 import numpy as np
 
 from .._errors import DataError, ParameterError, check_int
+from .data import LOG_KINDS
 from .forward import simulate_values
 from .goodness import ALPHA as GOODNESS_ALPHA
 from .goodness import Setting, simulate_replicates
@@ -276,7 +281,10 @@ def compare_fits(
     simpler one (see the module's docstring, and docs/compare.md for why this is valid for
     `fit`'s likelihood and what it assumes). Fits of different data (columns, values or
     measurement) raise a `DataError`; fewer than two fits, or the same one twice, a
-    `ParameterError`.
+    `ParameterError`. Fits in different physical units (a creeping slider in SI against a
+    slider in its reference `Slider`'s units) are compared on the data in SI: the same
+    values and measurement in SI, each log-likelihood that of the SI values (`si_shift`:
+    the table's log-likelihoods are then in SI).
 
     **Returns:** a `Comparison`: `chosen` (one of the given fits), `table`, `summary()`.
     """
@@ -303,6 +311,8 @@ def compare_fits(
             )  # fmt: skip
         n_boot = counts.pop()
     cands = {k: _Candidate.of(k, r) for k, r in named.items()}
+    if len({repr(c.units) for c in cands.values()}) > 1:  # their log-likelihoods in SI
+        cands = {k: c.in_si() for k, c in cands.items()}
     order = sorted(names, key=lambda k: (cands[k].n_free, -cands[k].log_likelihood))
     # the most richer rivals a candidate has: its smallest p-value is that many times
     # 1 / (n_boot + 1) (Bonferroni), which must fall below alpha for a rejection
@@ -411,6 +421,7 @@ class _Candidate:
     seeds: tuple[int, int]
     parts: tuple = ()  # per run: the model at u, its simulation and observation rule
     columns: tuple = ()  # per run: its data
+    units: tuple = ()  # per run: {column: SI value of its unit} (None: no physical units)
 
     @classmethod
     def of(cls, name, result) -> _Candidate:
@@ -428,11 +439,17 @@ class _Candidate:
         else:
             parts = tuple(_RunSetting.of(setting, runs, i) for i in range(len(runs.columns)))
             columns = tuple(runs.columns)
+        units = _units_of(result)
         return cls(
             name=name, result=result, setting=setting, n_free=len(result.estimate),
             log_likelihood=float(result.log_likelihood), seeds=(first, second), parts=parts,
-            columns=columns,
+            columns=columns, units=units,
         )  # fmt: skip
+
+    def in_si(self) -> _Candidate:
+        """This candidate with its log-likelihood that of the data in SI (`si_shift`)."""
+        shift = float(si_shift(self.columns, self.units)[0])
+        return dataclasses.replace(self, log_likelihood=self.log_likelihood + shift)
 
     def design(self) -> tuple[list, np.ndarray, list]:
         """The fit's own design (`surface.local_surface`: the centre, +-1 and +-2 steps
@@ -591,10 +608,20 @@ def _test(a: _Candidate, b: _Candidate, reps: Replicates, designs) -> dict:
             designs[c.name] = c.design()
     designs = (designs[a.name], designs[b.name])
     nested = _nested(a, b)
+    # candidates in other units (a creeping slider in SI against a slider in its reference
+    # slider's): b scores the sets in its own units, and each set's log-likelihoods are
+    # those of its values in SI (0 where the units agree)
+    pooled_b, shift = pooled, 0.0
+    if a.units != b.units:
+        pooled_b = [{k: x[k] * (ua[k] / ub[k]) for k in x}
+                    for x, ua, ub in zip(pooled, a.units, b.units, strict=True)]  # fmt: skip
+        shift = si_shift(pooled, b.units, n_boot + 1) - si_shift(pooled, a.units, n_boot + 1)
     stats, raw, p_values = [], [], []
     for s in range(2):
         t = 2.0 * (
-            b.best(designs[1], pooled, n_boot + 1, s) - a.best(designs[0], pooled, n_boot + 1, s)
+            b.best(designs[1], pooled_b, n_boot + 1, s)
+            - a.best(designs[0], pooled, n_boot + 1, s)
+            + shift
         )
         raw.append(float(t[0]))
         if nested:  # b holds a's fitted model: its maximum is at least a's (data and replicates)
@@ -606,6 +633,54 @@ def _test(a: _Candidate, b: _Candidate, reps: Replicates, designs) -> dict:
         p_value=max(p_values), n_design=(len(designs[0][0]), len(designs[1][0])),
         nested=nested, raw_statistic=raw, replicate_seed=reps.seed,
     )  # fmt: skip
+
+
+def _units_of(result) -> tuple:
+    """Per run of a fit (one for a single data set), its columns' units in SI
+    (`column_units`)."""
+    runs = result.diagnostics.joint
+    if runs is None:
+        return (column_units(result.diagnostics.units, result.data),)
+    return tuple(column_units(u, d) for u, d in zip(runs.sliders, runs.columns, strict=True))
+
+
+def _columns_of(result) -> tuple:
+    runs = result.diagnostics.joint
+    return (result.data,) if runs is None else tuple(runs.columns)
+
+
+def column_units(scales, columns) -> dict | None:
+    """`{column: the SI value of its unit}` for a fit's data columns in the units `scales`
+    (a `Slider`, its `Scales`, or `Scales.si` for a creeping slider): times in
+    `scales.time`, lengths in `scales.length`, forces in `scales.force`; `None` where the
+    fit has no physical units (per-cycle values of the model)."""
+    from ..quantities import get
+
+    s = getattr(scales, "scales", scales)
+    if s is None or not hasattr(s, "time"):
+        return None
+    unit = {"time": s.time, "length": s.length, "force": s.force}
+    try:
+        return {k: float(unit[get(k).dimension]) for k in columns}
+    except (KeyError, ValueError):  # a column without a physical dimension
+        return None
+
+
+def si_shift(columns, units, n_sets: int = 1) -> np.ndarray:
+    r"""What turns each of `n_sets` stacked data sets' log-likelihood in a fit's units into
+    that of its values in SI: a density of $x$ in units $u$ is $u$ times its density in SI,
+    so each value the density scores adds $-\log u$ (a duration's zeros, an atom, add
+    nothing: `likelihood.log_density_at`). One entry a set; `columns`, `units` one entry a
+    run (`None` units: 0)."""
+    out = np.zeros(n_sets)
+    for data, unit in zip(columns, units, strict=True):
+        if unit is None:
+            continue
+        for k, x in data.items():
+            x = np.asarray(x, float).reshape(n_sets, -1)
+            scored = x > 0 if k in LOG_KINDS else np.ones(x.shape, bool)
+            out -= scored.sum(axis=1) * math.log(unit[k])
+    return out
 
 
 def _nested(a: _Candidate, b: _Candidate) -> bool:
@@ -784,6 +859,16 @@ def _check_same_data(named: dict) -> None:
                 f"compare_fits: {name} was fitted to {', '.join(r.data)} and {ref_name} to "
                 f"{', '.join(ref.data)}: likelihoods compare models on one data set"
             )
+        runs = [[x["name"] for x in f.diagnostics.runs or []] for f in (r, ref)]
+        if runs[0] != runs[1]:
+            raise DataError(
+                f"compare_fits: {name} was fitted to {_runs_text(runs[0])} and {ref_name} to "
+                f"{_runs_text(runs[1])}: likelihoods compare models on one data set"
+            )
+        units = (_units_of(r), _units_of(ref))
+        if units[0] != units[1]:  # in other units: the same data and measurement in SI
+            _check_same_in_si((name, r), (ref_name, ref), units)
+            continue
         for k in ref.data:
             x, y = np.asarray(r.data[k]), np.asarray(ref.data[k])
             if x.shape != y.shape or not np.array_equal(x, y):
@@ -797,12 +882,6 @@ def _check_same_data(named: dict) -> None:
                     f"({k}: {how}): likelihoods compare models on one data set"
                 )
         d = r.diagnostics
-        runs = [[x["name"] for x in f.diagnostics.runs or []] for f in (r, ref)]
-        if runs[0] != runs[1]:
-            raise DataError(
-                f"compare_fits: {name} was fitted to {_runs_text(runs[0])} and {ref_name} to "
-                f"{_runs_text(runs[1])}: likelihoods compare models on one data set"
-            )
         for key in ("trace", "sampling", "observe"):
             mine, theirs = getattr(d, key), getattr(d0, key)
             if _plain(mine) != _plain(theirs):
@@ -811,6 +890,71 @@ def _check_same_data(named: dict) -> None:
                     f"differently ({key}: {mine!r} against {theirs!r}): fit both "
                     "to the same data, Cycles or trace settings"
                 )
+
+
+# Data in two fits' units are the same in SI to this (their scales' rounding)
+SI_RTOL = 1e-9
+
+
+def _check_same_in_si(one, other, units) -> None:
+    """Two fits in other units (a creeping slider's SI against a slider's reference units)
+    compare only where both units are physical and their data, runs and measurements'
+    sampling intervals and noise agree in SI; else a `DataError` saying which."""
+    (name, r), (ref_name, ref) = one, other
+    if any(u is None for per in units for u in per):
+        raise DataError(
+            f"compare_fits: {name} and {ref_name} were fitted in different units, and one "
+            "has no physical units (per-cycle values of the model): fit both to the same "
+            "Cycles of a force trace (scales= a Slider, or a creeping slider in SI)"
+        )
+    if len(units[0]) != len(units[1]):
+        raise DataError(f"compare_fits: {name} and {ref_name} were fitted to different runs: "
+                        "likelihoods compare models on one data set")  # fmt: skip
+    for i, (d1, d2, u1, u2) in enumerate(zip(_columns_of(r), _columns_of(ref), *units,
+                                             strict=True)):  # fmt: skip
+        where = f" (run {i})" if len(units[0]) > 1 else ""
+        for k in d2:
+            x, y = np.asarray(d1[k], float) * u1[k], np.asarray(d2[k], float) * u2[k]
+            if x.shape != y.shape:
+                how = f"{x.size} cycles against {y.size}"
+            elif not np.allclose(x, y, rtol=SI_RTOL, atol=0.0):
+                row = int(np.flatnonzero(~np.isclose(x, y, rtol=SI_RTOL, atol=0.0))[0])
+                how = f"first at row {row}: {x[row]:.6g} against {y[row]:.6g}"
+            else:
+                continue
+            raise DataError(
+                f"compare_fits: {name} and {ref_name} were fitted to different data{where} "
+                f"({k} in SI, {how}): likelihoods compare models on one data set"
+            )
+    for i, pair in enumerate(zip(_measurements(r), _measurements(ref), _scales(r),
+                                 _scales(ref), strict=True)):  # fmt: skip
+        m1, m2, s1, s2 = pair
+        where = f" (run {i})" if len(units[0]) > 1 else ""
+        # the sampling interval in s; the noise on the force in N (a force trace's signal
+        # is the force over scales.force in either units)
+        for what, x, y, unit in (
+            ("sampling interval", m1.sampling_interval * s1.time, m2.sampling_interval * s2.time,
+             "s"),
+            ("noise sd", m1.noise_sd * s1.force, m2.noise_sd * s2.force, "N"),
+        ):  # fmt: skip
+            if not math.isclose(float(x), float(y), rel_tol=SI_RTOL, abs_tol=0.0):
+                raise DataError(
+                    f"compare_fits: {name} and {ref_name} model the data's measurement{where} "
+                    f"differently ({what} {float(x):.6g} {unit} against {float(y):.6g} "
+                    f"{unit}): fit both to the same Cycles"
+                )
+
+
+def _measurements(result) -> tuple:
+    runs = result.diagnostics.joint
+    return (result.diagnostics.measurement,) if runs is None else tuple(runs.measurements)
+
+
+def _scales(result) -> tuple:
+    """Per run of a fit, the `Scales` of its units."""
+    runs = result.diagnostics.joint
+    given = (result.diagnostics.units,) if runs is None else tuple(runs.sliders)
+    return tuple(getattr(u, "scales", u) for u in given)
 
 
 def _runs_text(names: list) -> str:
