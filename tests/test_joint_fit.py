@@ -239,3 +239,77 @@ def test_a_run_the_fitted_slider_shows_no_cycles_on_is_rejected_not_a_crash(run,
     assert all(0.0 <= p <= 1.0 for p in first["p_values"].values())
     assert set(second["p_values"].values()) == {0.0} and "no cycles" in second["unresolved"]
     assert "no cycles" in result.summary()
+
+
+@pytest.mark.slow  # (~3.5 min: three fits of one run, two comparisons)
+def test_fits_in_other_units_compare_on_the_data_in_si():
+    """One trace of the independent generator (a fixed threshold), fitted by the same law
+    in the units of two reference sliders (30 g and 15 g: times and lengths in other
+    units), and by a random threshold in the second's: the two fits of one law find the
+    same slider, and their log-likelihoods, a hundred units apart in their own units, agree
+    in SI (`compare_fits`' units: each value a density scores adds -log of its unit) to
+    within the simulation's own noise (the two seeds' difference of either fit); the
+    comparison of the first against the random threshold, across units, gives the same
+    statistic as the second's, within the same units, to that noise, and keeps the true
+    fixed threshold."""
+    from stickslip._inference.compare import _columns_of, _units_of, si_shift
+
+    gen = _generator()
+    rig = dataclasses.replace(gen.Rig(gap_sd=0.0, hum=1.5e-4), stiffness=168.0)
+    t, force, _ = gen.make_trace(500, 200.0, rig)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cycles = ss.extract_cycles(t, force=force, stiffness=168.0, v_b=rig.v_b)
+    data = ss.Cycles({c: cycles[c] for c in ("slip_time", "stick_time", "slip_distance")},
+                     cycles.info)  # fmt: skip
+    refs = {u: Slider.from_cycles(cycles, mass=m) for u, m in (("a", 0.03), ("b", 0.015))}
+    fixed = {"kinetic_friction": rig.kinetic_friction, "damping": rig.damping,
+             "noise_time": rig.noise_time}  # fmt: skip
+    free = {"mass": (0.005, 0.05), "noise": (3e-9, 3e-7), "static_friction": (0.093, 0.099)}
+    fits = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for u, ref in refs.items():
+            fits[u] = ss.fit("langevin", [(data, ref)], free, fixed, n_sim=1000, seed=7)
+        random = ss.fit("random-threshold-held", [(data, refs["b"])],
+                        {"mass": free["mass"], "noise": free["noise"],
+                         "threshold.mean": free["static_friction"], "threshold.sd": (1e-4, 0.01)},
+                        fixed, n_sim=1000, seed=7)  # fmt: skip
+    noise = max(abs(r.diagnostics.mc_noise["log_likelihood_difference"]) for r in fits.values())
+    own = {u: r.log_likelihood for u, r in fits.items()}
+    si = {u: own[u] + si_shift(_columns_of(r), _units_of(r))[0] for u, r in fits.items()}
+    assert abs(own["a"] - own["b"]) > 20 * noise  # the units' own difference
+    assert abs(si["a"] - si["b"]) < noise, (si, noise)
+    for k in free:
+        lo, hi = fits["b"].ci[k]
+        assert abs(fits["a"].estimate[k] - fits["b"].estimate[k]) < 0.2 * (hi - lo), k
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        across = ss.compare_fits({"fixed a": fits["a"], "random b": random}, seed=11)
+        within = ss.compare_fits({"fixed b": fits["b"], "random b": random}, seed=11)
+    assert across.chosen is fits["a"] and within.chosen is fits["b"]
+    assert across.table[0]["log_likelihood"] == pytest.approx(si["a"], abs=1e-9)
+    for x, y in zip(across.tests[0]["statistic"], within.tests[0]["statistic"], strict=True):
+        assert abs(x - y) < 2 * noise, (across.tests, within.tests)
+
+
+def test_compare_fits_in_other_units_needs_the_same_data_in_si():
+    """Fits in other units compare on the data in SI: one without physical units, or data
+    that differ once in SI, are one line each."""
+    from stickslip import DataError
+    from stickslip._inference.result import FitResult
+
+    a, b = Slider(**REF), Slider(**{**REF, "mass": REF["mass"] / 2})  # other time units
+
+    def result(units, slip_times, ll):
+        return FitResult(
+            estimate={"omega0": 1.0}, ci={"omega0": (0.9, 1.1)}, log_likelihood=ll, method="",
+            data={"slip_time": np.asarray(slip_times, float)}, model=None,
+            diagnostics={"units": units},
+        )  # fmt: skip
+
+    x = np.linspace(1.0, 2.0, 20)  # in a's units
+    with pytest.raises(DataError, match="one has no physical units"):
+        ss.compare_fits({"a": result(a, x, -1.0), "none": result(None, x, -2.0)})
+    with pytest.raises(DataError, match=r"different data \(slip_time in SI, first at row 0"):
+        ss.compare_fits({"a": result(a, x, -1.0), "b": result(b, x, -2.0)})

@@ -327,21 +327,30 @@ def _force_cycles(k, V, n=4000, h=5e-4, seed=0):
 def test_fit_of_a_creeping_slider_refuses_what_it_cannot_fit_in_one_line():
     """A creeping slider's cycles carry the state of the ones before and a run starts in
     a velocity step's transient: it is fitted only through a force trace's measurement,
-    to its stationary motion, in SI (its units follow from its fixed stiffness), one run
-    at a time; `measured_cycles` measures it as a force trace only."""
+    to its stationary motion, in SI (its units follow from its fixed stiffness; with
+    several runs, each run's spring and speed are its own); `measured_cycles` measures it
+    as a force trace only."""
     k, V = 1002.0, 42e-6
     fixed = dict(stiffness=k, v_b=V, **{key: v for key, v in PAPER.items() if key != "a"})
     free = {"a": (0.005, 0.02)}
-    cycles = _force_cycles(k, V)
+    cycles = _force_cycles(k, V, n=24000)  # 24 cycles: a joint fit checks its runs' data first
     per_cycle = {"stick_time": np.linspace(0.4, 0.6, 20), "slip_distance": np.full(20, 1e-5)}
     no_k = {key: v for key, v in fixed.items() if key != "stiffness"}
+    own = {key: v for key, v in no_k.items() if key != "v_b"}  # each run's own, joint
     slider = ss.Slider(mass=0.03, stiffness=k, damping=0.0, static_friction=0.1,
                        kinetic_friction=0.08, v_b=V)  # fmt: skip
     cases = [
         (dict(data=per_cycle), "'data'.*Cycles of a force trace"),
         (dict(data=cycles, scales=slider), "'scales'.*SI"),
         (dict(data=cycles, fixed=no_k), "'fixed'.*stiffness"),
-        (dict(data=[cycles, cycles]), "'data'.*one run at a time"),
+        (dict(data=[cycles, cycles]), r"'fixed\['stiffness'\]'.*each run's own"),
+        (
+            dict(data=[cycles, cycles], fixed=own, free={"v_b[1]": (1e-5, 1e-4)}),
+            r"'free\['v_b\[1\]'\]'.*each run's own",
+        ),
+        (dict(data=[cycles, per_cycle], fixed=own), r"'data\[1\]'.*Run.*Cycles of a force"),
+        (dict(data=[cycles], fixed=own, scales=slider), "'scales'.*SI"),
+        (dict(data=[cycles], fixed=dict(own, c_d=1.0)), r"'fixed\['c_d'\]'.*parameter of"),
     ]
     for given, match in cases:
         args = dict(dict(data=cycles, free=free, fixed=fixed), **given)

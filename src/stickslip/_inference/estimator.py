@@ -136,8 +136,8 @@ def problem(
     `simulated_mle`)."""
     owner = "fit"
     Model = model_class(model)
-    if issubclass(Model, CreepingSlider):  # in SI: forces over its stiffness
-        scales = creeping_scales(Model, data, fixed, free, scales, runs)
+    if issubclass(Model, CreepingSlider) and runs is None:  # in SI: forces over its stiffness
+        scales = creeping_scales(Model, data, fixed, free, scales)
     units = scales  # (a Slider or Scales)
     if runs is None:
         data, measured = measurement_of(data, trace, sampling, scales, owner)

@@ -172,17 +172,19 @@ def fit(
 def _joint(model, data, free, fixed, *, seed, n_sim, dt, scales, check, progress, wall0):
     """`fit` of one SI parameter set to several runs (`joint`)."""
     from .._model import CreepingSlider
-    from .joint import Runs
-    from .params import creeping_scales, model_class
+    from .joint import CreepingRuns, Runs
+    from .params import model_class
 
-    if issubclass(model_class(model), CreepingSlider):
-        creeping_scales(model_class(model), data, fixed, free, scales, runs=data)  # (refused)
+    Model = model_class(model)
+    creeping = issubclass(Model, CreepingSlider)
     if scales is not None:
         raise ParameterError(
             "fit", "scales", "applies to one run: with several, each run's reference Slider "
-            "sets its units (a Run's own, or the Slider of a (Cycles, Slider) pair)",
+            "sets its units (a Run's own, or the Slider of a (Cycles, Slider) pair)"
+            if not creeping else f"must be left out for {Model.__name__}: a creeping slider "
+            "is in SI, each run's units follow from its stiffness",
         )  # fmt: skip
-    runs = Runs(model_class(model), data)
+    runs = (CreepingRuns if creeping else Runs)(Model, data)
     result = simulated_mle(model, None, free, fixed, seed=seed, n_sim=n_sim, dt=dt,
                        progress=progress, runs=runs)  # fmt: skip
     if check:

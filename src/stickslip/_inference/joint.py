@@ -78,6 +78,8 @@ class Runs:
     """The runs of a joint fit: their data in their own units, their measurements, and
     the map from a point of SI values to each run's model."""
 
+    what = "a slider parameter (SI values)"
+
     def __init__(self, Model, runs):
         from ..units import MODEL_SI_NAMES
         from .data import check_data, measurement_of
@@ -131,8 +133,8 @@ class Runs:
                 name, run = _split(k)
                 if name not in self.names:
                     raise ParameterError(
-                        OWNER, f"{where}['{k}']", "is not a slider parameter of a fit of several "
-                        f"runs (SI values: {', '.join(self.names)}; NAME[i] for run i's own)",
+                        OWNER, f"{where}['{k}']", f"is not {self.what} of a fit of several "
+                        f"runs ({', '.join(self.names)}; NAME[i] for run i's own)",
                     )  # fmt: skip
                 if run is not None and not 0 <= run < len(self.sliders):
                     raise ParameterError(
@@ -229,3 +231,111 @@ class Runs:
             row["p_values"] = {
                 k: float(stats.ks_2samp(d[k], np.asarray(sim[k], float)).pvalue) for k in d
             }
+
+
+def _creeping_reference(run, i: int, name: str):
+    """`(cycles, stiffness, v_b, label)` of one entry of a creeping slider's runs: a
+    stick-slip `Run` or the `Cycles` of a force trace, with the stiffness and the given
+    driving speed it was read with (the model's; not the sticks' slope, which creep)."""
+    from .._extract import Cycles
+    from .._extract._regime import Run
+
+    where = f"data[{i}]"
+    if isinstance(run, Run):
+        label = run.settings.get("name") or f"run {i}"
+        if run.regime != "stick-slip":
+            raise ParameterError(
+                OWNER, where, f"({label}) is {run.regime}, not stick-slip: it has no cycles "
+                f"to fit ({run.evidence})",
+            )  # fmt: skip
+        cycles = Cycles({k: run.cycles[k] for k in RUN_COLUMNS}, run.cycles.info)
+        k, v_b = run.settings.get("stiffness"), run.settings.get("v_b")
+    elif isinstance(run, Cycles):
+        label = run.info.get("name") or f"run {i}"
+        cycles, k, v_b = run, run.info.get("stiffness"), run.info.get("v_b")
+    else:
+        raise ParameterError(
+            OWNER, where, f"must be a stick-slip Run (analyse_run) or the Cycles of a force "
+            f"trace (extract_cycles) for {name}", type(run).__name__,
+        )  # fmt: skip
+    try:
+        k, v_b = float(k), float(v_b)
+    except (TypeError, ValueError):
+        k = v_b = math.nan
+    if not (math.isfinite(k) and k > 0 and math.isfinite(v_b) and v_b > 0):
+        raise ParameterError(
+            OWNER, where, f"({label}) must carry its spring and driving speed (a force "
+            "trace read with stiffness= and v_b=): they are its model's",
+        )  # fmt: skip
+    return cycles, k, v_b, label
+
+
+class CreepingRuns(Runs):
+    """The runs of a joint fit of a creeping slider (`CreepingSlider`, in SI): each run's
+    cycles in SI (`Scales.si` of its spring: times in s, the drop over k in m), its
+    measurement, and its own spring and driving speed as its model's `stiffness` and
+    `v_b`; the free and fixed values are the model's own parameters (`NAME[i]`: run i's
+    own value of NAME, over the shared one)."""
+
+    @property
+    def what(self) -> str:
+        return f"a parameter of {self.Model.__name__}"
+
+    def __init__(self, Model, runs):
+        from ..units import Scales
+        from .data import check_data, measurement_of
+
+        self.Model, self.law = Model, False
+        if not isinstance(runs, (list, tuple)) or len(runs) < 1:
+            raise ParameterError(OWNER, "data", "must be a non-empty list of runs", runs)
+        own = ("stiffness", "v_b")
+        self.names = tuple(k for k in Model.parameters() if k not in own)
+        self.labels, self.settings, self.columns, self.measurements = [], [], [], []
+        for i, run in enumerate(runs):
+            cycles, k, v_b, label = _creeping_reference(run, i, Model.__name__)
+            d, measured = measurement_of(cycles, None, None, Scales.si(k), OWNER)
+            self.labels.append(label)
+            self.settings.append((k, v_b))
+            self.columns.append(check_data(d, measured=True))
+            self.measurements.append(measured)
+        self.sliders = [Scales.si(k) for k, _ in self.settings]
+        first = list(self.columns[0])
+        for i, d in enumerate(self.columns):
+            if list(d) != first:
+                raise ParameterError(
+                    OWNER, f"data[{i}]", f"has the columns {', '.join(d)}, the first run "
+                    f"{', '.join(first)}: fit the same observables of every run",
+                )  # fmt: skip
+        self.data = {k: np.concatenate([d[k] for d in self.columns]) for k in first}
+        self.fixed = {}
+
+    def checked(self, fixed, free) -> tuple[dict, dict]:
+        for where, names in (("fixed", fixed or {}), ("free", free or {})):
+            for k in names if hasattr(names, "keys") else ():
+                if _split(k)[0] in ("stiffness", "v_b"):
+                    raise ParameterError(
+                        OWNER, f"{where}['{k}']", "is each run's own in a fit of several runs "
+                        "(the stiffness and v_b its force trace was read with)",
+                    )  # fmt: skip
+        return super().checked(fixed, free)
+
+    def build(self, values: dict) -> list:
+        given = {**self.fixed, **values}
+        shared = {k: v for k, v in given.items() if _split(k)[1] is None}
+        models = []
+        for i, (k, v_b) in enumerate(self.settings):
+            own = {_split(n)[0]: v for n, v in given.items() if _split(n)[1] == i}
+            models.append(self.Model(**{**shared, **own}, stiffness=k, v_b=v_b))
+        return models
+
+    def describe(self, models) -> list[dict[str, Any]]:
+        out = []
+        for label, (k, v_b), d, m in zip(self.labels, self.settings, self.columns, models,
+                                         strict=True):  # fmt: skip
+            out.append(dict(
+                name=label, stiffness=k, v_b=v_b,
+                cycles=int(max(np.size(v) for v in d.values())),
+                model={n: v for n, v in m.params().items()
+                       if isinstance(v, (int, float, str, dict)) or v is None},
+            ))  # fmt: skip
+        return out

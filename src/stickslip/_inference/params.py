@@ -39,19 +39,16 @@ def model_class(model):
     return Model
 
 
-def creeping_scales(Model, data, fixed, free, scales, runs):
-    """The units a creeping slider (`CreepingSlider`, in SI) meets a force trace's cycles in
-    (`Scales.si` of its fixed stiffness); each refusal one line: per-cycle values (its
+def creeping_scales(Model, data, fixed, free, scales):
+    """The units a creeping slider (`CreepingSlider`, in SI) meets one force trace's cycles
+    in (`Scales.si` of its fixed stiffness); each refusal one line: per-cycle values (its
     cycles carry the state of the ones before, and a run starts in a velocity step's
-    transient: only a measured trace's stationary cycles are fitted), several runs, a
-    `scales` given, a stiffness not fixed."""
+    transient: only a measured trace's stationary cycles are fitted), a `scales` given, a
+    stiffness not fixed. (Several runs: `joint.CreepingRuns`, each run's own units.)"""
     from .._extract import Cycles
     from ..units import Scales
 
     name = Model.__name__
-    if runs is not None:
-        raise ParameterError("fit", "data", f"is several runs: {name} (a creeping slider) is "
-                             "fitted to one run at a time")  # fmt: skip
     if not isinstance(data, Cycles):
         raise ParameterError(
             "fit", "data", f"must be the Cycles of a force trace for {name}: a creeping "
