@@ -258,6 +258,26 @@ def sampled_cycles(t, x, v, v_b: float) -> dict[str, np.ndarray]:
     )  # fmt: skip
 
 
+def in_sticks(v, v_b: float) -> tuple[int, int]:
+    """`(first, last)`: the samples `v[first:last]` of a recorded path that begin and end
+    in a stick (`v <= v_b`). A path recorded from the end of its burn-in starts at any
+    phase: one that starts inside a slip starts after it ends, one that ends inside a
+    slip ends where that slip began. A slip the trace holds only in part is none of its
+    cycles (`sampled_cycles`), so the measurement's cut (`Cut`) would take it for a stick:
+    a stretch of it marked far from every slip (on a stiff spring's short sticks, the only
+    such stretch of a path) made the drops' noise read 7 times too high and the path show
+    no cycles."""
+    c = np.asarray(v, float) / v_b - 1.0
+    first, last = 0, c.size
+    if c.size and c[0] > 0.0:
+        down = np.flatnonzero((c[:-1] > 0.0) & (c[1:] <= 0.0))
+        first = int(down[0]) + 1 if down.size else c.size
+    if last > first and c[-1] > 0.0:
+        up = np.flatnonzero((c[first:-1] <= 0.0) & (c[first + 1 :] > 0.0))
+        last = first + int(up[-1]) + 1 if up.size else first
+    return first, last
+
+
 def default_dt(model, h: float) -> float:
     """The noise's grid: half the sampling interval, at most `tau / NOISE_GRID` (`tau` the
     noise's correlation time, where it has one)."""
@@ -289,9 +309,11 @@ def creeping_trace(owner, model, measurement, n_cycles: int, seed: int, dt, stic
     for p in range(n_paths):
         keep = np.isfinite(x[p, burn:]) & np.isfinite(v[p, burn:])
         n = int(np.argmin(keep)) if not keep.all() else keep.size
-        t, xp, vp = h * np.arange(n), x[p, burn : burn + n], v[p, burn : burn + n]
+        first, last = in_sticks(v[p, burn : burn + n], v_b)
+        xp, vp = x[p, burn + first : burn + last], v[p, burn + first : burn + last]
+        t = h * np.arange(xp.size)
         table = sampled_cycles(t, xp, vp, v_b)
-        if n >= 2 and table["release_time"].size:
+        if xp.size >= 2 and table["release_time"].size:
             paths.append((p, t, xp, vp, table))
     if not paths:
         raise DataError(
