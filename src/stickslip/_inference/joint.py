@@ -210,14 +210,15 @@ class Runs:
     def p_values(self, result, n_sim: int, seed: int) -> None:
         """Per run and observable, the KS p-value of its cycles against the fitted models'
         simulated ones through its measurement (another seed than the fit's), into
-        `result.diagnostics.runs`. Not corrected for the fit (the estimate was tuned on
-        these data): high p-values are optimistic, a low one is a rejection. A run on
-        which the fitted slider's trace shows no cycles through its measurement gets
-        p-values of 0 and the reason (`"unresolved"`)."""
-        from scipy import stats
-
+        `result.diagnostics.runs`, each sample counted at its effective size for its
+        rows' dependence (`statistics.dependent_ks`: successive cycles of a slider with
+        memory are dependent). Not corrected for the fit (the estimate was tuned on these
+        data): high p-values are optimistic, a low one is a rejection. A run on which the
+        fitted slider's trace shows no cycles through its measurement gets p-values of 0
+        and the reason (`"unresolved"`)."""
         from .._errors import DataError
         from .forward import simulate_values
+        from .statistics import dependent_ks
 
         models = self.build(result.estimate)
         for row, m, d, measured in zip(result.diagnostics.runs, models, self.columns,
@@ -228,9 +229,7 @@ class Runs:
                 row["p_values"] = dict.fromkeys(d, 0.0)
                 row["unresolved"] = str(err).splitlines()[0]
                 continue
-            row["p_values"] = {
-                k: float(stats.ks_2samp(d[k], np.asarray(sim[k], float)).pvalue) for k in d
-            }
+            row["p_values"] = {k: dependent_ks(d[k], sim[k]) for k in d}
 
 
 def _creeping_reference(run, i: int, name: str):

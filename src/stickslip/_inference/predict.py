@@ -191,9 +191,8 @@ def _through(model, s, slider, measurement, run, n_sim, seed, how) -> Prediction
     """The `model`'s cycles (in the units `s`, a `Scales`) through `measurement` (`run`'s,
     or a noise-free one without a run), in SI, against the run's: the fitted model's class
     (`random-threshold-held` releases as it does) with the predicted slider's parameters."""
-    from scipy import stats
-
     from .measurement import measured_cycles
+    from .statistics import dependent_ks
 
     data = None if run is None else {k: np.asarray(run[k], float) for k in _OBSERVABLES}
     whose = "the run's" if run is not None else "a"
@@ -212,8 +211,9 @@ def _through(model, s, slider, measurement, run, n_sim, seed, how) -> Prediction
     if run is None:
         return Prediction(slider, "stick-slip", evidence, cycles, None, None,
                           f"{n_sim} model cycles of {how}")  # fmt: skip
-    p = {k: float(stats.ks_2samp(data[k], cycles[k]).pvalue) for k in _OBSERVABLES}
+    p = {k: dependent_ks(data[k], cycles[k]) for k in _OBSERVABLES}
     method = (f"{n_sim} model cycles of {how}, through the run's measurement (its sampling, "
               "noise, spikes, lines and extraction settings); p-values: two-sample "
-              "Kolmogorov-Smirnov against the run's cycles, at the estimate")  # fmt: skip
+              "Kolmogorov-Smirnov against the run's cycles, at the estimate, each sample "
+              "at its effective size for its rows' dependence")  # fmt: skip
     return Prediction(slider, "stick-slip", evidence, cycles, data, p, method)
