@@ -8,6 +8,7 @@
     python benchmarks/rate_and_state_fit.py --profile --grids 10 40 [--n-sim 2000]
     python benchmarks/rate_and_state_fit.py --point-grids --grids 10 40 [--runs 1]
     python benchmarks/rate_and_state_fit.py --joint [--free d_c] [--seeds 1] [--log FILE]
+    python benchmarks/rate_and_state_fit.py --versus [--seeds 1]
 
 The data: `force_trace`, an independent generator (Euler-Maruyama in SI variables
 (e, v, theta, eta), steps of 1 us with white-noise increments of its own, from steady
@@ -39,6 +40,8 @@ times with the same seeds). `--joint` fits one parameter set to two runs of the 
 at once (`fit(model, [cycles, cycles])`, each run through its own measurement, spring and
 speed): the trace above and one on a stiffer spring (`K_STIFF`, 1400 N/m: ~470 cycles of
 64 ms), with its goodness of fit per run (KS p-values through each run's measurement).
+`--versus` fits the law (d_c free) and a memoryless random threshold (in a reference
+`Slider`'s units) to one trace and compares them (`compare_fits`, across their units).
 """
 
 from __future__ import annotations
@@ -146,9 +149,13 @@ def main():
     ap.add_argument("--grids", type=float, nargs="+", default=[10, 20, 40, 80])
     ap.add_argument("--rtol", type=float, help="the noisy steps' tolerance (default: the solver's)")
     ap.add_argument("--joint", action="store_true", help="fit two runs (K and K_STIFF) at once")
+    ap.add_argument("--stiffness", type=float, default=K, help="--law's spring (N/m)")
+    ap.add_argument("--versus", action="store_true",
+                    help="compare_fits: the law against a random threshold on one trace")
     args = ap.parse_args()
     if args.law:
-        return law(args.grids, 3000 if args.n_sim == 1000 else args.n_sim, args.rtol)
+        return law(args.grids, 3000 if args.n_sim == 1000 else args.n_sim, args.rtol,
+                   args.stiffness)
     if args.point_grids:
         return point_grids(args.grids, args.n_sim, args.runs)
     if args.profile:
@@ -157,6 +164,8 @@ def main():
         return summary(args.summary)
     if args.point:
         return point(args.n_sim, args.runs)
+    if args.versus:
+        return versus(args.seeds[0], args.n_sim)
     true = truth()
     for seed in args.seeds:
         with warnings.catch_warnings():
@@ -191,6 +200,47 @@ def main():
                         warnings=list(r.diagnostics.warnings))  # fmt: skip
             with open(args.log, "a") as f:
                 f.write(json.dumps(line) + "\n")
+
+
+def versus(seed: int, n_sim: int):
+    """`--versus`: on one trace of the generator, the law (d_c free, the rest at the truth)
+    against a memoryless random threshold (`random-threshold-held`: an effective mass, the
+    noise and the threshold's mean and sd free in SI, its units a reference `Slider` of
+    the rig's mass), each fitted to the trace's cycles, then `compare_fits` across their
+    units (the law in SI, the threshold in the slider's)."""
+    import warnings
+
+    import stickslip as ss
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        full = data(seed)
+    cycles = ss.Cycles({c: full[c] for c in ("slip_time", "stick_time", "slip_distance")},
+                       full.info)  # fmt: skip
+    ref = ss.Slider.from_cycles(full, mass=PAPER["mass"])
+    law_fixed = {k: v for k, v in dict(truth(), tau=TAU).items() if k != "d_c"}
+    mu_k = ref.kinetic_friction
+    rt_free = {"mass": (0.005, 0.2), "noise": (1e-10, 1e-7),
+               "threshold.mean": (mu_k + 2e-3, mu_k + 0.04), "threshold.sd": (1e-4, 0.02)}
+    rt_fixed = {"kinetic_friction": mu_k, "damping": ref.damping, "noise_time": TAU}
+    fits, t0 = {}, time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fits["rate and state"] = ss.fit("rate-and-state", [cycles], {"d_c": BOXES["d_c"]},
+                                        law_fixed, n_sim=n_sim, seed=11)  # fmt: skip
+        print(f"rate and state: {time.perf_counter() - t0:.0f} s", flush=True)
+        t0 = time.perf_counter()
+        fits["random threshold"] = ss.fit("random-threshold-held", [(cycles, ref)], rt_free,
+                                          rt_fixed, n_sim=n_sim, seed=11)  # fmt: skip
+        print(f"random threshold: {time.perf_counter() - t0:.0f} s", flush=True)
+    for name, r in fits.items():
+        print(name, r.summary(), sep="\n")
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        c = ss.compare_fits(fits, seed=21)
+    print(c.summary())
+    print(f"compare_fits: {time.perf_counter() - t0:.0f} s")
 
 
 RUN = "examples/data/slider_paper_on_paper/k1002Nm_v42.mat"
@@ -276,8 +326,9 @@ def point_grids(grids, n_sim: int, runs: int):
     creeping.NOISE_GRID = before
 
 
-def law(grids, n_sim: int, rtol: float | None):
-    """`--law`: the model's measured cycles at the truth against the generator's."""
+def law(grids, n_sim: int, rtol: float | None, k: float = K):
+    """`--law`: the model's measured cycles at the truth against the generator's (on the
+    spring `k`)."""
     import warnings
 
     import stickslip as ss
@@ -287,15 +338,15 @@ def law(grids, n_sim: int, rtol: float | None):
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        cycles = data(1, t_end=300.0)
-    measurement = ss.Measurement.from_cycles(cycles, scales=Scales.si(K))
+        cycles = data(1, t_end=300.0, k=k)
+    measurement = ss.Measurement.from_cycles(cycles, scales=Scales.si(k))
     columns = ("force_drop", "slip_time", "stick_time")
     ref = {c: np.asarray(cycles.table[c], float) for c in columns}
-    ref["force_drop"] = ref["force_drop"] / K  # (the model's measured drops are over k)
+    ref["force_drop"] = ref["force_drop"] / k  # (the model's measured drops are over k)
     print(f"generator: {ref['force_drop'].size} cycles")
     if rtol is not None:
         creep.NOISY_RTOL = creep.NOISY_ATOL = rtol
-    model = ss.get_model("rate-and-state")(stiffness=K, v_b=V, D=D, tau=TAU, **PAPER)
+    model = ss.get_model("rate-and-state")(stiffness=k, v_b=V, D=D, tau=TAU, **PAPER)
     for grid in grids:
         t0 = time.perf_counter()
         with warnings.catch_warnings():
