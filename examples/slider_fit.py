@@ -354,7 +354,9 @@ def main(argv=None):
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="results-slider-fit", help="folder for the outputs")
-    parser.add_argument("--n-sim", type=int, default=1000, help="model cycles per point")
+    parser.add_argument(
+        "--n-sim", type=int, default=4000, help="model cycles per point (fit's own default)"
+    )
     parser.add_argument("--seed", type=int, default=1, help="the fits' simulation seed")
     parser.add_argument("--workers", type=int, default=2,
                         help="processes, up to one per candidate: its fit, then its goodness "
