@@ -694,6 +694,8 @@ def _nested(a: _Candidate, b: _Candidate) -> bool:
         return False
     if b.result.diagnostics.joint is not None:  # (SI boxes: not checked; the test is
         return False  # valid unclipped, as for a pair that is not nested)
+    if a.units != b.units:  # (values in other units: not compared, unclipped alike)
+        return False
     Mb = type(b.result.model)
     if isinstance(a.result.model, Mb):
         target = model_kwargs(a.result.model)
