@@ -32,7 +32,7 @@ drift of the absolute force level over the run is outside the model: `peak_force
 fitted). The rig's 30.7 g only sets the units: an effective mass is fitted (omega0).
 
 `--out DIR`, then copy slider_fit.png to docs/img to refresh docs/slider_fit.md. About
-4.7 minutes of CPU, 3 minutes on 2 cores (docs/slider_fit.md, "Cost"): a point of a fit
+4.7 minutes of CPU, 2.5 minutes on 2 quiet cores (docs/slider_fit.md, "Cost"): a point of a fit
 through this measurement is 4000 model cycles (`fit`'s default) as a 2 kHz trace, ~0.4 s;
 `--n-sim 1000` is four times cheaper, and its random threshold's fit has no interval.
 """
