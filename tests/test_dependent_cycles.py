@@ -82,7 +82,7 @@ def test_the_structural_lag_follows_the_onset():
 
 def _candidate(name, model, box, n_free):
     result = types.SimpleNamespace(model=model, diagnostics=FitDiagnostics(box=box))
-    return types.SimpleNamespace(name=name, result=result, n_free=n_free)
+    return types.SimpleNamespace(name=name, result=result, n_free=n_free, units=(None,))
 
 
 def test_nesting_is_read_from_the_models_and_the_boxes():
