@@ -39,23 +39,14 @@ def _reference(run, i: int):
 
     where = f"data[{i}]"
     if isinstance(run, Run):
-        label = run.settings.get("name") or f"run {i}"
-        if run.regime != "stick-slip":
-            raise ParameterError(
-                OWNER, where, f"({label}) is {run.regime}, not stick-slip: it has no cycles "
-                f"to fit ({run.evidence})",
-            )  # fmt: skip
+        cycles, label = _stick_slip(run, i)
         mass = run.settings.get("mass")
         if not mass:
             raise ParameterError(
                 OWNER, where, f"({label}) was read without its mass: analyse_run(..., mass=m) "
                 "sets the units its cycles are fitted in",
             )  # fmt: skip
-        slider = Slider.from_cycles(run.cycles, mass=mass)
-        # the independent columns of a row (a period is slip plus stick, a force drop the
-        # slip distance times k, a peak force the absolute level the cycles do not fix)
-        cycles = Cycles({k: run.cycles[k] for k in RUN_COLUMNS}, run.cycles.info)
-        return cycles, slider, label
+        return cycles, Slider.from_cycles(run.cycles, mass=mass), label
     if isinstance(run, tuple) and len(run) == 2:
         cycles, slider = run
         if isinstance(cycles, Cycles) and isinstance(slider, Slider):
@@ -64,6 +55,21 @@ def _reference(run, i: int):
         OWNER, where, "must be a stick-slip Run (analyse_run(..., mass=m)) or a pair "
         "(Cycles, Slider) of a force trace's cycles and its reference slider", type(run).__name__,
     )  # fmt: skip
+
+
+def _stick_slip(run, i: int):
+    """`(cycles, label)` of a stick-slip `Run`: its independent columns (a period is slip
+    plus stick, a force drop the slip distance times k, a peak force the absolute level
+    the cycles do not fix); any other regime is refused by name."""
+    from .._extract import Cycles
+
+    label = run.settings.get("name") or f"run {i}"
+    if run.regime != "stick-slip":
+        raise ParameterError(
+            OWNER, f"data[{i}]", f"({label}) is {run.regime}, not stick-slip: it has no "
+            f"cycles to fit ({run.evidence})",
+        )  # fmt: skip
+    return Cycles({k: run.cycles[k] for k in RUN_COLUMNS}, run.cycles.info), label
 
 
 def _split(name: str) -> tuple[str, int | None]:
@@ -107,6 +113,11 @@ class Runs:
             self.sliders.append(slider)
             self.columns.append(check_data(d, measured=True))
             self.measurements.append(measured)
+        self._pooled()
+
+    def _pooled(self) -> None:
+        """`data`: every run's rows, one run after the other, once every run has the first
+        run's columns (else a `ParameterError` naming the run)."""
         first = list(self.columns[0])
         for i, d in enumerate(self.columns):
             if list(d) != first:
@@ -114,7 +125,6 @@ class Runs:
                     OWNER, f"data[{i}]", f"has the columns {', '.join(d)}, the first run "
                     f"{', '.join(first)}: fit the same observables of every run",
                 )  # fmt: skip
-        # every run's rows, one run after the other
         self.data = {k: np.concatenate([d[k] for d in self.columns]) for k in first}
         self.fixed: dict[str, Any] = {}
 
@@ -241,13 +251,7 @@ def _creeping_reference(run, i: int, name: str):
 
     where = f"data[{i}]"
     if isinstance(run, Run):
-        label = run.settings.get("name") or f"run {i}"
-        if run.regime != "stick-slip":
-            raise ParameterError(
-                OWNER, where, f"({label}) is {run.regime}, not stick-slip: it has no cycles "
-                f"to fit ({run.evidence})",
-            )  # fmt: skip
-        cycles = Cycles({k: run.cycles[k] for k in RUN_COLUMNS}, run.cycles.info)
+        cycles, label = _stick_slip(run, i)
         k, v_b = run.settings.get("stiffness"), run.settings.get("v_b")
     elif isinstance(run, Cycles):
         label = run.info.get("name") or f"run {i}"
@@ -298,15 +302,7 @@ class CreepingRuns(Runs):
             self.columns.append(check_data(d, measured=True))
             self.measurements.append(measured)
         self.sliders = [Scales.si(k) for k, _ in self.settings]
-        first = list(self.columns[0])
-        for i, d in enumerate(self.columns):
-            if list(d) != first:
-                raise ParameterError(
-                    OWNER, f"data[{i}]", f"has the columns {', '.join(d)}, the first run "
-                    f"{', '.join(first)}: fit the same observables of every run",
-                )  # fmt: skip
-        self.data = {k: np.concatenate([d[k] for d in self.columns]) for k in first}
-        self.fixed = {}
+        self._pooled()
 
     def checked(self, fixed, free) -> tuple[dict, dict]:
         for where, names in (("fixed", fixed or {}), ("free", free or {})):
