@@ -252,7 +252,7 @@ def test_fits_in_other_units_compare_on_the_data_in_si():
     comparison of the first against the random threshold, across units, gives the same
     statistic as the second's, within the same units, to that noise, and keeps the true
     fixed threshold."""
-    from stickslip._inference.compare import _columns_of, _units_of, si_shift
+    from stickslip._inference.compare import _Candidate
 
     gen = _generator()
     rig = dataclasses.replace(gen.Rig(gap_sd=0.0, hum=1.5e-4), stiffness=168.0)
@@ -277,7 +277,7 @@ def test_fits_in_other_units_compare_on_the_data_in_si():
                         fixed, n_sim=1000, seed=7)  # fmt: skip
     noise = max(abs(r.diagnostics.mc_noise["log_likelihood_difference"]) for r in fits.values())
     own = {u: r.log_likelihood for u, r in fits.items()}
-    si = {u: own[u] + si_shift(_columns_of(r), _units_of(r))[0] for u, r in fits.items()}
+    si = {u: _Candidate.of(u, r).in_si().log_likelihood for u, r in fits.items()}
     assert abs(own["a"] - own["b"]) > 20 * noise  # the units' own difference
     assert abs(si["a"] - si["b"]) < noise, (si, noise)
     for k in free:

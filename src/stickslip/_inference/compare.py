@@ -635,18 +635,20 @@ def _test(a: _Candidate, b: _Candidate, reps: Replicates, designs) -> dict:
     )  # fmt: skip
 
 
-def _units_of(result) -> tuple:
-    """Per run of a fit (one for a single data set), its columns' units in SI
-    (`column_units`)."""
+def _runs_of(result) -> tuple:
+    """Per run of a fit (one for a single data set): `(data, measurement, scales)`, the
+    `Scales` of its units (`None` without physical units)."""
     runs = result.diagnostics.joint
     if runs is None:
-        return (column_units(result.diagnostics.units, result.data),)
-    return tuple(column_units(u, d) for u, d in zip(runs.sliders, runs.columns, strict=True))
+        given = ((result.data, result.diagnostics.measurement, result.diagnostics.units),)
+    else:
+        given = zip(runs.columns, runs.measurements, runs.sliders, strict=True)
+    return tuple((d, m, getattr(u, "scales", u)) for d, m, u in given)
 
 
-def _columns_of(result) -> tuple:
-    runs = result.diagnostics.joint
-    return (result.data,) if runs is None else tuple(runs.columns)
+def _units_of(result) -> tuple:
+    """Per run of a fit, its columns' units in SI (`column_units`)."""
+    return tuple(column_units(u, d) for d, _, u in _runs_of(result))
 
 
 def column_units(scales, columns) -> dict | None:
@@ -912,8 +914,8 @@ def _check_same_in_si(one, other, units) -> None:
     if len(units[0]) != len(units[1]):
         raise DataError(f"compare_fits: {name} and {ref_name} were fitted to different runs: "
                         "likelihoods compare models on one data set")  # fmt: skip
-    for i, (d1, d2, u1, u2) in enumerate(zip(_columns_of(r), _columns_of(ref), *units,
-                                             strict=True)):  # fmt: skip
+    for i, ((d1, _, _), (d2, _, _), u1, u2) in enumerate(zip(_runs_of(r), _runs_of(ref),
+                                                             *units, strict=True)):  # fmt: skip
         where = f" (run {i})" if len(units[0]) > 1 else ""
         for k in d2:
             x, y = np.asarray(d1[k], float) * u1[k], np.asarray(d2[k], float) * u2[k]
@@ -928,9 +930,8 @@ def _check_same_in_si(one, other, units) -> None:
                 f"compare_fits: {name} and {ref_name} were fitted to different data{where} "
                 f"({k} in SI, {how}): likelihoods compare models on one data set"
             )
-    for i, pair in enumerate(zip(_measurements(r), _measurements(ref), _scales(r),
-                                 _scales(ref), strict=True)):  # fmt: skip
-        m1, m2, s1, s2 = pair
+    for i, ((_, m1, s1), (_, m2, s2)) in enumerate(zip(_runs_of(r), _runs_of(ref),
+                                                        strict=True)):  # fmt: skip
         where = f" (run {i})" if len(units[0]) > 1 else ""
         # the sampling interval in s; the noise on the force in N (a force trace's signal
         # is the force over scales.force in either units)
@@ -945,18 +946,6 @@ def _check_same_in_si(one, other, units) -> None:
                     f"differently ({what} {float(x):.6g} {unit} against {float(y):.6g} "
                     f"{unit}): fit both to the same Cycles"
                 )
-
-
-def _measurements(result) -> tuple:
-    runs = result.diagnostics.joint
-    return (result.diagnostics.measurement,) if runs is None else tuple(runs.measurements)
-
-
-def _scales(result) -> tuple:
-    """Per run of a fit, the `Scales` of its units."""
-    runs = result.diagnostics.joint
-    given = (result.diagnostics.units,) if runs is None else tuple(runs.sliders)
-    return tuple(getattr(u, "scales", u) for u in given)
 
 
 def _runs_text(names: list) -> str:

@@ -204,13 +204,17 @@ class Runs:
                 built = models[0]
         return built
 
+    def springs(self) -> list[tuple[float, float]]:
+        """Per run: its spring's stiffness (N/m) and driving speed (m/s)."""
+        return [(s.stiffness, s.v_b) for s in self.sliders]
+
     def describe(self, models) -> list[dict[str, Any]]:
         """Per run: its label, spring, speed, cycles and the fitted model's parameters."""
         out = []
-        for label, slider, d, m in zip(self.labels, self.sliders, self.columns, models,
-                                       strict=True):  # fmt: skip
+        for label, (k, v_b), d, m in zip(self.labels, self.springs(), self.columns, models,
+                                         strict=True):  # fmt: skip
             out.append(dict(
-                name=label, stiffness=slider.stiffness, v_b=slider.v_b,
+                name=label, stiffness=k, v_b=v_b,
                 cycles=int(max(np.size(v) for v in d.values())),
                 model={k: v for k, v in m.params().items()
                        if isinstance(v, (int, float, str, dict)) or v is None},
@@ -323,14 +327,5 @@ class CreepingRuns(Runs):
             models.append(self.Model(**{**shared, **own}, stiffness=k, v_b=v_b))
         return models
 
-    def describe(self, models) -> list[dict[str, Any]]:
-        out = []
-        for label, (k, v_b), d, m in zip(self.labels, self.settings, self.columns, models,
-                                         strict=True):  # fmt: skip
-            out.append(dict(
-                name=label, stiffness=k, v_b=v_b,
-                cycles=int(max(np.size(v) for v in d.values())),
-                model={n: v for n, v in m.params().items()
-                       if isinstance(v, (int, float, str, dict)) or v is None},
-            ))  # fmt: skip
-        return out
+    def springs(self) -> list[tuple[float, float]]:
+        return list(self.settings)
