@@ -112,7 +112,8 @@ def problem(case: str, release: str = "threshold", coords: str = "normal"):
 
 
 def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold",
-            keep: pathlib.Path | None = None, coords: str = "normal") -> dict:  # fmt: skip
+            keep: pathlib.Path | None = None, coords: str = "normal",
+            intervals: str = "wald") -> dict:  # fmt: skip
     """Make trace i, extract its cycles, fit them; the record of the set (`keep`: the
     cycles and the fit pickled there too, for a later look at the fit's surface)."""
     import stickslip as ss
@@ -130,7 +131,7 @@ def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold",
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         r = ss.fit(model, data, free, fixed, scales=slider, n_sim=n_sim, seed=40_000 + i,
-                   check=False)  # fmt: skip
+                   check=False, intervals=intervals)  # fmt: skip
     scales = r.diagnostics["scales"]
     d = r.diagnostics.get("dependence", {})
     mc = r.diagnostics.get("mc_noise", {})
@@ -143,7 +144,8 @@ def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold",
         import pickle
 
         keep.mkdir(parents=True, exist_ok=True)
-        tag = "" if coords == "normal" else f"-{coords}"
+        tag = ("" if coords == "normal" else f"-{coords}") + (
+            "" if intervals == "wald" else f"-{intervals}")
         with open(keep / f"{case}-{release}{tag}-{i}.pkl", "wb") as f:
             pickle.dump(dict(cycles=data, fit=r, truth=truth), f)
     x_unit = slider.scales.length
@@ -152,6 +154,7 @@ def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold",
         case=case,
         release=release,
         coords=coords,
+        intervals=intervals,
         set=i,
         n_cycles=len(cycles),
         seconds=time.perf_counter() - t0,
@@ -159,6 +162,9 @@ def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold",
         evaluations=r.diagnostics["evaluations"],
         estimate=r.estimate,
         ci=r.ci,
+        wald_ci=({k: v["wald"] for k, v in r.diagnostics.profile.items()}
+                 if r.diagnostics.profile else r.ci),  # fmt: skip
+        profile=r.diagnostics.profile,
         truth=truth,
         scales=scales,
         v_b_ratio=cycles.info["v_b_estimated"] / rig.v_b,
@@ -188,8 +194,20 @@ def _label(record: dict) -> str:
     """A record's case, and the release rule where it is not the registered model's."""
     release = record.get("release", "threshold")
     coords = record.get("coords", "normal")
+    intervals = record.get("intervals", "wald")
     return (record["case"] + ("" if release == "threshold" else f" (release from the {release})")
-            + ("" if coords == "normal" else f" ({coords})"))  # fmt: skip
+            + ("" if coords == "normal" else f" ({coords})")
+            + ("" if intervals == "wald" else f" ({intervals} intervals)"))  # fmt: skip
+
+
+def _with_wald(records: list[dict]) -> list[dict]:
+    """The records, and for each fit with profile intervals its Wald intervals as a record
+    of their own (the same estimates: the two rules compared on the same fits)."""
+    out = list(records)
+    for r in records:
+        if r.get("intervals", "wald") == "profile":
+            out.append({**r, "ci": r["wald_ci"], "intervals": "profile's fits, Wald"})
+    return out
 
 
 def summary(records: list[dict]) -> list[dict]:
@@ -275,12 +293,14 @@ def main():
                         help="random case: the threshold's normal law by its untruncated mean "
                         "and sd (the plugin's) or by the truncated law's own mean and cv "
                         "(truncated_moments.py, an experiment)")  # fmt: skip
+    parser.add_argument("--intervals", choices=("wald", "profile"), default="wald",
+                        help="fit's intervals (profile: the Wald ones kept beside them)")
     parser.add_argument("--keep", default=None, help="pickle each set's cycles and fit here")
     parser.add_argument("--summary", nargs="+", default=None, help="summarise these logs")
     parser.add_argument("--out", default=None, help="write the summary table here")
     args = parser.parse_args()
     if args.summary:
-        text = table(summary(_read(args.summary)))
+        text = table(summary(_with_wald(_read(args.summary))))
         print(text)
         print("bar: covered 88-99 %; under 70 % of estimates on one side of the truth")
         if args.out:
@@ -288,12 +308,13 @@ def main():
         return
     done = {r["set"] for r in _read([args.log]) if r["case"] == args.case
             and r.get("release", "threshold") == args.release
-            and r.get("coords", "normal") == args.coords} if args.log else set()  # fmt: skip
+            and r.get("coords", "normal") == args.coords
+            and r.get("intervals", "wald") == args.intervals} if args.log else set()  # fmt: skip
     todo = [i for i in range(args.first, args.first + args.sets) if i not in done]
     with concurrent.futures.ProcessPoolExecutor(args.jobs) as pool:
         keep = None if args.keep is None else pathlib.Path(args.keep)
         futures = {pool.submit(one_set, args.case, i, args.n_sim, args.release, keep,
-                               args.coords): i for i in todo}  # fmt: skip
+                               args.coords, args.intervals): i for i in todo}  # fmt: skip
         for f in concurrent.futures.as_completed(futures):
             r = f.result()
             line = "; ".join(f"{k} {v:.4g} [{r['ci'][k][0]:.4g}, {r['ci'][k][1]:.4g}]"

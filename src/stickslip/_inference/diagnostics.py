@@ -88,7 +88,11 @@ class FitDiagnostics(_Record):
     - `seconds`, `warnings` (each also issued as a one-line `UserWarning`);
     - `units`: the SI mapping given (`scales=` of `fit`); for a joint fit, `runs` (each run's
       spring, speed, cycles, fitted model and checks) and `joint` (the map to each run's
-      model).
+      model);
+    - `profile`: with `fit(..., intervals="profile")`, per free parameter what its profile
+      interval evaluated (`profile.profile_intervals`: the values of the parameter tried
+      and the statistic there, in fit coordinates, the threshold and its adjustment, the
+      ends, whether an end is the box's, and the Wald interval, `wald`); else `None`.
     """
 
     n_sim: int | None = None
@@ -115,6 +119,7 @@ class FitDiagnostics(_Record):
     units: Any = None
     runs: list | None = None
     joint: Any = None
+    profile: dict | None = None
 
     # read as keys too, as the dict had them: the measurement as `observe`, whether there
     # was one (`trace`) and its sampling interval (`sampling`)

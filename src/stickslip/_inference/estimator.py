@@ -52,6 +52,7 @@ from .params import (
     model_class,
     to_fit_coords,
 )
+from .profile import profile_intervals
 from .result import FitResult
 from .surface import DESIGN_STEP, evaluate, local_surface, polynomial_vertex, search
 
@@ -316,7 +317,7 @@ class Likelihood:
 
 def simulated_mle(
     model, data, free, fixed=None, *, seed=0, n_sim=None, dt=None, t_max=None, scales=None,
-    trace=None, sampling=None, progress=False, measurement=None, runs=None,
+    trace=None, sampling=None, progress=False, measurement=None, runs=None, intervals="wald",
 ) -> FitResult:  # fmt: skip
     """`fit` without its goodness-of-fit check: the arguments and result are `fit`'s.
     `measurement` (private: a bootstrap replicate's refit) fits a dict of cycles as if they
@@ -367,6 +368,7 @@ def simulated_mle(
     shift2, _ = polynomial_vertex(surface.design - surface.centre, np.array(values2),
                                    surface.steps)  # fmt: skip
     se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    sandwich = cov
     u_hat, cov, noise = combine_seeds(surface, shift2, cov, block_values, p.lo, p.hi)
     mc_noise = mc_noise_report(p.names, noise, se, p.n_sim)
     mc_noise.update(
@@ -389,6 +391,14 @@ def simulated_mle(
     ci, said = wald(u_hat, cov, p.names, p.coords, p.lo, p.hi, p.free,
                     concave(surface.hessian) and not lost)  # fmt: skip
     caught += said
+    profiles = None
+    if intervals == "profile":
+        wald_ci = ci
+        ci, profiles, said = profile_intervals(loglik, bread, sandwich, noise["mc"], p.names,
+                                               p.coords, p.lo, p.hi)  # fmt: skip
+        for k, record in profiles.items():
+            record["wald"] = [float(v) for v in wald_ci[k]]
+        caught += said
     for text in caught:
         warnings.warn(f"fit: {text}", stacklevel=STACKLEVEL)
     diagnostics = _diagnostics(
@@ -396,12 +406,13 @@ def simulated_mle(
         seed2=seed2, samples=samples, mc_noise=mc_noise, dependence=dependence,
         seconds=time.perf_counter() - wall0,
     )  # fmt: skip
+    diagnostics.profile = profiles
     fitted = p.build(estimate)
     if p.runs is not None:
         diagnostics.runs = p.runs.describe(fitted)
         diagnostics.joint = p.runs  # the map to each run's model (`compare_fits`)
     return FitResult(
-        estimate=estimate, ci=ci, log_likelihood=ll_hat, method=_method(p, dependence),
+        estimate=estimate, ci=ci, log_likelihood=ll_hat, method=_method(p, dependence, intervals),
         diagnostics=diagnostics, data=p.data, model=fitted[0],
     )  # fmt: skip
 
@@ -434,7 +445,7 @@ def _diagnostics(p: Problem, loglik: Likelihood, surface, cov, *, optimizer, cau
     )  # fmt: skip
 
 
-def _method(p: Problem, dependence: dict) -> str:
+def _method(p: Problem, dependence: dict, intervals: str = "wald") -> str:
     """What the fit did, in words."""
     measured = p.measured
     through = (
@@ -447,7 +458,9 @@ def _method(p: Problem, dependence: dict) -> str:
         f"simulated maximum likelihood ({p.n_sim} cycles per point{through}, common random "
         "numbers, "
         f"smoothed kernel likelihood of {', '.join(p.data)}, zero durations as a point mass); "
-        "95 % Wald intervals from the sandwich covariance of per-cycle scores"
+        + ("95 % profile-likelihood intervals, their threshold adjusted by the sandwich "
+           "covariance of per-cycle scores" if intervals == "profile" else
+           "95 % Wald intervals from the sandwich covariance of per-cycle scores")
         + (f" (rows dependent: their scores' cross products up to lag {dependence['lag']})"
            if dependence["lag"] else "")
     )  # fmt: skip

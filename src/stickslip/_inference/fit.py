@@ -50,6 +50,7 @@ def fit(
     progress: bool = False,
     trace: bool | None = None,
     sampling: float | None = None,
+    intervals: str = "wald",
 ) -> FitResult:
     r"""Estimate the `free` parameters of `model` from per-cycle data.
 
@@ -130,6 +131,15 @@ def fit(
       `p_values`, and a one-line warning naming the observables whose p-value is below
       0.01 (the data reject the model). `False` skips it (`p_values` is then `None`).
     - `progress`: print each evaluated point's log-likelihood to stderr.
+    - `intervals`: `"wald"` (default): 95 % intervals from the sandwich covariance over
+      the surface's design about the estimate, with the simulation's noise; none where
+      that surface has no maximum near the estimate (a warning says why). `"profile"`:
+      from the profile likelihood, each parameter held at values either side and the
+      others maximised (the threshold adjusted for the composite likelihood and the
+      simulation's noise): it follows a ridge that the design's quadratic does not, and
+      gives an interval where the Wald rule gives none; about one more fit's worth of
+      evaluations per free parameter. `diagnostics.profile` has what it evaluated, and
+      each parameter's Wald interval.
     - `trace`, `sampling`: deprecated (a `DeprecationWarning`), replaced by the measurement
       a `Cycles` carries: pass the `Cycles`. `trace=False` with a `Cycles` still fits its
       table as per-cycle values (pass `cycles.table` instead); `trace=True` with a dict is
@@ -148,9 +158,13 @@ def fit(
     wall0 = time.perf_counter()
     if not isinstance(check, (bool, np.bool_)):
         raise ParameterError("fit", "check", "must be True or False", check)
+    if intervals not in INTERVALS:
+        raise ParameterError("fit", "intervals", f"must be one of {', '.join(INTERVALS)}",
+                             intervals)  # fmt: skip
     if isinstance(data, (list, tuple)):
         return _joint(model, data, free, fixed, seed=seed, n_sim=n_sim, dt=dt, scales=scales,
-                      check=check, progress=progress, wall0=wall0)  # fmt: skip
+                      check=check, progress=progress, wall0=wall0,
+                      intervals=intervals)  # fmt: skip
     from .._model import CreepingSlider
     from .params import model_class
 
@@ -162,14 +176,15 @@ def fit(
         warnings.warn(f"fit: {loading}", stacklevel=2)
     result = simulated_mle(
         model, data, free, fixed, seed=seed, n_sim=n_sim, dt=dt, t_max=t_max, scales=scales,
-        trace=trace, sampling=sampling, progress=progress,
+        trace=trace, sampling=sampling, progress=progress, intervals=intervals,
     )  # fmt: skip
     if loading is not None:
         result.diagnostics.warnings.insert(0, loading)
     return _checked(result, seed, wall0) if check else result
 
 
-def _joint(model, data, free, fixed, *, seed, n_sim, dt, scales, check, progress, wall0):
+def _joint(model, data, free, fixed, *, seed, n_sim, dt, scales, check, progress, wall0,
+           intervals="wald"):
     """`fit` of one SI parameter set to several runs (`joint`)."""
     from .._model import CreepingSlider
     from .joint import CreepingRuns, Runs
@@ -186,7 +201,7 @@ def _joint(model, data, free, fixed, *, seed, n_sim, dt, scales, check, progress
         )  # fmt: skip
     runs = (CreepingRuns if creeping else Runs)(Model, data)
     result = simulated_mle(model, None, free, fixed, seed=seed, n_sim=n_sim, dt=dt,
-                       progress=progress, runs=runs)  # fmt: skip
+                           progress=progress, runs=runs, intervals=intervals)  # fmt: skip
     if check:
         d = result.diagnostics
         runs.p_values(result, d.n_sim, (seed + 1) % 2**64)
@@ -199,6 +214,10 @@ def _joint(model, data, free, fixed, *, seed, n_sim, dt, scales, check, progress
             warnings.warn(f"fit: {text}", stacklevel=3)
     result.diagnostics.seconds = time.perf_counter() - wall0
     return result
+
+
+# How `fit` reads its intervals (`intervals=`).
+INTERVALS = ("wald", "profile")
 
 
 # A model driven this far from the data's loading speed loads its sticks visibly faster or

@@ -27,7 +27,7 @@ VERSION = 1
 # measurement's aliases `observe`, `trace` and `sampling` from it).
 _KEPT = ("n_sim", "dt", "t_max", "seed", "n_data", "zero_fraction", "bandwidth", "scales",
          "box", "covariance", "hessian", "evaluations", "points", "seconds", "warnings",
-         "optimizer", "design", "mc_noise", "dependence", "runs")  # fmt: skip
+         "optimizer", "design", "mc_noise", "dependence", "runs", "profile")  # fmt: skip
 # The SI mapping a fit was given (`scales=`), by its class.
 UNITS = ("Slider", "Scales")
 

@@ -1,0 +1,301 @@
+r"""Profile-likelihood intervals (`fit(..., intervals="profile")`).
+
+A Wald interval reads the likelihood's curvature over the surface's design, a few steps
+about the estimate. Where the likelihood is not that quadratic beyond it (a random
+threshold's mean and sd trade along a curved ridge: the estimates of an independent
+generator's traces spread three to four times the intervals' standard errors, while each
+fit's own curvature was right where it was measured) the profile follows the ridge: for a
+parameter $\psi$ held at a value, the log-likelihood maximised over the others,
+
+$$\ell_p(\psi) = \max_{\lambda} \ell(\psi, \lambda),$$
+
+and the interval is where $2(\hat\ell - \ell_p(\psi))$ stays below $q\,c$, with $q$ the
+$\chi^2_1$ 95 % point and $c = V_{\psi\psi} / (H^{-1})_{\psi\psi}$ the composite
+likelihood's scalar adjustment: the estimate's variance (the sandwich's, plus the
+simulation's noise in one seed's vertex) over the curvature's own. Where the profile is a
+quadratic of the surface's curvature this is the Wald interval.
+
+The surface is rough (the simulation's draws move with the parameters, the measurement's
+joins come and go), so neither $\hat\ell$ nor $\ell_p$ is a raw value: each is the
+maximum of the polynomial `fit` uses for its vertex (`surface.polynomial_vertex`), over
+the whole design for $\hat\ell$ and over a design in the other parameters, $\psi$ held,
+for $\ell_p$ (recentred once where its vertex lies past a step). The first seed's surface
+is profiled; its cost is about that of the fit again per parameter (a design of
+$1 + 2m(m+1)$ points for $m$ other parameters, two to four values of $\psi$ a side).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .params import from_fit_coords
+from .surface import _quadratic_design, polynomial_terms, polynomial_vertex, quadratic_hessian
+
+CHI2_95 = 3.841458820694124  # the chi-square (1 degree of freedom) 95 % point
+# Values of psi tried a side: the first at the Wald interval's end (where a quadratic
+# profile meets the threshold), then the secant on the signed root of the statistic,
+# which is linear in psi for a quadratic profile; a side stops within ROOT_TOLERANCE of
+# the threshold's root (5 % of the interval's half-width for a linear root) and its end is
+# the secant's between the tried values nearest the threshold.
+TRIES = 4
+ROOT_TOLERANCE = 0.05
+GROWTH = 3.0  # a try goes at most this many times the last one's distance out
+# Tries at least this fraction of the first try's distance apart: through a measurement the
+# profile's values are noisy at neighbouring values of psi (the statistic moved by 3-6 units
+# between tries 3 % of a standard error apart, `n_sim` 1000), and the quadratic read through
+# them (`_smoothed_ends`) needs tries spread to average it.
+SPACING = 0.2
+# The other parameters' maximum at a held value: their design recentred at most RECENTRE
+# times (on a ridge that bends away from the estimate's covariance they move steps from
+# where its slope puts them), each time to the vertex, or without one to the plain
+# quadratic's vertex within REACH steps.
+RECENTRE = 6
+REACH = 6.0
+
+
+def _polynomial(du, values):
+    """The least-squares coefficients of `polynomial_terms` (None: too few points)."""
+    ok = np.isfinite(values)
+    X = polynomial_terms(du)
+    if ok.sum() < X.shape[1]:
+        return None
+    return np.linalg.lstsq(X[ok], values[ok], rcond=None)[0]
+
+
+def _smoothed_max(points, centre, steps, loglik):
+    """The polynomial's maximum over `points` (rows: fit coordinates of the axes profiled
+    over, about `centre`): its value, where, and whether it is a vertex within two steps;
+    where it is not, the best point's predicted value and, as where to look next, the
+    plain quadratic's vertex (where concave) within `REACH` steps, else that point."""
+    values = np.array([loglik(u) for u in points], float)
+    du = points - centre
+    coef = _polynomial(du, values)
+    if coef is None:
+        return -np.inf, centre, False
+    shift, _ = polynomial_vertex(du, values, steps)
+    if shift is not None:
+        return float(polynomial_terms(shift[None, :])[0] @ coef), centre + shift, True
+    predicted = np.where(np.isfinite(values), polynomial_terms(du) @ coef, -np.inf)
+    b = int(np.argmax(predicted))
+    where = points[b]
+    H = quadratic_hessian(du, values)
+    if H is not None and np.all(np.linalg.eigvalsh(H) < 0):
+        p = centre.size
+        g = np.linalg.lstsq(polynomial_terms(du)[np.isfinite(values)][:, : 1 + p],
+                            values[np.isfinite(values)], rcond=None)[0][1:]  # fmt: skip
+        step = np.linalg.solve(H, -g)
+        reach = np.max(np.abs(step) / steps)
+        where = centre + step * min(1.0, REACH / reach) if reach > 0 else where
+    return float(predicted[b]), where, False
+
+
+class _Profiler:
+    """The first seed's log-likelihood, each point once (the designs overlap)."""
+
+    def __init__(self, loglik, lo, hi):
+        self.loglik, self.lo, self.hi = loglik, lo, hi
+        self.known: dict[bytes, float] = {}
+
+    def __call__(self, u) -> float:
+        u = np.clip(np.asarray(u, float), self.lo, self.hi)
+        key = u.tobytes()
+        if key not in self.known:
+            self.known[key] = float(self.loglik(u)[0])
+        return self.known[key]
+
+    def profiled(self, j, psi, start, steps):
+        """l_p(psi) for axis j: the others' design about `start`, recentred (`RECENTRE`
+        times at most) until its vertex lies within a step of the centre: the value,
+        where, and whether it was a vertex."""
+        others = [i for i in range(start.size) if i != j]
+        u = np.array(start, float)
+        u[j] = psi
+        if not others:
+            return self(u), u, True
+        lo, hi = self.lo[others], self.hi[others]
+        found = (-np.inf, u.copy(), False)
+        for _ in range(RECENTRE):
+            centre = np.clip(u[others], lo, hi)
+            points = np.clip(_quadratic_design(centre, steps[others]), lo, hi)
+
+            def value(row, u=u):
+                full = u.copy()
+                full[others] = row
+                return self(full)
+
+            best, where, vertex = _smoothed_max(points, centre, steps[others], value)
+            u[others] = np.clip(where, lo, hi)
+            if vertex or best > found[0]:
+                found = (best, u.copy(), vertex)
+            if vertex and np.all(np.abs(where - centre) <= steps[others]):
+                break
+        return found
+
+
+def profile_intervals(loglik, surface, cov, mc, names, coords, lo, hi):
+    """95 % profile intervals of every free parameter, from the first seed's surface.
+
+    - `loglik`: the fit's `Likelihood` (at its first seed);
+    - `surface`: its local surface (`surface.local_surface`): the estimate's design, steps
+      and the curvature (`hessian`, the bread the covariance was built with);
+    - `cov`: the sandwich covariance (fit coordinates, no simulation part); `mc`: the
+      simulation's covariance of the two seeds' mean (`None`: not measured);
+    - `names`, `coords`, `lo`, `hi`: the free parameters, their scales and box.
+
+    Returns `(ci, records, said)`: the intervals (parameter units), per parameter a record
+    of what was evaluated (`psi` and the statistic there, in fit coordinates; the
+    threshold and its adjustment; the ends; whether an end is the box's), and warnings."""
+    prof = _Profiler(loglik, lo, hi)
+    steps = np.asarray(surface.steps, float)
+    centre = np.asarray(surface.centre, float)
+    best, u1, _ = _smoothed_max(np.asarray(surface.design, float), centre, steps, prof)
+    u1 = np.clip(u1, lo, hi)
+    H = np.asarray(surface.hessian, float)
+    var = np.diag(np.asarray(cov, float)).copy()
+    if mc is not None:  # one seed's vertex: twice the two seeds' mean's noise
+        var = var + 2.0 * np.diag(np.asarray(mc, float))
+    try:
+        h_inv = np.diag(np.linalg.inv(-0.5 * (H + H.T)))
+    except np.linalg.LinAlgError:
+        h_inv = np.full(len(names), np.nan)
+    total = np.asarray(cov, float) + (0.0 if mc is None else 2.0 * np.asarray(mc, float))
+    ci, records, said = {}, {}, []
+    for j, name in enumerate(names):
+        c = var[j] / h_inv[j] if h_inv[j] > 0 and var[j] > 0 else math.nan
+        if not math.isfinite(c):
+            said.append(
+                f"the profile interval of {name} is not adjusted for the composite "
+                "likelihood (the surface's curvature there is not a maximum's): its "
+                "threshold is the plain chi-square's"
+            )
+            c = 1.0
+        q = CHI2_95 * c
+        # the other parameters' start at psi: their regression on psi under the estimate's
+        # covariance (the ridge's direction where the surface is a quadratic)
+        slope = total[:, j] / total[j, j] if total[j, j] > 0 else np.zeros(len(names))
+        first = math.sqrt(q * h_inv[j]) if h_inv[j] > 0 else 2 * steps[j]
+        # the reference: the profile at the estimate itself, by the same designs (the
+        # whole design's maximum is another smoother's: 2-4 units above, measured)
+        ref, _, _ = prof.profiled(j, u1[j], u1.copy(), steps)
+        record = dict(threshold=float(q), adjustment=float(c), estimate=float(u1[j]),
+                      value=float(ref), psi=[], statistic=[], vertex=[],
+                      box=[False, False])  # fmt: skip
+        ends = []
+        for side, sign in enumerate((-1.0, 1.0)):
+            end, rises = _side(prof, j, u1, ref, q, sign, first, slope, steps, lo, hi,
+                               record, side)  # fmt: skip
+            ends.append(end)
+            if rises > 1.0:
+                said.append(
+                    f"the profile of {name} rises {rises:.1f} log-likelihood units above the "
+                    "estimate's value: the surface's maximum is not at the estimate"
+                )
+        if any(record["box"]):
+            said.append(
+                f"the profile interval of {name} reaches its box (the likelihood there is "
+                f"within its threshold of the maximum): that end is the box's, widen it"
+            )
+        record["raw_ends"] = [float(e) for e in ends]
+        ends = _smoothed_ends(record, ends, q, lo[j], hi[j])
+        record["ends"] = [float(e) for e in ends]
+        records[name] = record
+        ci[name] = tuple(from_fit_coords(coords[name], e) for e in ends)
+    return ci, records, said
+
+
+def _side(prof, j, u1, best, q, sign, first, slope, steps, lo, hi, record, side):
+    """One end of axis j's profile interval: the psi where the statistic meets q, by the
+    secant on its signed root (`TRIES` values at most); the box's end where the statistic
+    stays below q there. Returns the end and how far the profile rose above `best`."""
+    root_q = math.sqrt(q)
+    edge = lo[j] if sign < 0 else hi[j]
+    tried = [(0.0, 0.0)]  # (distance from the estimate, root of the statistic)
+    rises = 0.0
+    start = np.array(u1, float)
+    d = min(first, abs(edge - u1[j]))
+    for _ in range(TRIES):
+        psi = u1[j] + sign * d
+        guess = u1 + slope * (psi - u1[j])
+        guess[j] = psi
+        if len(tried) > 1:  # from the last profile point, moved along the ridge's slope
+            guess = start + slope * (psi - start[j])
+            guess[j] = psi
+        value, start, vertex = prof.profiled(j, psi, np.clip(guess, lo, hi), steps)
+        stat = 2.0 * (best - value)
+        rises = max(rises, -stat)
+        root = math.sqrt(max(stat, 0.0))
+        tried.append((d, root))
+        record["psi"].append(float(psi))
+        record["statistic"].append(float(stat))
+        record["vertex"].append(bool(vertex))
+        if abs(root - root_q) <= ROOT_TOLERANCE * root_q:  # then read off the secant
+            return u1[j] + sign * _crossing(tried, root_q, abs(edge - u1[j])), rises
+        at_edge = abs(edge - psi) <= 1e-12 * max(1.0, abs(edge))
+        if root < root_q and at_edge:
+            record["box"][side] = True
+            return edge, rises
+        d = _next(tried, root_q, abs(edge - u1[j]), SPACING * first)
+    return u1[j] + sign * _crossing(tried, root_q, abs(edge - u1[j])), rises
+
+
+def _smoothed_ends(record, ends, q, lo, hi):
+    """The ends read off a quadratic on each side through all of a parameter's profile
+    values, joined at the estimate (least squares: the values' noise, a few units at a
+    point through a measurement at `n_sim` 1000, is averaged over the tries), where it
+    meets the threshold within half again the farthest try; the secant's `ends` where it
+    does not (or a side has fewer than two tries, or ends at the box)."""
+    u1 = record["estimate"]
+    psi = np.array(record["psi"], float)
+    values = -0.5 * np.array(record["statistic"], float)  # relative to the reference
+    left, right = psi < u1, psi > u1
+    if left.sum() < 2 or right.sum() < 2:
+        return ends
+    d = np.abs(psi - u1)
+    X = np.stack([np.ones(psi.size + 1),
+                  np.r_[0.0, d * left], np.r_[0.0, (d * left) ** 2],
+                  np.r_[0.0, d * right], np.r_[0.0, (d * right) ** 2]], axis=1)  # fmt: skip
+    c = np.linalg.lstsq(X, np.r_[0.0, values], rcond=None)[0]
+    out = list(ends)
+    for side, (a, b, mask, sign) in enumerate(((c[1], c[2], left, -1.0), (c[3], c[4], right, 1.0))):
+        if record["box"][side]:
+            continue
+        # 2 (c0 - value(d)) = q: b d^2 + a d + q / 2 = 0, its smallest positive root
+        roots = np.roots([b, a, q / 2]) if b != 0 else np.array([-q / (2 * a)])
+        roots = roots[np.isreal(roots)].real
+        roots = roots[(roots > 0) & (roots <= 1.5 * d[mask].max())]
+        if roots.size:
+            out[side] = float(np.clip(u1 + sign * roots.min(), lo, hi))
+    return out
+
+
+def _next(tried, root_q, room, apart):
+    """The next distance: the secant through the two tried points nearest the threshold's
+    root on either side (or the last two), within `GROWTH` times the farthest tried and
+    the box, and at least `apart` from every tried distance (outwards where the last try
+    was below the threshold, inwards where above)."""
+    d = min(_crossing(tried, root_q, room), GROWTH * max(t[0] for t in tried), room)
+    out = tried[-1][1] < root_q
+    for t, _ in sorted(tried, reverse=not out):
+        if abs(d - t) < apart:
+            d = t + apart if out else t - apart
+    return float(min(max(d, apart), room))
+
+
+def _crossing(tried, root_q, room):
+    """Where the signed root meets `root_q`: linear between the nearest bracketing tried
+    points, else extrapolated from the two farthest (within the box)."""
+    pts = sorted(tried)
+    below = [p for p in pts if p[1] < root_q]
+    above = [p for p in pts if p[1] >= root_q]
+    if below and above:
+        a = max(below, key=lambda p: p[0])
+        b = min((p for p in above if p[0] > a[0]), key=lambda p: p[0], default=None)
+        if b is None:  # not monotone: the nearest point past the threshold, from 0
+            b, a = min(above, key=lambda p: p[0]), (0.0, 0.0)
+        return a[0] + (root_q - a[1]) * (b[0] - a[0]) / (b[1] - a[1])
+    a, b = pts[-2], pts[-1]
+    if b[1] <= a[1]:  # flat or falling: as far as the box allows
+        return room
+    return float(min(b[0] + (root_q - b[1]) * (b[0] - a[0]) / (b[1] - a[1]), room))
