@@ -66,29 +66,41 @@ def _polynomial(du, values):
 
 def _smoothed_max(points, centre, steps, loglik):
     """The polynomial's maximum over `points` (rows: fit coordinates of the axes profiled
-    over, about `centre`): its value, where, and whether it is a vertex within two steps;
-    where it is not, the best point's predicted value and, as where to look next, the
-    plain quadratic's vertex (where concave) within `REACH` steps, else that point."""
+    over, about `centre`): its value, where, whether it is a vertex within two steps, and
+    the value's variance (the residuals' about the polynomial, through its least squares:
+    the surface's roughness left in the value; 0 where the points leave no residual
+    degree of freedom); where there is no vertex, the best point's predicted value and,
+    as where to look next, the plain quadratic's vertex (where concave) within `REACH`
+    steps, else that point."""
     values = np.array([loglik(u) for u in points], float)
     du = points - centre
     coef = _polynomial(du, values)
     if coef is None:
-        return -np.inf, centre, False
+        return -np.inf, centre, False, 0.0
+    ok = np.isfinite(values)
+    X = polynomial_terms(du)[ok]
+    dof = X.shape[0] - X.shape[1]
+    rss = float(np.sum((values[ok] - X @ coef) ** 2))
+    XtX = np.linalg.pinv(X.T @ X)
+
+    def variance(x):
+        return 0.0 if dof <= 0 else rss / dof * float(x @ XtX @ x)
+
     shift, _ = polynomial_vertex(du, values, steps)
     if shift is not None:
-        return float(polynomial_terms(shift[None, :])[0] @ coef), centre + shift, True
-    predicted = np.where(np.isfinite(values), polynomial_terms(du) @ coef, -np.inf)
+        x = polynomial_terms(shift[None, :])[0]
+        return float(x @ coef), centre + shift, True, variance(x)
+    predicted = np.where(ok, polynomial_terms(du) @ coef, -np.inf)
     b = int(np.argmax(predicted))
     where = points[b]
     H = quadratic_hessian(du, values)
     if H is not None and np.all(np.linalg.eigvalsh(H) < 0):
         p = centre.size
-        g = np.linalg.lstsq(polynomial_terms(du)[np.isfinite(values)][:, : 1 + p],
-                            values[np.isfinite(values)], rcond=None)[0][1:]  # fmt: skip
+        g = np.linalg.lstsq(X[:, : 1 + p], values[ok], rcond=None)[0][1:]
         step = np.linalg.solve(H, -g)
         reach = np.max(np.abs(step) / steps)
         where = centre + step * min(1.0, REACH / reach) if reach > 0 else where
-    return float(predicted[b]), where, False
+    return float(predicted[b]), where, False, variance(polynomial_terms(du)[b])
 
 
 class _Profiler:
@@ -113,9 +125,9 @@ class _Profiler:
         u = np.array(start, float)
         u[j] = psi
         if not others:
-            return self(u), u, True
+            return self(u), u, True, 0.0
         lo, hi = self.lo[others], self.hi[others]
-        found = (-np.inf, u.copy(), False)
+        found = (-np.inf, u.copy(), False, 0.0)
         for _ in range(RECENTRE):
             centre = np.clip(u[others], lo, hi)
             points = np.clip(_quadratic_design(centre, steps[others]), lo, hi)
@@ -125,10 +137,10 @@ class _Profiler:
                 full[others] = row
                 return self(full)
 
-            best, where, vertex = _smoothed_max(points, centre, steps[others], value)
+            best, where, vertex, var = _smoothed_max(points, centre, steps[others], value)
             u[others] = np.clip(where, lo, hi)
             if vertex or best > found[0]:
-                found = (best, u.copy(), vertex)
+                found = (best, u.copy(), vertex, var)
             if vertex and np.all(np.abs(where - centre) <= steps[others]):
                 break
         return found
@@ -150,7 +162,7 @@ def profile_intervals(loglik, surface, cov, mc, names, coords, lo, hi):
     prof = _Profiler(loglik, lo, hi)
     steps = np.asarray(surface.steps, float)
     centre = np.asarray(surface.centre, float)
-    best, u1, _ = _smoothed_max(np.asarray(surface.design, float), centre, steps, prof)
+    _, u1, _, _ = _smoothed_max(np.asarray(surface.design, float), centre, steps, prof)
     u1 = np.clip(u1, lo, hi)
     H = np.asarray(surface.hessian, float)
     var = np.diag(np.asarray(cov, float)).copy()
@@ -171,26 +183,29 @@ def profile_intervals(loglik, surface, cov, mc, names, coords, lo, hi):
                 "threshold is the plain chi-square's"
             )
             c = 1.0
-        q = CHI2_95 * c
+        chi2_q = CHI2_95 * c
         # the other parameters' start at psi: their regression on psi under the estimate's
         # covariance (the ridge's direction where the surface is a quadratic)
         slope = total[:, j] / total[j, j] if total[j, j] > 0 else np.zeros(len(names))
-        first = math.sqrt(q * h_inv[j]) if h_inv[j] > 0 else 2 * steps[j]
+        first = math.sqrt(chi2_q * h_inv[j]) if h_inv[j] > 0 else 2 * steps[j]
         # the reference: the profile at the estimate itself, by the same designs (the
         # whole design's maximum is another smoother's: 2-4 units above, measured)
-        ref, _, _ = prof.profiled(j, u1[j], u1.copy(), steps)
-        record = dict(threshold=float(q), adjustment=float(c), estimate=float(u1[j]),
-                      value=float(ref), psi=[], statistic=[], vertex=[],
-                      box=[False, False])  # fmt: skip
+        ref, _, _, var_ref = prof.profiled(j, u1[j], u1.copy(), steps)
+        # the statistic's own noise: the reference's and a try's, each about var_ref
+        noise = 2.0 * math.sqrt(2.0 * var_ref)
+        q = noisy_threshold(c, noise)
+        record = dict(threshold=float(q), adjustment=float(c), noise=float(noise),
+                      estimate=float(u1[j]), value=float(ref), psi=[], statistic=[],
+                      vertex=[], box=[False, False])  # fmt: skip
         ends = []
         for side, sign in enumerate((-1.0, 1.0)):
             end, rises = _side(prof, j, u1, ref, q, sign, first, slope, steps, lo, hi,
                                record, side)  # fmt: skip
             ends.append(end)
-            if rises > 1.0:
+            if rises > q:  # (the statistic below -q: not the profile's noise alone)
                 said.append(
-                    f"the profile of {name} rises {rises:.1f} log-likelihood units above the "
-                    "estimate's value: the surface's maximum is not at the estimate"
+                    f"the profile of {name} rises {rises / 2:.1f} log-likelihood units above "
+                    "its value at the estimate: the surface's maximum is not at the estimate"
                 )
         if any(record["box"]):
             said.append(
@@ -205,10 +220,31 @@ def profile_intervals(loglik, surface, cov, mc, names, coords, lo, hi):
     return ci, records, said
 
 
+def noisy_threshold(c, noise, level=0.95):
+    """The `level` quantile of c X + noise Z, X a chi-square of one degree of freedom and Z
+    a standard normal: the threshold of a statistic that is c chi2_1 at the truth, read
+    with independent normal noise of sd `noise` (c chi2_1's own quantile where none)."""
+    from scipy.optimize import brentq
+    from scipy.stats import chi2, norm
+
+    plain = float(chi2.ppf(level, 1)) * c
+    if not noise > 0:
+        return plain
+    z = np.linspace(-9.0, 9.0, 4001)  # (the chi-square's kink at 0 defeats Gauss-Hermite)
+    w = norm.pdf(z)
+    w = w / w.sum()
+
+    def below(t):
+        return float(w @ chi2.cdf(np.maximum(t - noise * z, 0.0) / c, 1)) - level
+
+    return float(brentq(below, plain, plain + 12 * noise))
+
+
 def _side(prof, j, u1, best, q, sign, first, slope, steps, lo, hi, record, side):
     """One end of axis j's profile interval: the psi where the statistic meets q, by the
     secant on its signed root (`TRIES` values at most); the box's end where the statistic
-    stays below q there. Returns the end and how far the profile rose above `best`."""
+    stays below q there. Returns the end and how far the statistic fell below 0 (the
+    profile above `best`)."""
     root_q = math.sqrt(q)
     edge = lo[j] if sign < 0 else hi[j]
     tried = [(0.0, 0.0)]  # (distance from the estimate, root of the statistic)
@@ -222,7 +258,7 @@ def _side(prof, j, u1, best, q, sign, first, slope, steps, lo, hi, record, side)
         if len(tried) > 1:  # from the last profile point, moved along the ridge's slope
             guess = start + slope * (psi - start[j])
             guess[j] = psi
-        value, start, vertex = prof.profiled(j, psi, np.clip(guess, lo, hi), steps)
+        value, start, vertex, _ = prof.profiled(j, psi, np.clip(guess, lo, hi), steps)
         stat = 2.0 * (best - value)
         rises = max(rises, -stat)
         root = math.sqrt(max(stat, 0.0))
@@ -249,6 +285,8 @@ def _smoothed_ends(record, ends, q, lo, hi):
     u1 = record["estimate"]
     psi = np.array(record["psi"], float)
     values = -0.5 * np.array(record["statistic"], float)  # relative to the reference
+    finite = np.isfinite(values)
+    psi, values = psi[finite], values[finite]
     left, right = psi < u1, psi > u1
     if left.sum() < 2 or right.sum() < 2:
         return ends
