@@ -269,6 +269,11 @@ def test_fit_n_sim_past_the_simulator_is_named(tmp_path):
     check_refused(tmp_path, text, field="fit.n_sim", words=["<= 4294967295"])
 
 
+def test_fit_intervals_other_than_wald_or_profile_are_named(tmp_path):
+    text = STUDY + "fit: {data: c.csv, free: {D: [0.1, 1]}, intervals: exact}\n"
+    check_refused(tmp_path, text, field="fit.intervals", words=["wald", "profile"])
+
+
 # -- messages stay short and do not echo the file ------------------------------------------------
 def test_a_huge_value_is_cut_in_the_message(tmp_path):
     text = STUDY.replace("zeta: 0.1", "zeta: '" + "z" * 20_000 + "'")

@@ -305,7 +305,7 @@ def run_fit(study, out=None, *, overrides=None, force: bool = False, progress: b
         try:
             results[name] = fit(
                 model.name, data, free, fixed, seed=spec.seed, n_sim=spec.n_sim, dt=spec.dt,
-                t_max=spec.t_max, scales=scales, progress=progress,
+                t_max=spec.t_max, scales=scales, progress=progress, intervals=spec.intervals,
             )  # fmt: skip
         except (ParameterError, DataError, ResourceError) as err:
             raise StudyError(source, *_fit_field(err, data_path, loc)) from None

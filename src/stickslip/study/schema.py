@@ -460,6 +460,12 @@ class Fit(Base):
         "4000 model cycles for a cycles file of a measured trace, each ~40 times dearer).",
     )
     seed: int = Field(0, ge=0, description="Seed of the simulations (common to every point).")
+    intervals: Literal["wald", "profile"] = Field(
+        "wald",
+        description="How the 95 % intervals are read: 'wald' (the curvature about the "
+        "estimate) or 'profile' (each parameter held, the others maximised; follows a ridge, "
+        "about two to four fits' cost).",
+    )
     dt: PositiveFloat | None = Field(
         None, description="Simulation step (default: a fifth of the model's slowest time scale)."
     )
