@@ -243,14 +243,18 @@ def noisy_threshold(c, noise, level=0.95):
 def _side(prof, j, u1, best, q, sign, first, slope, steps, lo, hi, record, side):
     """One end of axis j's profile interval: the psi where the statistic meets q, by the
     secant on its signed root (`TRIES` values at most); the box's end where the statistic
-    stays below q there. Returns the end and how far the statistic fell below 0 (the
-    profile above `best`)."""
+    stays below q there. A value whose design found no vertex is a lower bound on the
+    profile (its statistic an upper bound): past q it guides the next try but is not read
+    for the end. Returns the end and how far the statistic fell below 0 (the profile
+    above `best`)."""
     root_q = math.sqrt(q)
     edge = lo[j] if sign < 0 else hi[j]
     tried = [(0.0, 0.0)]  # (distance from the estimate, root of the statistic)
+    read = [(0.0, 0.0)]  # those an end is read from
     rises = 0.0
     start = np.array(u1, float)
     d = min(first, abs(edge - u1[j]))
+    room = abs(edge - u1[j])
     for _ in range(TRIES):
         psi = u1[j] + sign * d
         guess = u1 + slope * (psi - u1[j])
@@ -263,17 +267,21 @@ def _side(prof, j, u1, best, q, sign, first, slope, steps, lo, hi, record, side)
         rises = max(rises, -stat)
         root = math.sqrt(max(stat, 0.0))
         tried.append((d, root))
+        if vertex or root < root_q:
+            read.append((d, root))
         record["psi"].append(float(psi))
         record["statistic"].append(float(stat))
         record["vertex"].append(bool(vertex))
-        if abs(root - root_q) <= ROOT_TOLERANCE * root_q:  # then read off the secant
-            return u1[j] + sign * _crossing(tried, root_q, abs(edge - u1[j])), rises
+        if vertex and abs(root - root_q) <= ROOT_TOLERANCE * root_q:  # read off the secant
+            return u1[j] + sign * _crossing(read, root_q, room), rises
         at_edge = abs(edge - psi) <= 1e-12 * max(1.0, abs(edge))
         if root < root_q and at_edge:
             record["box"][side] = True
             return edge, rises
-        d = _next(tried, root_q, abs(edge - u1[j]), SPACING * first)
-    return u1[j] + sign * _crossing(tried, root_q, abs(edge - u1[j])), rises
+        d = _next(tried, root_q, room, SPACING * first)
+    if len(read) < 2:  # nothing to read an end from: the Wald interval's end
+        return u1[j] + sign * first, rises
+    return u1[j] + sign * _crossing(read, root_q, room), rises
 
 
 def _smoothed_ends(record, ends, q, lo, hi):
@@ -285,8 +293,9 @@ def _smoothed_ends(record, ends, q, lo, hi):
     u1 = record["estimate"]
     psi = np.array(record["psi"], float)
     values = -0.5 * np.array(record["statistic"], float)  # relative to the reference
-    finite = np.isfinite(values)
-    psi, values = psi[finite], values[finite]
+    # (a value without a vertex only where it lies inside the threshold: see `_side`)
+    read = np.isfinite(values) & (np.array(record["vertex"], bool) | (-2 * values < q))
+    psi, values = psi[read], values[read]
     left, right = psi < u1, psi > u1
     if left.sum() < 2 or right.sum() < 2:
         return ends
