@@ -197,11 +197,8 @@ def profile_intervals(loglik, surface, cov, mc, names, coords, lo, hi):
         record = dict(threshold=float(q), adjustment=float(c), noise=float(noise),
                       estimate=float(u1[j]), value=float(ref), psi=[], statistic=[],
                       vertex=[], box=[False, False])  # fmt: skip
-        ends = []
         for side, sign in enumerate((-1.0, 1.0)):
-            end, rises = _side(prof, j, u1, ref, q, sign, first, slope, steps, lo, hi,
-                               record, side)  # fmt: skip
-            ends.append(end)
+            rises = _side(prof, j, u1, ref, q, sign, first, slope, steps, lo, hi, record, side)
             if rises > q:  # (the statistic below -q: not the profile's noise alone)
                 said.append(
                     f"the profile of {name} rises {rises / 2:.1f} log-likelihood units above "
@@ -212,8 +209,7 @@ def profile_intervals(loglik, surface, cov, mc, names, coords, lo, hi):
                 f"the profile interval of {name} reaches its box (the likelihood there is "
                 f"within its threshold of the maximum): that end is the box's, widen it"
             )
-        record["raw_ends"] = [float(e) for e in ends]
-        ends = _smoothed_ends(record, ends, q, lo[j], hi[j])
+        ends = read_ends(record, lo[j], hi[j])
         record["ends"] = [float(e) for e in ends]
         records[name] = record
         ci[name] = tuple(from_fit_coords(coords[name], e) for e in ends)
@@ -241,20 +237,18 @@ def noisy_threshold(c, noise, level=0.95):
 
 
 def _side(prof, j, u1, best, q, sign, first, slope, steps, lo, hi, record, side):
-    """One end of axis j's profile interval: the psi where the statistic meets q, by the
-    secant on its signed root (`TRIES` values at most); the box's end where the statistic
-    stays below q there. A value whose design found no vertex is a lower bound on the
-    profile (its statistic an upper bound): past q it guides the next try but is not read
-    for the end. Returns the end and how far the statistic fell below 0 (the profile
-    above `best`)."""
+    """The tries of one side of axis j's profile (`TRIES` at most, into `record`): the
+    first at `first` from the estimate, then by the secant on the statistic's signed root
+    (`_next`); a side stops where a try's statistic is within `ROOT_TOLERANCE` of q (its
+    design with a vertex), or below q at the box (`record["box"]`). Returns how far the
+    statistic fell below 0 (the profile above `best`)."""
     root_q = math.sqrt(q)
     edge = lo[j] if sign < 0 else hi[j]
     tried = [(0.0, 0.0)]  # (distance from the estimate, root of the statistic)
-    read = [(0.0, 0.0)]  # those an end is read from
     rises = 0.0
     start = np.array(u1, float)
-    d = min(first, abs(edge - u1[j]))
     room = abs(edge - u1[j])
+    d = min(first, room)
     for _ in range(TRIES):
         psi = u1[j] + sign * d
         guess = u1 + slope * (psi - u1[j])
@@ -267,24 +261,73 @@ def _side(prof, j, u1, best, q, sign, first, slope, steps, lo, hi, record, side)
         rises = max(rises, -stat)
         root = math.sqrt(max(stat, 0.0))
         tried.append((d, root))
-        if vertex or root < root_q:
-            read.append((d, root))
         record["psi"].append(float(psi))
         record["statistic"].append(float(stat))
         record["vertex"].append(bool(vertex))
-        if vertex and abs(root - root_q) <= ROOT_TOLERANCE * root_q:  # read off the secant
-            return u1[j] + sign * _crossing(read, root_q, room), rises
-        at_edge = abs(edge - psi) <= 1e-12 * max(1.0, abs(edge))
-        if root < root_q and at_edge:
+        if vertex and abs(root - root_q) <= ROOT_TOLERANCE * root_q:
+            break
+        if root < root_q and abs(edge - psi) <= 1e-12 * max(1.0, abs(edge)):
             record["box"][side] = True
-            return edge, rises
+            break
         d = _next(tried, root_q, room, SPACING * first)
-    if len(read) < 2:  # nothing to read an end from: the Wald interval's end
-        return u1[j] + sign * first, rises
-    return u1[j] + sign * _crossing(read, root_q, room), rises
+    return rises
 
 
-def _smoothed_ends(record, ends, q, lo, hi):
+def read_ends(record, lo, hi):
+    """A profile interval's ends (fit coordinates) from what its tries found (`record`:
+    the estimate, the threshold, each try's psi, statistic and whether its design had a
+    vertex, and whether a side reached the box), between `lo` and `hi`.
+
+    A value whose design found no vertex is only a lower bound on the profile (its
+    statistic an upper bound): it is read where it lies inside the threshold, not past it.
+    Each side's end is the secant's between the read tries that bracket the threshold's
+    root, else the root's line through the estimate fitted to the read tries (never
+    nearer than the farthest of them, never past `GROWTH` times it); then, where a side
+    has two read tries or more, a quadratic a side through all of them, joined at the
+    estimate (`_smoothed_ends`), sets the end where it meets the threshold within half
+    again the farthest read try."""
+    u1, q = record["estimate"], record["threshold"]
+    root_q = math.sqrt(q)
+    psi = np.array(record["psi"], float)
+    stat = np.array(record["statistic"], float)
+    read = np.isfinite(stat) & (np.array(record["vertex"], bool) | (stat < q))
+    ends = []
+    for side, (sign, edge) in enumerate(((-1.0, lo), (1.0, hi))):
+        if record["box"][side]:
+            ends.append(float(edge))
+            continue
+        on = np.flatnonzero(np.sign(psi - u1) == sign)
+        room = abs(edge - u1)
+        points = [(0.0, 0.0)] + [(abs(psi[i] - u1), math.sqrt(max(stat[i], 0.0)))
+                                 for i in on if read[i]]  # fmt: skip
+        if len(points) < 2:  # nothing read: as far as the first try (the Wald end)
+            d = abs(psi[on[0]] - u1) if on.size else 0.0
+        else:
+            d = _end_of(points, root_q, room)
+        ends.append(float(u1 + sign * d))
+    return _smoothed_ends(record, ends, q, lo, hi, read)
+
+
+def _end_of(points, root_q, room):
+    """Where the statistic's root meets `root_q` (distances from the estimate): linear
+    between the read points that bracket it, else the least-squares line through the
+    origin, at least the farthest point and at most `GROWTH` times it (and the box)."""
+    pts = sorted(points)
+    below = [p for p in pts if p[1] < root_q]
+    above = [p for p in pts if p[1] >= root_q]
+    if above:
+        b = min(above, key=lambda p: p[0])
+        a = max((p for p in below if p[0] < b[0]), key=lambda p: p[0])
+        return a[0] + (root_q - a[1]) * (b[0] - a[0]) / (b[1] - a[1])
+    d = np.array([p[0] for p in pts[1:]])
+    r = np.array([p[1] for p in pts[1:]])
+    far = float(d.max())
+    beta = float(d @ r / (d @ d))
+    cap = min(GROWTH * far, room)
+    return cap if beta <= 0 else float(min(max(root_q / beta, far), cap))
+
+
+def _smoothed_ends(record, ends, q, lo, hi, read):
     """The ends read off a quadratic on each side through all of a parameter's profile
     values, joined at the estimate (least squares: the values' noise, a few units at a
     point through a measurement at `n_sim` 1000, is averaged over the tries), where it
@@ -293,8 +336,6 @@ def _smoothed_ends(record, ends, q, lo, hi):
     u1 = record["estimate"]
     psi = np.array(record["psi"], float)
     values = -0.5 * np.array(record["statistic"], float)  # relative to the reference
-    # (a value without a vertex only where it lies inside the threshold: see `_side`)
-    read = np.isfinite(values) & (np.array(record["vertex"], bool) | (-2 * values < q))
     psi, values = psi[read], values[read]
     left, right = psi < u1, psi > u1
     if left.sum() < 2 or right.sum() < 2:
