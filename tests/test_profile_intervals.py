@@ -136,3 +136,26 @@ def test_the_threshold_of_a_noisy_statistic_is_its_quantile(c, noise):
     draws = c * rng.chisquare(1, 10**6) + noise * rng.standard_normal(10**6)
     assert noisy_threshold(c, noise) == pytest.approx(np.quantile(draws, 0.95),
                                                       abs=0.05 * c + 0.015 * noise)  # fmt: skip
+
+
+def test_ends_are_read_from_the_tries_a_design_vouches_for():
+    """`read_ends`: a try whose design found no vertex (a lower bound on the profile) is
+    not read past the threshold; a side whose read tries all lie inside it ends on the
+    root's line through the estimate, beyond the farthest of them, not at the box."""
+    from stickslip._inference.profile import read_ends
+
+    q = 4.0  # root 2
+    record = dict(estimate=0.0, threshold=q, box=[False, False],
+                  psi=[-0.5, 0.5, 0.6], statistic=[4.0, 2.0, 30.0],
+                  vertex=[True, True, False])  # fmt: skip
+    lo, hi = read_ends(record, -10.0, 10.0)
+    assert lo == pytest.approx(-0.5)
+    # the root's line through (0.5, sqrt 2): 2 / (sqrt(2) / 0.5) = 0.707, the 30 unread
+    assert hi == pytest.approx(0.5 * 2 / math.sqrt(2.0))
+    # inside the threshold at 0.5 and 0.7, one of them without a vertex: read, the line's
+    # root at 2 / beta with beta the least-squares slope of (1.732, 1.414) at (0.5, 0.7)
+    record = dict(estimate=0.0, threshold=q, box=[False, False],
+                  psi=[-0.5, 0.5, 0.7], statistic=[4.0, 3.0, 2.0],
+                  vertex=[True, True, False])  # fmt: skip
+    d, r = np.array([0.5, 0.7]), np.sqrt([3.0, 2.0])
+    assert read_ends(record, -10.0, 10.0)[1] == pytest.approx(2 / (d @ r / (d @ d)))
