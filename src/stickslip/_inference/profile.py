@@ -53,9 +53,10 @@ SPACING = 0.2
 # quadratic's vertex within REACH steps.
 RECENTRE = 6
 REACH = 6.0
-# An adjustment past this is said: measured on fits of the independent generator, c was
-# 0.5-2 where the curvature was a maximum's, and 10^14-10^21 where the bread was nearly
-# singular along the random threshold's mean-sd ridge (the interval then its whole box).
+# An adjustment past this is said: on an independent generator's random thresholds (`n_sim`
+# 1000) c was 0.6-2.4 where the fit also gave a Wald interval, 0.4-10 where it gave none,
+# and 10^14-10^21 where the bread was nearly singular along the threshold's mean-sd ridge
+# (the interval then its whole box).
 WIDE_ADJUSTMENT = 10.0
 
 
