@@ -202,11 +202,25 @@ def _label(record: dict) -> str:
 
 def _with_wald(records: list[dict]) -> list[dict]:
     """The records, and for each fit with profile intervals its Wald intervals as a record
-    of their own (the same estimates: the two rules compared on the same fits)."""
-    out = list(records)
+    of their own (the same estimates: the two rules compared on the same fits). Profile
+    intervals are read again from each record's tries with this version's rule
+    (`read_ends`), so that a log of an earlier version is summarised as this one reads it."""
+    from stickslip._inference.params import from_fit_coords
+    from stickslip._inference.profile import read_ends
+
+    out = []
     for r in records:
-        if r.get("intervals", "wald") == "profile":
-            out.append({**r, "ci": r["wald_ci"], "intervals": "profile's fits, Wald"})
+        if r.get("intervals", "wald") != "profile":
+            out.append(r)
+            continue
+        _, free, _, _ = problem(r["case"], r.get("release", "threshold"), r.get("coords", "normal"))
+        ci = {}
+        for k, v in r["profile"].items():
+            lo, hi = (_to_fit(r["scales"][k], b) if b > 0 or r["scales"][k] != "log" else -math.inf
+                      for b in free[k])  # fmt: skip
+            ci[k] = tuple(from_fit_coords(r["scales"][k], e) for e in read_ends(v, lo, hi))
+        out.append({**r, "ci": ci})
+        out.append({**r, "ci": r["wald_ci"], "intervals": "profile's fits, Wald"})
     return out
 
 
