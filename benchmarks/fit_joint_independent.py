@@ -73,7 +73,8 @@ def problem(case: str, rig):
     return CASES[case]["model"], free, fixed, truth
 
 
-def one_set(case: str, i: int, n_sim: int | None, keep: pathlib.Path | None = None) -> dict:
+def one_set(case: str, i: int, n_sim: int | None, keep: pathlib.Path | None = None,
+            intervals: str = "wald") -> dict:  # fmt: skip
     import stickslip as ss
 
     t0 = time.perf_counter()
@@ -90,7 +91,7 @@ def one_set(case: str, i: int, n_sim: int | None, keep: pathlib.Path | None = No
     model, free, fixed, truth = problem(case, rig)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        r = ss.fit(model, runs, free, fixed, n_sim=n_sim, seed=60_000 + i)
+        r = ss.fit(model, runs, free, fixed, n_sim=n_sim, seed=60_000 + i, intervals=intervals)
     d = r.diagnostics
     if keep is not None:  # the runs and the fit, for compare_joint.py's study (they pickle)
         keep.mkdir(parents=True, exist_ok=True)
@@ -100,6 +101,8 @@ def one_set(case: str, i: int, n_sim: int | None, keep: pathlib.Path | None = No
         case=case, set=i, n_cycles=[row["cycles"] for row in d["runs"]],
         seconds=time.perf_counter() - t0, fit_seconds=d["seconds"],
         evaluations=d["evaluations"], estimate=r.estimate, ci=r.ci, truth=truth,
+        intervals=intervals, profile=d["profile"],
+        wald_ci=({k: v["wald"] for k, v in d["profile"].items()} if d["profile"] else r.ci),
         scales=d["scales"], p_values=[row["p_values"] for row in d["runs"]],
         dependence=dict(lag=d["dependence"].get("lag"), acf={}, se_ratio=None),
         warnings=[str(w.message) for w in caught if str(w.message).startswith("fit:")],
@@ -112,6 +115,8 @@ def main():
     parser.add_argument("--sets", type=int, default=40)
     parser.add_argument("--first", type=int, default=0)
     parser.add_argument("--n-sim", type=int, default=1000, help="fit's n_sim a run")
+    parser.add_argument("--intervals", choices=("wald", "profile"), default="wald",
+                        help="fit's intervals (profile: the Wald ones kept beside them)")
     parser.add_argument("--log", default=None, help="JSON lines, one a set (appended)")
     parser.add_argument("--keep", default=None,
                         help="a folder: each set's runs and fit pickled (CASE-SET.pkl)")
@@ -125,12 +130,13 @@ def main():
         if args.out:
             pathlib.Path(args.out).write_text(text + "\n")
         return
-    done = {r["set"] for r in single._read([args.log])} if args.log else set()
+    done = {r["set"] for r in single._read([args.log]) if r["case"] == args.case
+            and r.get("intervals", "wald") == args.intervals} if args.log else set()
     for i in range(args.first, args.first + args.sets):
         if i in done:
             continue
         record = one_set(args.case, i, args.n_sim,
-                         None if args.keep is None else pathlib.Path(args.keep))
+                         None if args.keep is None else pathlib.Path(args.keep), args.intervals)
         line = json.dumps(record, default=float)
         if args.log:
             with open(args.log, "a") as f:

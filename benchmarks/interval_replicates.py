@@ -31,7 +31,7 @@ import numpy as np
 from stickslip._inference import intervals as iv
 from stickslip._inference.forward import simulate_values
 from stickslip._inference.likelihood import scored_samples
-from stickslip._inference.surface import _quadratic_design, polynomial_vertex
+from stickslip._inference.surface import polynomial_vertex, quadratic_design
 
 SEED = 900_000  # the replicates' seeds: SEED + b, apart from any fit's
 
@@ -80,7 +80,7 @@ def meat(path, replicates) -> None:
     r, d, names, _, _ = _kept(path)
     des = d["design"]
     points, centre, steps = (np.array(des[k]) for k in ("points", "centre", "steps"))
-    nominal = _quadratic_design(centre, steps)
+    nominal = quadratic_design(centre, steps)
     totals, Js = [], []
     for b in range(replicates):
         scores = _scores(_replicate(r, d, b), d, 0)

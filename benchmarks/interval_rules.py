@@ -55,7 +55,7 @@ from stickslip._inference.likelihood import (
     jackknife_values,
     scored_samples,
 )
-from stickslip._inference.surface import _quadratic_design, _Surface, polynomial_vertex
+from stickslip._inference.surface import _Surface, polynomial_vertex, quadratic_design
 
 
 def pieces(path):
@@ -83,7 +83,7 @@ def pieces(path):
     s2, v2, b2 = seed(1)
     shift, H = polynomial_vertex(points - centre, v1, steps)
     shift2, H2 = polynomial_vertex(points - centre, v2, steps)
-    surface = _Surface(centre=centre, steps=steps, nominal=_quadratic_design(centre, steps),
+    surface = _Surface(centre=centre, steps=steps, nominal=quadratic_design(centre, steps),
                        design=points, values=list(v1), scores=s1, shift=shift, hessian=H,
                        clipped=design["clipped"])  # fmt: skip
     lag = iv.structural_lag(r.model)

@@ -273,7 +273,7 @@ def test_design_steps_narrow_where_one_step_falls_far():
     assert fitted.steps[0] < 0.1 and fitted.steps[1] == 0.3
     np.testing.assert_allclose(np.diag(fitted.hessian), [-c0, -c1], rtol=0.2)
     np.testing.assert_allclose(fitted.shift, -u, rtol=0.2)
-    design = surface._quadratic_design(u, np.full(2, 0.3))
+    design = surface.quadratic_design(u, np.full(2, 0.3))
     shift, wide = surface.polynomial_vertex(
         design - u, np.array([quartic(v) for v in design]), np.full(2, 0.3)
     )  # fmt: skip

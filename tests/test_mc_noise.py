@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 
 from stickslip._inference import intervals
-from stickslip._inference.surface import _quadratic_design, _Surface, polynomial_vertex
+from stickslip._inference.surface import _Surface, polynomial_vertex, quadratic_design
 
 
 def _surface(design, centre, steps):
@@ -27,7 +27,7 @@ def test_jackknife_of_the_vertex_matches_its_spread_over_draws():
     rng = np.random.default_rng(11)
     B = 10
     centre, steps = np.zeros(2), np.array([0.3, 0.2])
-    design = _quadratic_design(centre, steps)
+    design = quadratic_design(centre, steps)
     du = design - centre
     A = np.array([[40.0, -30.0], [-30.0, 30.0]])  # the information: a ridge
     truth = -0.5 * np.einsum("ji,ik,jk->j", du - [0.05, -0.03], A, du - [0.05, -0.03])
@@ -55,7 +55,7 @@ def test_without_a_vertex_in_most_replicates_there_is_no_jackknife():
     the jackknife says so (`None`) rather than give a covariance."""
     rng = np.random.default_rng(12)
     centre, steps = np.zeros(2), np.array([0.3, 0.3])
-    design = _quadratic_design(centre, steps)
+    design = quadratic_design(centre, steps)
     loo = rng.normal(0.0, 1.0, (len(design), 10))
     assert intervals._jackknife(_surface(design, centre, steps), loo) is None
 
@@ -96,7 +96,7 @@ def test_the_plain_bread_is_the_quadratics_curvature_whatever_the_cubic_terms():
     from stickslip._inference.surface import quadratic_hessian
 
     centre, steps = np.zeros(3), np.array([0.3, 0.2, 0.25])
-    design = _quadratic_design(centre, steps)
+    design = quadratic_design(centre, steps)
     A = np.array([[40.0, -12.0, 3.0], [-12.0, 25.0, -4.0], [3.0, -4.0, 10.0]])
     f = _cubic_surface(design, centre, A, np.array([2.0, -1.0, 1.5]), np.array([5.0, -8.0, 3.0]))
     assert np.allclose(quadratic_hessian(design - centre, f), -A, atol=1e-9)
@@ -115,7 +115,7 @@ def test_no_plain_bread_where_the_quadratic_is_not_concave():
     values that do not determine the quadratic, leave the surface as it was: its own check
     then gives no interval."""
     centre, steps = np.zeros(2), np.array([0.3, 0.3])
-    design = _quadratic_design(centre, steps)
+    design = quadratic_design(centre, steps)
     saddle = _cubic_surface(design, centre, np.diag([10.0, -5.0]), np.zeros(2), np.zeros(2))
     surface = dataclasses.replace(_surface(design, centre, steps), values=list(saddle),
                                   hessian=-np.eye(2))  # fmt: skip
@@ -167,7 +167,7 @@ def test_the_plain_bread_is_steadier_along_a_weak_direction():
 
     rng = np.random.default_rng(13)
     centre, steps = np.zeros(2), np.array([0.3, 0.3])
-    design = _quadratic_design(centre, steps)
+    design = quadratic_design(centre, steps)
     du = design - centre
     A = np.diag([200.0, 8.0])
     truth = -0.5 * np.einsum("ji,ik,jk->j", du - [0.0, 0.3], A, du - [0.0, 0.3])

@@ -485,7 +485,7 @@ class _DesignSamples(list):
 
 
 def _keeps_samples(n_sim: int, n_columns: int, n_free: int) -> bool:
-    n_points = 1 + 4 * n_free + 2 * n_free * (n_free - 1)  # `surface._quadratic_design`
+    n_points = 1 + 4 * n_free + 2 * n_free * (n_free - 1)  # `surface.quadratic_design`
     return 2 * n_points * n_sim * n_columns * 8 <= KEEP_SAMPLES_BYTES
 
 

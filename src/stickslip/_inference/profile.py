@@ -16,12 +16,16 @@ simulation's noise in one seed's vertex) over the curvature's own. Where the pro
 quadratic of the surface's curvature this is the Wald interval.
 
 The surface is rough (the simulation's draws move with the parameters, the measurement's
-joins come and go), so neither $\hat\ell$ nor $\ell_p$ is a raw value: each is the
-maximum of the polynomial `fit` uses for its vertex (`surface.polynomial_vertex`), over
-the whole design for $\hat\ell$ and over a design in the other parameters, $\psi$ held,
-for $\ell_p$ (recentred once where its vertex lies past a step). The first seed's surface
-is profiled; its cost is about that of the fit again per parameter (a design of
-$1 + 2m(m+1)$ points for $m$ other parameters, two to four values of $\psi$ a side).
+joins come and go), so no value is a raw one: each $\ell_p$, $\hat\ell = \ell_p(\hat\psi)$
+included, is the maximum of the polynomial `fit` uses for its vertex
+(`surface.polynomial_vertex`) over a design in the other parameters, $\psi$ held
+(recentred until its vertex lies within a step, `RECENTRE` times at most). What roughness
+the polynomial leaves (its residuals carried through the least squares) is the statistic's
+own noise, and the threshold is the 95 % point of $c\chi^2_1$ plus that noise
+(`noisy_threshold`). The ends are read from the tries a design vouches for (`read_ends`).
+The first seed's surface is profiled; its cost is about that of the fit again per
+parameter (a design of $1 + 2m(m+1)$ points for $m$ other parameters, two to four values
+of $\psi$ a side).
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ import math
 import numpy as np
 
 from .params import from_fit_coords
-from .surface import _quadratic_design, polynomial_terms, polynomial_vertex, quadratic_hessian
+from .surface import polynomial_terms, polynomial_vertex, quadratic_design, quadratic_hessian
 
 CHI2_95 = 3.841458820694124  # the chi-square (1 degree of freedom) 95 % point
 # Values of psi tried a side: the first at the Wald interval's end (where a quadratic
@@ -54,9 +58,10 @@ SPACING = 0.2
 RECENTRE = 6
 REACH = 6.0
 # An adjustment past this is said: on an independent generator's random thresholds (`n_sim`
-# 1000) c was 0.6-2.4 where the fit also gave a Wald interval, 0.4-10 where it gave none,
-# and 10^14-10^21 where the bread was nearly singular along the threshold's mean-sd ridge
-# (the interval then its whole box).
+# 1000, 24 fits) c was 0.6-2.9 for 48 of the 52 parameters of fits that also gave a Wald
+# interval (15-68 in the fourth set), 0.2-9.6 for most of the others, and 10^14-10^21
+# where the bread was nearly singular along the threshold's mean-sd ridge (5 parameters
+# in 3 fits without a Wald interval; the interval then its whole box).
 WIDE_ADJUSTMENT = 10.0
 
 
@@ -135,7 +140,7 @@ class _Profiler:
         found = (-np.inf, u.copy(), False, 0.0)
         for _ in range(RECENTRE):
             centre = np.clip(u[others], lo, hi)
-            points = np.clip(_quadratic_design(centre, steps[others]), lo, hi)
+            points = np.clip(quadratic_design(centre, steps[others]), lo, hi)
 
             def value(row, u=u):
                 full = u.copy()

@@ -156,7 +156,7 @@ def local_surface(loglik, u_hat, lo, hi, data, names, step=DESIGN_STEP) -> _Surf
 
     for attempt in range(2):
         design_steps = _narrowed(evaluated, u_hat, design_steps, lo, hi)
-        nominal = _quadratic_design(u_hat, design_steps)
+        nominal = quadratic_design(u_hat, design_steps)
         design = np.clip(nominal, lo, hi)
         values, scores = evaluate(design, evaluated, data)
         shift, H = polynomial_vertex(design - u_hat, np.array(values), design_steps)
@@ -215,7 +215,7 @@ def _design(lo, hi):
         return qmc.scale(qmc.Sobol(p, seed=0).random(8 * p), lo, hi)
 
 
-def _quadratic_design(u, steps):
+def quadratic_design(u, steps):
     """The centre, 4 points along each axis (+-1, +-2 steps) and 4 diagonal points per pair."""
     p = u.size
     pts = [u]

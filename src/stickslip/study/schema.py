@@ -464,7 +464,7 @@ class Fit(Base):
         "wald",
         description="How the 95 % intervals are read: 'wald' (the curvature about the "
         "estimate) or 'profile' (each parameter held, the others maximised; follows a ridge, "
-        "about two to four fits' cost).",
+        "about one more fit's cost a free parameter).",
     )
     dt: PositiveFloat | None = Field(
         None, description="Simulation step (default: a fifth of the model's slowest time scale)."
