@@ -106,6 +106,8 @@ def _smoothed_max(points, centre, steps, loglik):
     H = quadratic_hessian(du, values)
     if H is not None and np.all(np.linalg.eigvalsh(H) < 0):
         p = centre.size
+        # (the slopes of a linear fit: over the symmetric design the odd columns are
+        # orthogonal to the quadratic's, so these are the quadratic's own slopes)
         g = np.linalg.lstsq(X[:, : 1 + p], values[ok], rcond=None)[0][1:]
         step = np.linalg.solve(H, -g)
         reach = np.max(np.abs(step) / steps)
