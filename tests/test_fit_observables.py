@@ -451,3 +451,4 @@ def test_a_second_seed_without_a_maximum_means_no_interval(small, monkeypatch):
         r = ss.fit("langevin", small, {"D": (0.1, 3.0)}, FIXED, seed=11, n_sim=2000, check=False)
     assert all(math.isnan(x) for x in r.ci["D"]) and math.isfinite(r.estimate["D"])
     assert warned(record, "so there is no interval; take n_sim >= 8000")
+    assert warned(record, "no Wald interval for D: intervals='profile'")

@@ -392,6 +392,13 @@ def simulated_mle(
                     concave(surface.hessian) and not lost)  # fmt: skip
     caught += said
     profiles = None
+    missing = [k for k in p.names if not np.all(np.isfinite(ci[k]))]
+    if intervals == "wald" and missing:
+        caught.append(
+            f"no Wald interval for {', '.join(missing)}: intervals='profile' follows the "
+            "likelihood itself and gives one where the surface's quadratic does not (at "
+            "about four times the fit's cost)"
+        )
     if intervals == "profile":
         wald_ci = ci
         ci, profiles, said = profile_intervals(loglik, bread, sandwich, noise["mc"], p.names,
