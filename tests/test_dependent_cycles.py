@@ -74,6 +74,7 @@ def test_the_structural_lag_follows_the_onset():
     fixed = RT(**BASE, threshold="normal", threshold_params={"mean": 1.0, "sd": 0.0})
     assert intervals.structural_lag(random) == 1
     assert intervals.structural_lag(fixed) == 0
+
     class Remembers:  # a model that carries state across cycles: no probe, the scores
         carries_state = True
 
@@ -147,9 +148,8 @@ def test_newey_west_meat_of_a_chain_against_its_closed_form():
     """A chain's meat: Bartlett's weights 1 - l/(L+1) over L lags. For MA(1) scores
     e_t + theta e_{t-1} (unit innovations) its expected value per row is, in closed form,
     (1 + theta^2) + 2 (1 - 1/(L+1)) theta; the lag is Newey and West's rule."""
-    assert [intervals.newey_west_lag(n) for n in (100, 180, 272, 273, 620, 621)] == [
-        4, 4, 4, 5, 5, 6,
-    ]  # floor(4 (n/100)^(2/9))
+    lags = [intervals.newey_west_lag(n) for n in (100, 180, 272, 273, 620, 621)]
+    assert lags == [4, 4, 4, 5, 5, 6]  # floor(4 (n/100)^(2/9))
     rng = np.random.default_rng(5)
     theta, n, L = 0.5, 200_000, 4
     g = _ma(theta, n, rng)[:, None]

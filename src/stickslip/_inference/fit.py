@@ -183,8 +183,9 @@ def fit(
     return _checked(result, seed, wall0) if check else result
 
 
-def _joint(model, data, free, fixed, *, seed, n_sim, dt, scales, check, progress, wall0,
-           intervals="wald"):
+def _joint(
+    model, data, free, fixed, *, seed, n_sim, dt, scales, check, progress, wall0, intervals="wald"
+):
     """`fit` of one SI parameter set to several runs (`joint`)."""
     from .._model import CreepingSlider
     from .joint import CreepingRuns, Runs
