@@ -124,7 +124,12 @@ def main():
     parser.add_argument("--out", default=None, help="write the summary table here")
     args = parser.parse_args()
     if args.summary:
-        rows = single.summary(single._read(args.summary))
+        records = []
+        for r in single._read(args.summary):  # a profile's fits, summarised with Wald too
+            records.append(r)
+            if r.get("intervals") == "profile":
+                records.append({**r, "ci": r["wald_ci"], "intervals": "profile's fits, Wald"})
+        rows = single.summary(records)
         text = single.table(rows)
         print(text)
         if args.out:
