@@ -391,21 +391,8 @@ def simulated_mle(
     ci, said = wald(u_hat, cov, p.names, p.coords, p.lo, p.hi, p.free,
                     concave(surface.hessian) and not lost)  # fmt: skip
     caught += said
-    profiles = None
-    missing = [k for k in p.names if not np.all(np.isfinite(ci[k]))]
-    if intervals == "wald" and missing:
-        caught.append(
-            f"no Wald interval for {', '.join(missing)}: intervals='profile' follows the "
-            "likelihood itself and gives one where the surface's quadratic does not (at "
-            "about four times the fit's cost)"
-        )
-    if intervals == "profile":
-        wald_ci = ci
-        ci, profiles, said = profile_intervals(loglik, bread, sandwich, noise["mc"], p.names,
-                                               p.coords, p.lo, p.hi)  # fmt: skip
-        for k, record in profiles.items():
-            record["wald"] = [float(v) for v in wald_ci[k]]
-        caught += said
+    ci, profiles, said = _chosen_intervals(intervals, ci, p, loglik, bread, sandwich, noise["mc"])
+    caught += said
     for text in caught:
         warnings.warn(f"fit: {text}", stacklevel=STACKLEVEL)
     diagnostics = _diagnostics(
@@ -450,6 +437,25 @@ def _diagnostics(p: Problem, loglik: Likelihood, surface, cov, *, optimizer, cau
         mc_noise=mc_noise, dependence=dependence,
         units=p.units,  # the SI mapping given (`FitResult.predict`)
     )  # fmt: skip
+
+
+def _chosen_intervals(intervals, ci, p: Problem, loglik, bread, sandwich, mc):
+    """The intervals `fit` was asked for from the Wald ones `ci`: `(ci, profiles, said)`,
+    `profiles` the profile's records (each with its Wald interval; `None` for Wald)."""
+    if intervals != "profile":
+        missing = [k for k in p.names if not np.all(np.isfinite(ci[k]))]
+        said = [
+            f"no Wald interval for {', '.join(missing)}: intervals='profile' follows the "
+            "likelihood itself and gives one where the surface's quadratic does not (at "
+            "about four times the fit's cost)"
+        ] if missing else []  # fmt: skip
+        return ci, None, said
+    wald_ci = ci
+    ci, profiles, said = profile_intervals(loglik, bread, sandwich, mc, p.names, p.coords,
+                                           p.lo, p.hi)  # fmt: skip
+    for k, record in profiles.items():
+        record["wald"] = [float(v) for v in wald_ci[k]]
+    return ci, profiles, said
 
 
 def _method(p: Problem, dependence: dict, intervals: str = "wald") -> str:
