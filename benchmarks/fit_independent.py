@@ -200,18 +200,21 @@ def _label(record: dict) -> str:
             + ("" if intervals == "wald" else f" ({intervals} intervals)"))  # fmt: skip
 
 
-def _with_wald(records: list[dict]) -> list[dict]:
+def _with_wald(records: list[dict], reread: bool = True) -> list[dict]:
     """The records, and for each fit with profile intervals its Wald intervals as a record
-    of their own (the same estimates: the two rules compared on the same fits). Profile
-    intervals are read again from each record's tries with this version's rule
-    (`read_ends`), so that a log of an earlier version is summarised as this one reads it."""
+    of their own (the same estimates: the two rules compared on the same fits). With
+    `reread` (single-run records), profile intervals are read again from each record's
+    tries with this version's rule (`read_ends`), so that a log of an earlier version is
+    summarised as this one reads it."""
     from stickslip._inference.params import from_fit_coords
     from stickslip._inference.profile import read_ends
 
     out = []
     for r in records:
-        if r.get("intervals", "wald") != "profile":
+        if r.get("intervals", "wald") != "profile" or not reread:
             out.append(r)
+            if r.get("intervals", "wald") == "profile":
+                out.append({**r, "ci": r["wald_ci"], "intervals": "profile's fits, Wald"})
             continue
         _, free, _, _ = problem(r["case"], r.get("release", "threshold"), r.get("coords", "normal"))
         ci = {}

@@ -124,12 +124,7 @@ def main():
     parser.add_argument("--out", default=None, help="write the summary table here")
     args = parser.parse_args()
     if args.summary:
-        records = []
-        for r in single._read(args.summary):  # a profile's fits, summarised with Wald too
-            records.append(r)
-            if r.get("intervals") == "profile":
-                records.append({**r, "ci": r["wald_ci"], "intervals": "profile's fits, Wald"})
-        rows = single.summary(records)
+        rows = single.summary(single._with_wald(single._read(args.summary), reread=False))
         text = single.table(rows)
         print(text)
         if args.out:
