@@ -6,7 +6,15 @@ time, stick time and force drop in SI, two-sample Kolmogorov-Smirnov. A small p-
 puts a fit's misses in the physics or the mapping; large ones put them in the
 measurement, the extraction or the estimator.
 
+`--noise-scan 0.85,1,1.15` reads the generator's effective friction-noise intensity: the
+spread that noise adds to a slip at a given release force (the residual sd of slip time
+and of force drop about a quadratic in the release force's gap above F_k), the
+generator's against the model's at the truth's noise times each factor, interpolated,
+with bootstrap standard errors. KS alone would miss a noise a few per cent off.
+
     python benchmarks/generator_physics.py [--case random|fixed] [--traces 3] [--seconds 1000]
+    python benchmarks/generator_physics.py --noise-scan 0.85,1,1.15 --traces 30 --paths 100 \
+        --t-max 40000
 """
 
 from __future__ import annotations
@@ -28,39 +36,87 @@ fi = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(fi)
 gen = fi.gen
 QUANTITIES = ("slip_time", "stick_time", "force_drop")
+SPREADS = ("slip_time", "force_drop")
 
 
 def generator_cycles(case: str, traces: int, seconds: float) -> dict:
     rig = fi.rig_of(case)
-    out = {k: [] for k in QUANTITIES}
+    out = {k: [] for k in (*QUANTITIES, "gap")}
     for i in range(traces):
         _, _, truth = gen.make_trace(50_000 + i, seconds, rig)
         for k in QUANTITIES:
             out[k].append(np.asarray(truth[k], float))
+        out["gap"].append(np.asarray(truth["peak_force"], float) - rig.kinetic_friction)
     return {k: np.concatenate(v) for k, v in out.items()}
 
 
-def model_cycles(case: str, n_paths: int, t_max: float, seed: int) -> dict:
+def model_cycles(case: str, n_paths: int, t_max: float, seed: int, noise: float = 1.0) -> dict:
+    """The model's cycles in SI at the truth, its noise intensity times `noise`."""
     import stickslip as ss
 
     slider = fi.truth_slider(fi.rig_of(case))
     dim = slider.dimensionless()
     name, _, fixed, truth = fi.problem(case, release="stick")
     params = {k: dim[k] for k in ("omega0", "zeta", "D", "v_b", "tau")}
+    params["D"] *= noise
     if case == "random":
         model = ss.get_model(name)(**params, threshold="normal",
                                    threshold_params=dim["threshold_params"])  # fmt: skip
     else:
         model = ss.get_model(name)(**params, x0=dim["x0"])
-    series = ss.simulate_cycles(model, n_paths, 0.01, t_max, seed=seed)
+    series = ss.simulate_cycles(model, n_paths, 0.01, t_max, seed=seed, record=False)
     c = series.cycles
     ok = np.isfinite(np.asarray(c["period"], float))
     s = slider.scales
+    drop = np.asarray(c["slip_distance"], float)[ok]
     return {
         "slip_time": np.asarray(c["slip_time"], float)[ok] * s.time,
         "stick_time": np.asarray(c["stick_time"], float)[ok] * s.time,
-        "force_drop": np.asarray(c["slip_distance"], float)[ok] * s.force,
+        "force_drop": drop * s.force,
+        # the release's force above F_k: where the slip stuck plus how far it slipped
+        "gap": (np.asarray(c["stick_position"], float)[ok] + drop) * s.force,
     }
+
+
+def noise_spreads(cycles: dict) -> np.ndarray:
+    """Residual sd of slip time and force drop about a quadratic in the release gap."""
+    g = cycles["gap"]
+    x = np.c_[np.ones_like(g), g, g * g]
+    out = []
+    for k in SPREADS:
+        coef, *_ = np.linalg.lstsq(x, cycles[k], rcond=None)
+        out.append(np.std(cycles[k] - x @ coef))
+    return np.array(out)
+
+
+def bootstrap_se(cycles: dict, reps: int = 200, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    n = cycles["gap"].size
+    draws = [noise_spreads({k: v[i] for k, v in cycles.items()})
+             for i in (rng.integers(0, n, n) for _ in range(reps))]  # fmt: skip
+    return np.std(draws, axis=0)
+
+
+def noise_scan(case: str, factors, g: dict, paths: int, t_max: float) -> None:
+    """The generator's effective noise intensity, as a factor of the truth's, per spread."""
+    gs, gse = noise_spreads(g), bootstrap_se(g)
+    rows = []
+    for f in factors:
+        m = model_cycles(case, paths, t_max, seed=11, noise=f)
+        rows.append((f, noise_spreads(m), bootstrap_se(m), m["gap"].size))
+    print(f"generator: {g['gap'].size} cycles; model: {rows[0][3]}-{rows[-1][3]} a factor")
+    print("| spread | generator (SE) | " + " | ".join(f"model x {f:g}" for f, *_ in rows)
+          + " | generator's noise factor (SE) |")  # fmt: skip
+    print("|---|---|" + "---|" * len(rows) + "---|")
+    fs = np.array([r[0] for r in rows])
+    for j, k in enumerate(SPREADS):
+        ms = np.array([r[1][j] for r in rows])
+        slope = np.polyfit(fs, ms, 1)[0]  # the spread's change per unit factor
+        at = np.interp(gs[j], ms, fs)
+        i1 = int(np.argmin(abs(fs - 1.0)))
+        se = np.hypot(gse[j], rows[i1][2][j]) / abs(slope)
+        print(f"| {k} residual | {gs[j]:.4g} ({gse[j]:.1g}) | "
+              + " | ".join(f"{v:.4g}" for v in ms) + f" | {at:.3f} ({se:.3f}) |")  # fmt: skip
 
 
 def main():
@@ -70,10 +126,20 @@ def main():
     parser.add_argument("--seconds", type=float, default=1000.0)
     parser.add_argument("--paths", type=int, default=40)
     parser.add_argument("--t-max", type=float, default=8000.0, help="model time units a path")
+    parser.add_argument(
+        "--noise-scan",
+        default=None,
+        help="comma-separated noise factors: the generator's effective noise",
+    )
     args = parser.parse_args()
     warnings.simplefilter("ignore")
     t0 = time.perf_counter()
     g = generator_cycles(args.case, args.traces, args.seconds)
+    if args.noise_scan:
+        factors = sorted(float(f) for f in args.noise_scan.split(","))
+        noise_scan(args.case, factors, g, args.paths, args.t_max)
+        print(f"{time.perf_counter() - t0:.0f} s")
+        return
     m = model_cycles(args.case, args.paths, args.t_max, seed=7)
     print(f"{args.case}: {g['slip_time'].size} generator cycles, {m['slip_time'].size} model "
           f"cycles ({time.perf_counter() - t0:.0f} s)")  # fmt: skip
