@@ -1,4 +1,4 @@
-"""Time of `extract_cycles` against trace length (issue 42: linear; issue 39: the measured
+"""Time of `extract_cycles` against trace length (the aim: linear, and the measured
 751 281-sample force trace in <= 2 s on 2 cores).
 
     python benchmarks/extract_cycles.py [--json out.json]

@@ -1,4 +1,4 @@
-"""Coverage of `fit`'s 95 % intervals over many simulated data sets (issue 40's acceptance:
+"""Coverage of `fit`'s 95 % intervals over many simulated data sets (the bar:
 each parameter's interval covers the truth in 88-99 % of >= 40 sets, and the spread of the
 estimates matches the mean reported standard error within 20 %).
 

@@ -1,4 +1,4 @@
-"""Time of `fit` with intervals and p-values (issue 40's speed bar: a two-parameter fit of
+"""Time of `fit` with intervals and p-values (the speed bar: a two-parameter fit of
 3000 cycles in <= 60 s on 2 cores).
 
     python benchmarks/fit_speed.py [--n 3000] [--n-rep 100 200 400] [--json out.json]

@@ -1,4 +1,4 @@
-"""The host and the device scheduler on whatever backend JAX finds (issue 41), in one short run.
+"""The host and the device scheduler on whatever backend JAX finds, in one short run.
 
     python benchmarks/gpu_check.py [--n-paths 100000 1000000] [--dt 0.8] [--json out.json]
 

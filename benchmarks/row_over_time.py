@@ -7,7 +7,7 @@ table run (the median of 3 runs after an uncounted first call), and this machine
 drifts by 15-25 % over an hour (its calibration workload reads 25-33 ms). A single table
 run therefore cannot say on which side of a threshold a configuration lies when it is
 within that drift of it. This script takes the table's row for the public set's L1 0.02
-front (exact stepping, dt = 0.8, 10^5 paths; the configuration issue 12's target
+front (exact stepping, dt = 0.8, 10^5 paths; the configuration whose target
 "<= 0.15 s compiled" is about) and, beside it, the paper's method (Euler-Maruyama,
 dt = 0.002, 10^5 paths), each timed by the table's own code (`accuracy_cost.run_mc`: the
 same first call, repeats, median and histograms), in a fresh process per sample, one

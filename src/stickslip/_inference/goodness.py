@@ -56,7 +56,7 @@ from .likelihood import KDE_BINS, density_table, log_density_at
 from .params import SIM_BYTES_PER_STATE, from_fit_coords, model_kwargs, to_fit_coords
 from .statistics import AndersonDarling, Statistic
 
-ALPHA = 0.01  # below this p-value the data reject the model (the verdict level)
+ALPHA = 0.01  # below this p-value the data reject the model (the verdict's level)
 # the fewest replicates whose smallest p-value, 1 / (n_rep + 1), is below ALPHA
 MIN_VERDICT_REP = math.floor(1 / ALPHA)
 DIFF_STEP = 0.1  # the linearisation's step (fit coordinates): the fit's own design step
