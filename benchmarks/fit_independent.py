@@ -8,6 +8,7 @@ fits a measured trace: `extract_cycles` on the force, then
     python benchmarks/fit_independent.py --case random --sets 40 --jobs 2 --log random.jsonl
     python benchmarks/fit_independent.py --case fixed --sets 40 --jobs 2 --log fixed.jsonl
     python benchmarks/fit_independent.py --summary random.jsonl fixed.jsonl --out table.md
+    python benchmarks/fit_independent.py --case random --release stick --data model ...
 
 Cases (300 s traces at 2 kHz, the rig of `independent_slider.Rig`: an effective mass of
 17.8 g on a 168 N/m spring driven at 42 um/s, like the measured paper slider's fit):
@@ -27,6 +28,12 @@ Data seeds 30000 + i, fit seeds 40000 + i. Each set's result is one JSON line in
 reads them back: per parameter the sets covered, the share of estimates above the truth,
 the sd of the estimates (fit coordinates) over the mean reported standard error, the mean
 bias, and the scores' lag-1 autocorrelation with the intervals' widening for it.
+
+`--data model` fits the model's own data instead, as a control: set i's cycles made by the
+fit's forward model at the truth (`measured_cycles`, seed 90000 + i) through the
+measurement read from generator trace i, as many as that trace gave. A lean that stays
+there is the estimator's; one that goes is the generator's data (physics, sensor,
+extraction) differing from the model's.
 """
 
 from __future__ import annotations
@@ -52,8 +59,13 @@ _spec.loader.exec_module(gen)
 Z95 = 1.959963984540054
 DURATION = 300.0
 COLUMNS = ("slip_time", "stick_time", "slip_distance")
-BOX = {"omega0": (0.5, 3.0), "D": (0.02, 3.0), "threshold": (0.3, 2.0), "sd": (0.0, 1.5),
-       "cv": (0.0, 0.95)}
+BOX = {
+    "omega0": (0.5, 3.0),
+    "D": (0.02, 3.0),
+    "threshold": (0.3, 2.0),
+    "sd": (0.0, 1.5),
+    "cv": (0.0, 0.95),
+}
 CASES = {
     "random": dict(gap_sd=2.8e-3, model="random-threshold"),
     "fixed": dict(gap_sd=0.0, model="langevin"),
@@ -111,11 +123,42 @@ def problem(case: str, release: str = "threshold", coords: str = "normal"):
     return "langevin", free, known, dict(omega0=dim["omega0"], D=dim["D"], x0=dim["x0"])
 
 
+def truth_model(case: str, release: str = "stick", noise: float = 1.0):
+    """The fitted model at the truth (its noise intensity D times `noise`)."""
+    import stickslip as ss
+
+    dim = truth_slider(rig_of(case)).dimensionless()
+    name = problem(case, release)[0]
+    params = {k: dim[k] for k in ("omega0", "zeta", "D", "v_b", "tau")}
+    params["D"] *= noise
+    if case == "random":
+        return ss.get_model(name)(**params, threshold="normal",
+                                  threshold_params=dim["threshold_params"])  # fmt: skip
+    return ss.get_model(name)(**params, x0=dim["x0"])
+
+
+def model_data(data, case: str, release: str, slider, seed: int):
+    """The model's own cycles at the truth through `data`'s measurement, as many as `data`
+    has, in SI (the `--data model` control)."""
+    import stickslip as ss
+    from stickslip._inference.measurement import Measurement, measured_cycles
+
+    n = len(data["slip_time"])
+    # each path's cut first and last cycles are dropped: simulate half as many again
+    table = measured_cycles(
+        truth_model(case, release), Measurement.from_cycles(data, scales=slider), int(1.5 * n), seed
+    )
+    s = slider.scales
+    unit = {"slip_time": s.time, "stick_time": s.time, "slip_distance": s.length}
+    return ss.Cycles({k: table[k][:n] * unit[k] for k in COLUMNS}, data.info)
+
+
 def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold",
             keep: pathlib.Path | None = None, coords: str = "normal",
-            intervals: str = "wald") -> dict:  # fmt: skip
+            intervals: str = "wald", source: str = "generator") -> dict:  # fmt: skip
     """Make trace i, extract its cycles, fit them; the record of the set (`keep`: the
-    cycles and the fit pickled there too, for a later look at the fit's surface)."""
+    cycles and the fit pickled there too, for a later look at the fit's surface).
+    `source="model"`: fit the model's own cycles through that trace's measurement."""
     import stickslip as ss
     from stickslip._inference.likelihood import cycle_log_likelihood
 
@@ -128,6 +171,8 @@ def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold",
         warnings.simplefilter("ignore")
         cycles = ss.extract_cycles(t, force=force, stiffness=rig.stiffness, v_b=rig.v_b)
     data = ss.Cycles({k: cycles[k] for k in COLUMNS}, cycles.info)  # (period: slip + stick)
+    if source == "model":
+        data = model_data(data, case, release, slider, 90_000 + i)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         r = ss.fit(model, data, free, fixed, scales=slider, n_sim=n_sim, seed=40_000 + i,
@@ -145,7 +190,8 @@ def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold",
 
         keep.mkdir(parents=True, exist_ok=True)
         tag = ("" if coords == "normal" else f"-{coords}") + (
-            "" if intervals == "wald" else f"-{intervals}")
+            "" if intervals == "wald" else f"-{intervals}"
+        )
         with open(keep / f"{case}-{release}{tag}-{i}.pkl", "wb") as f:
             pickle.dump(dict(cycles=data, fit=r, truth=truth), f)
     x_unit = slider.scales.length
@@ -155,6 +201,7 @@ def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold",
         release=release,
         coords=coords,
         intervals=intervals,
+        data=source,
         set=i,
         n_cycles=len(cycles),
         seconds=time.perf_counter() - t0,
@@ -162,8 +209,11 @@ def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold",
         evaluations=r.diagnostics["evaluations"],
         estimate=r.estimate,
         ci=r.ci,
-        wald_ci=({k: v["wald"] for k, v in r.diagnostics.profile.items()}
-                 if r.diagnostics.profile else r.ci),  # fmt: skip
+        wald_ci=(
+            {k: v["wald"] for k, v in r.diagnostics.profile.items()}
+            if r.diagnostics.profile
+            else r.ci
+        ),  # fmt: skip
         profile=r.diagnostics.profile,
         truth=truth,
         scales=scales,
@@ -195,9 +245,11 @@ def _label(record: dict) -> str:
     release = record.get("release", "threshold")
     coords = record.get("coords", "normal")
     intervals = record.get("intervals", "wald")
+    source = record.get("data", "generator")
     return (record["case"] + ("" if release == "threshold" else f" (release from the {release})")
             + ("" if coords == "normal" else f" ({coords})")
-            + ("" if intervals == "wald" else f" ({intervals} intervals)"))  # fmt: skip
+            + ("" if intervals == "wald" else f" ({intervals} intervals)")
+            + ("" if source == "generator" else f" ({source}'s own data)"))  # fmt: skip
 
 
 def _with_wald(records: list[dict], reread: bool = True) -> list[dict]:
@@ -310,11 +362,18 @@ def main():
                         help="random case: the threshold's normal law by its untruncated mean "
                         "and sd (the plugin's) or by the truncated law's own mean and cv "
                         "(truncated_moments.py, an experiment)")  # fmt: skip
-    parser.add_argument("--intervals", choices=("wald", "profile"), default="wald",
-                        help="fit's intervals (profile: the Wald ones kept beside them)")
+    parser.add_argument(
+        "--intervals",
+        choices=("wald", "profile"),
+        default="wald",
+        help="fit's intervals (profile: the Wald ones kept beside them)",
+    )
     parser.add_argument("--keep", default=None, help="pickle each set's cycles and fit here")
     parser.add_argument("--summary", nargs="+", default=None, help="summarise these logs")
     parser.add_argument("--out", default=None, help="write the summary table here")
+    parser.add_argument("--data", choices=("generator", "model"), default="generator",
+                        help="fit the generator's traces, or (a control) the model's own "
+                        "cycles through each trace's measurement")  # fmt: skip
     args = parser.parse_args()
     if args.summary:
         text = table(summary(_with_wald(_read(args.summary))))
@@ -326,12 +385,14 @@ def main():
     done = {r["set"] for r in _read([args.log]) if r["case"] == args.case
             and r.get("release", "threshold") == args.release
             and r.get("coords", "normal") == args.coords
-            and r.get("intervals", "wald") == args.intervals} if args.log else set()  # fmt: skip
+            and r.get("intervals", "wald") == args.intervals
+            and r.get("data", "generator") == args.data} if args.log else set()  # fmt: skip
     todo = [i for i in range(args.first, args.first + args.sets) if i not in done]
     with concurrent.futures.ProcessPoolExecutor(args.jobs) as pool:
         keep = None if args.keep is None else pathlib.Path(args.keep)
         futures = {pool.submit(one_set, args.case, i, args.n_sim, args.release, keep,
-                               args.coords, args.intervals): i for i in todo}  # fmt: skip
+                               args.coords, args.intervals, args.data): i
+                   for i in todo}  # fmt: skip
         for f in concurrent.futures.as_completed(futures):
             r = f.result()
             line = "; ".join(f"{k} {v:.4g} [{r['ci'][k][0]:.4g}, {r['ci'][k][1]:.4g}]"

@@ -55,15 +55,7 @@ def model_cycles(case: str, n_paths: int, t_max: float, seed: int, noise: float 
     import stickslip as ss
 
     slider = fi.truth_slider(fi.rig_of(case))
-    dim = slider.dimensionless()
-    name, _, fixed, truth = fi.problem(case, release="stick")
-    params = {k: dim[k] for k in ("omega0", "zeta", "D", "v_b", "tau")}
-    params["D"] *= noise
-    if case == "random":
-        model = ss.get_model(name)(**params, threshold="normal",
-                                   threshold_params=dim["threshold_params"])  # fmt: skip
-    else:
-        model = ss.get_model(name)(**params, x0=dim["x0"])
+    model = fi.truth_model(case, release="stick", noise=noise)
     series = ss.simulate_cycles(model, n_paths, 0.01, t_max, seed=seed, record=False)
     c = series.cycles
     ok = np.isfinite(np.asarray(c["period"], float))
