@@ -33,7 +33,8 @@ bias, and the scores' lag-1 autocorrelation with the intervals' widening for it.
 fit's forward model at the truth (`measured_cycles`, seed 90000 + i) through the
 measurement read from generator trace i, as many as that trace gave. A lean that stays
 there is the estimator's; one that goes is the generator's data (physics, sensor,
-extraction) differing from the model's.
+extraction) differing from the model's. `--own-cycles 4`: four times as many cycles a set
+(a lean of the estimator's that shrinks with the data is a small-sample one).
 """
 
 from __future__ import annotations
@@ -137,13 +138,13 @@ def truth_model(case: str, release: str = "stick", noise: float = 1.0):
     return ss.get_model(name)(**params, x0=dim["x0"])
 
 
-def model_data(data, case: str, release: str, slider, seed: int):
-    """The model's own cycles at the truth through `data`'s measurement, as many as `data`
-    has, in SI (the `--data model` control)."""
+def model_data(data, case: str, release: str, slider, seed: int, factor: float = 1.0):
+    """The model's own cycles at the truth through `data`'s measurement, `factor` times as
+    many as `data` has, in SI (the `--data model` control)."""
     import stickslip as ss
     from stickslip._inference.measurement import Measurement, measured_cycles
 
-    n = len(data["slip_time"])
+    n = int(round(factor * len(data["slip_time"])))
     # each path's cut first and last cycles are dropped: simulate half as many again
     table = measured_cycles(
         truth_model(case, release), Measurement.from_cycles(data, scales=slider), int(1.5 * n), seed
@@ -155,10 +156,12 @@ def model_data(data, case: str, release: str, slider, seed: int):
 
 def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold",
             keep: pathlib.Path | None = None, coords: str = "normal",
-            intervals: str = "wald", source: str = "generator") -> dict:  # fmt: skip
+            intervals: str = "wald", source: str = "generator",
+            factor: float = 1.0) -> dict:  # fmt: skip
     """Make trace i, extract its cycles, fit them; the record of the set (`keep`: the
     cycles and the fit pickled there too, for a later look at the fit's surface).
-    `source="model"`: fit the model's own cycles through that trace's measurement."""
+    `source="model"`: fit the model's own cycles through that trace's measurement,
+    `factor` times as many."""
     import stickslip as ss
     from stickslip._inference.likelihood import cycle_log_likelihood
 
@@ -172,7 +175,7 @@ def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold",
         cycles = ss.extract_cycles(t, force=force, stiffness=rig.stiffness, v_b=rig.v_b)
     data = ss.Cycles({k: cycles[k] for k in COLUMNS}, cycles.info)  # (period: slip + stick)
     if source == "model":
-        data = model_data(data, case, release, slider, 90_000 + i)
+        data = model_data(data, case, release, slider, 90_000 + i, factor)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         r = ss.fit(model, data, free, fixed, scales=slider, n_sim=n_sim, seed=40_000 + i,
@@ -201,9 +204,9 @@ def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold",
         release=release,
         coords=coords,
         intervals=intervals,
-        data=source,
+        data=source if factor == 1.0 else f"{source} x{factor:g}",
         set=i,
-        n_cycles=len(cycles),
+        n_cycles=len(data["slip_time"]),
         seconds=time.perf_counter() - t0,
         fit_seconds=r.diagnostics["seconds"],
         evaluations=r.diagnostics["evaluations"],
@@ -374,6 +377,12 @@ def main():
     parser.add_argument("--data", choices=("generator", "model"), default="generator",
                         help="fit the generator's traces, or (a control) the model's own "
                         "cycles through each trace's measurement")  # fmt: skip
+    parser.add_argument(
+        "--own-cycles",
+        type=float,
+        default=1.0,
+        help="--data model: this many times the trace's cycles",
+    )
     args = parser.parse_args()
     if args.summary:
         text = table(summary(_with_wald(_read(args.summary))))
@@ -382,16 +391,17 @@ def main():
         if args.out:
             pathlib.Path(args.out).write_text(text + "\n")
         return
+    source = args.data if args.own_cycles == 1.0 else f"{args.data} x{args.own_cycles:g}"
     done = {r["set"] for r in _read([args.log]) if r["case"] == args.case
             and r.get("release", "threshold") == args.release
             and r.get("coords", "normal") == args.coords
             and r.get("intervals", "wald") == args.intervals
-            and r.get("data", "generator") == args.data} if args.log else set()  # fmt: skip
+            and r.get("data", "generator") == source} if args.log else set()  # fmt: skip
     todo = [i for i in range(args.first, args.first + args.sets) if i not in done]
     with concurrent.futures.ProcessPoolExecutor(args.jobs) as pool:
         keep = None if args.keep is None else pathlib.Path(args.keep)
         futures = {pool.submit(one_set, args.case, i, args.n_sim, args.release, keep,
-                               args.coords, args.intervals, args.data): i
+                               args.coords, args.intervals, args.data, args.own_cycles): i
                    for i in todo}  # fmt: skip
         for f in concurrent.futures.as_completed(futures):
             r = f.result()
