@@ -10,7 +10,7 @@ measurement, the extraction or the estimator.
 spread that noise adds to a slip at a given release force (the residual sd of slip time
 and of force drop about a quadratic in the release force's gap above F_k), the
 generator's against the model's at the truth's noise times each factor, interpolated,
-with bootstrap standard errors. KS alone would miss a noise a few per cent off.
+with delta-method standard errors. KS alone would miss a noise a few per cent off.
 
     python benchmarks/generator_physics.py [--case random|fixed] [--traces 3] [--seconds 1000]
     python benchmarks/generator_physics.py --noise-scan 0.85,1,1.15 --traces 30 --paths 100 \
@@ -70,32 +70,30 @@ def model_cycles(case: str, n_paths: int, t_max: float, seed: int, noise: float 
     }
 
 
-def noise_spreads(cycles: dict) -> np.ndarray:
-    """Residual sd of slip time and force drop about a quadratic in the release gap."""
-    g = cycles["gap"]
-    x = np.c_[np.ones_like(g), g, g * g]
-    out = []
-    for k in SPREADS:
-        coef, *_ = np.linalg.lstsq(x, cycles[k], rcond=None)
-        out.append(np.std(cycles[k] - x @ coef))
-    return np.array(out)
+def residual_spread(gap: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """The sd of `y` (slip time or force drop) about a quadratic in the release's gap above
+    F_k (the spread the friction noise adds to a slip from a given force), and its standard
+    error (delta method on the residuals' squares)."""
+    x = np.c_[np.ones_like(gap), gap, gap * gap]
+    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
+    r = y - x @ coef
+    sd = float(r.std())
+    return sd, float(np.sqrt(np.var(r * r) / (4 * sd * sd * r.size)))
 
 
-def bootstrap_se(cycles: dict, reps: int = 200, seed: int = 0) -> np.ndarray:
-    rng = np.random.default_rng(seed)
-    n = cycles["gap"].size
-    draws = [noise_spreads({k: v[i] for k, v in cycles.items()})
-             for i in (rng.integers(0, n, n) for _ in range(reps))]  # fmt: skip
-    return np.std(draws, axis=0)
+def noise_spreads(cycles: dict) -> tuple[np.ndarray, np.ndarray]:
+    """`residual_spread` of slip time and force drop: (sds, standard errors)."""
+    out = np.array([residual_spread(cycles["gap"], cycles[k]) for k in SPREADS])
+    return out[:, 0], out[:, 1]
 
 
 def noise_scan(case: str, factors, g: dict, paths: int, t_max: float) -> None:
     """The generator's effective noise intensity, as a factor of the truth's, per spread."""
-    gs, gse = noise_spreads(g), bootstrap_se(g)
+    gs, gse = noise_spreads(g)
     rows = []
     for f in factors:
         m = model_cycles(case, paths, t_max, seed=11, noise=f)
-        rows.append((f, noise_spreads(m), bootstrap_se(m), m["gap"].size))
+        rows.append((f, *noise_spreads(m), m["gap"].size))
     print(f"generator: {g['gap'].size} cycles; model: {rows[0][3]}-{rows[-1][3]} a factor")
     print("| spread | generator (SE) | " + " | ".join(f"model x {f:g}" for f, *_ in rows)
           + " | generator's noise factor (SE) |")  # fmt: skip

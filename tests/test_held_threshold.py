@@ -125,22 +125,13 @@ def test_the_held_model_matches_an_independent_generator():
             assert p["drop after a zero stick"] < 1e-3, p
 
 
-def _residual_spread(gap, drop):
-    """The sd of the force drop about a quadratic in the release's gap above F_k (the spread
-    the friction noise adds to a slip from a given force), and its standard error."""
-    x = np.c_[np.ones_like(gap), gap, gap * gap]
-    coef, *_ = np.linalg.lstsq(x, drop, rcond=None)
-    r = drop - x @ coef
-    sd = r.std()
-    return sd, np.sqrt(np.var(r * r) / (4 * sd * sd * r.size))
-
-
 @pytest.mark.slow
 def test_the_generator_slips_carry_the_truths_noise_intensity():
     """KS tests cannot see a noise intensity a few per cent off; the drop's spread at a
     given release force can: the independent generator's matches the held model's at the
     truth's intensity, and not at 0.85 or 1.15 times it (the statistic resolves that)."""
     truth_slider = benchmark_module("fit_independent").truth_slider
+    residual_spread = benchmark_module("generator_physics").residual_spread
     gen = _generator()
     rig = gen.Rig(gap_sd=2.8e-3)
     gap, drop = [], []
@@ -149,15 +140,16 @@ def test_the_generator_slips_carry_the_truths_noise_intensity():
         n = np.isfinite(ev["stick"])
         gap.append(ev["peak"][n] - rig.kinetic_friction)
         drop.append(ev["peak"][n] - ev["f_stick"][n])
-    g_sd, g_se = _residual_spread(np.concatenate(gap), np.concatenate(drop))
-    dim = truth_slider(rig).dimensionless()
-    to_n = rig.stiffness * truth_slider(rig).scales.length
+    g_sd, g_se = residual_spread(np.concatenate(gap), np.concatenate(drop))
+    slider = truth_slider(rig)
+    dim = slider.dimensionless()
+    to_n = rig.stiffness * slider.scales.length
     z = {}
     for factor in (0.85, 1.0, 1.15):
         model = ss.get_model("random-threshold-held")(**{**dim, "D": dim["D"] * factor})
         c = ss.simulate_cycles(model, 50, 0.02, 40_000.0, seed=6, record=False).cycles
         m_drop = c["slip_distance"] * to_n
-        m_sd, m_se = _residual_spread(c["stick_position"] * to_n + m_drop, m_drop)
+        m_sd, m_se = residual_spread(c["stick_position"] * to_n + m_drop, m_drop)
         z[factor] = (g_sd - m_sd) / np.hypot(g_se, m_se)
     print({k: f"{v:+.2f}" for k, v in z.items()})
     assert abs(z[1.0]) < 4, z
