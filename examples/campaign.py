@@ -10,16 +10,19 @@ speeds of 42, 1100 and 4300 um/s. What it does:
 
 1. `Campaign.from_yaml(campaigns/public_grid.yaml)`: each run's regime, the table of runs
    and the regime map (`DIR/campaign/`);
-2. two laws fitted to the three stick-slip runs at once (`fit(model, [run, ...])`), one
+2. three laws fitted to the three stick-slip runs at once (`fit(model, [run, ...])`), one
    set of SI parameters for all three, each run through its own measurement, spring and
-   speed: a fixed static threshold (`langevin`) and a normal random threshold whose
-   stick, past the next threshold, releases from where it is (`random-threshold-held`);
-   free: the effective mass, the friction-noise intensity and the static threshold
-   (its mean and sd); fixed: the kinetic friction (the cycles see only the gap above it),
-   a negligible damping and the noise's correlation time;
-3. `compare_fits` on the two joint fits: the fixed threshold kept unless the data reject
-   it (a parametric bootstrap of sets of three runs, each through its own measurement);
-   the chosen law saved as `DIR/campaign_fit.json` (`stickslip.load_fit`);
+   speed: a normal random static threshold whose stick, past the next threshold, releases
+   from where it is (`random-threshold-held`), a fixed threshold with a viscous kinetic
+   friction, F_k + c times the slider's speed (`langevin`, the damping c free), and both
+   at once; free in each: the effective mass, the friction-noise intensity and the static
+   threshold (its mean and sd), and c where the law has it; fixed: the kinetic friction
+   (the cycles see only the gap above it), the noise's correlation time, and a negligible
+   c where the law has none (`--with-fixed`: the fixed threshold alone too);
+3. `compare_fits` on the joint fits: the simplest law the data do not reject (a
+   parametric bootstrap of sets of three runs, each through its own measurement; of two
+   laws with as many free parameters, the likelier); the chosen law saved as
+   `DIR/campaign_fit.json` (`stickslip.load_fit`);
 4. leave one out: each stick-slip run predicted (`FitResult.predict(run)`, through the
    run's own measurement) from the chosen law fitted to the two others: medians of stick
    time, slip time and force drop against the run's, KS p-values;
@@ -27,9 +30,8 @@ speeds of 42, 1100 and 4300 um/s. What it does:
    v_b=)`).
 
 Writes `DIR/fits.md`, `DIR/leave_one_out.csv` and `.md`, and `DIR/summary.md`; prints
-the summary. About 13 minutes on 2 quiet cores at `--n-sim 1000`, the fits in worker
-processes (`--workers`, 2 by default): the two joint fits side by side 5 minutes, the
-comparison 1.5, the three leave-one-out fits 7 (docs/runs.md).
+the summary. About 20 minutes on 2 quiet cores at `--n-sim 1000`, the fits in worker
+processes (`--workers`, 2 by default; docs/runs.md).
 """
 
 from __future__ import annotations
@@ -47,22 +49,34 @@ HERE = pathlib.Path(__file__).resolve().parent
 GRID = HERE / "campaigns" / "public_grid.yaml"
 ZETA = 1e-3  # the damping c / (m omega0) at the first run's spring: negligible
 TAU = 0.1  # the noise's correlation time in units of the first run's 1/omega0 (1.35 ms)
+# The viscous kinetic friction's c (N s/m: F_k + c times the slip's speed over the track),
+# from negligible to past critical damping at the softer spring (c / (m omega0) about 2
+# for 30 g at 168 N/m).
+DAMPING = (1e-4, 5.0)
 OBSERVABLES = ("stick_time", "slip_time", "force_drop")
 
 
-def candidates(reference):
-    """{law: (model, free, fixed)} in SI, about the first run's reference slider."""
+def candidates(reference, with_fixed=False):
+    """{law: (model, free, fixed)} in SI, about the first run's reference slider: a random
+    threshold, a viscous kinetic friction, both (and a fixed threshold, `with_fixed`)."""
     kinetic = reference.kinetic_friction
     omega0 = reference.scales.omega0
-    fixed = dict(kinetic_friction=kinetic, damping=ZETA * reference.mass * omega0,
-                 noise_time=TAU / omega0)  # fmt: skip
+    fixed = dict(kinetic_friction=kinetic, noise_time=TAU / omega0)
+    negligible = dict(damping=ZETA * reference.mass * omega0)
     shared = {"mass": (0.003, 0.1), "noise": (1e-10, 1e-6)}
     gap = (kinetic + 1e-3, kinetic + 0.03)  # F_s - F_k from 1 to 30 mN
-    return {
-        "fixed threshold": ("langevin", {**shared, "static_friction": gap}, fixed),
-        "random threshold": ("random-threshold-held", {
-            **shared, "threshold.mean": gap, "threshold.sd": (1e-4, 0.02)}, fixed),
+    random = {"threshold.mean": gap, "threshold.sd": (1e-4, 0.02)}
+    viscous = {"damping": DAMPING}
+    laws = {
+        "random threshold": ("random-threshold-held", shared | random, fixed | negligible),
+        "viscous friction": ("langevin", shared | {"static_friction": gap} | viscous, fixed),
+        "random threshold, viscous friction": (
+            "random-threshold-held", shared | random | viscous, fixed),
     }  # fmt: skip
+    if with_fixed:
+        laws = {"fixed threshold": ("langevin", shared | {"static_friction": gap},
+                                    fixed | negligible)} | laws  # fmt: skip
+    return laws
 
 
 def joint_fit(law, runs, n_sim, seed):
@@ -106,7 +120,8 @@ def left_out(law, stick, i, n_sim, seed):
     p = r.predict(run.cycles)
     row = dict(run=run.settings["name"], stiffness=run.settings["stiffness"],
                v_b=run.settings["v_b"], fitted_to=" + ".join(
-                   o.settings["name"] for o in others), regime=p.regime)  # fmt: skip
+                   o.settings["name"] for o in others), regime=p.regime,
+               evidence=p.evidence)  # fmt: skip
     for k, (model, data) in p.medians().items():
         row[f"{k}_predicted"] = model
         row[f"{k}_run"] = data
@@ -140,6 +155,9 @@ def loo_markdown(rows) -> str:
             f"{_g(1e3 * r['force_drop_predicted'], 3)}, {_g(1e3 * r['force_drop_run'], 3)} | "
             + ", ".join(_g(r[f"{k}_p"], 2) for k in OBSERVABLES) + " |"
         )  # fmt: skip
+    # a run the left-out fit does not predict to stick-slip: why (no medians to compare)
+    lines += [f"\n{r['run']}, predicted {r['regime']}: {r['evidence']}" for r in rows
+              if r["regime"] != "stick-slip"]  # fmt: skip
     return "\n".join(lines)
 
 
@@ -152,6 +170,9 @@ def main(argv=None):
     parser.add_argument("--force", action="store_true", help="replace an earlier result")
     parser.add_argument("--workers", type=int, default=2, help="processes at once: the "
                         "laws' fits, then the leave-one-out fits")  # fmt: skip
+    parser.add_argument("--with-fixed", action="store_true", help="a fixed static "
+                        "threshold too (the simplest law; the comparison then takes three "
+                        "times the replicates)")  # fmt: skip
     parser.add_argument("--check-only", action="store_true", help="read the runs and check "
                         "each law's box on them, fit nothing (seconds)")  # fmt: skip
     args = parser.parse_args(argv)
@@ -170,7 +191,7 @@ def main(argv=None):
         print(f"  {run!r}: {run.evidence}")
 
     reference = ss.Slider.from_cycles(stick[0].cycles, mass=stick[0].settings["mass"])
-    laws = candidates(reference)
+    laws = candidates(reference, args.with_fixed)
     if args.check_only:  # each law's model on each run at its box's centre and corners
         for name, (model, free, fixed) in laws.items():
             for run in stick:
@@ -181,15 +202,16 @@ def main(argv=None):
                     ss.get_model(model)(**slider.model_parameters({**fixed, **at}))
             print(f"{name}: {model}, {', '.join(free)} free: every run's model builds")
         return
-    # The fits in worker processes (`--workers` at a time, a fresh JAX in each): the two
+    # The fits in worker processes (`--workers` at a time, a fresh JAX in each): the
     # laws side by side, then the comparison, then the leave-one-out fits of the chosen
     # law. The numbers do not depend on the workers or on the order the fits end in.
     fits = {}
     context = multiprocessing.get_context("spawn")
     with concurrent.futures.ProcessPoolExecutor(args.workers, mp_context=context) as pool:
         t1 = time.perf_counter()
+        # (the law with the most free parameters, the longest fit, first)
         jobs = {pool.submit(joint_fit, law, stick, args.n_sim, args.seed): name
-                for name, law in laws.items()}  # fmt: skip
+                for name, law in sorted(laws.items(), key=lambda x: -len(x[1][1]))}  # fmt: skip
         for job in concurrent.futures.as_completed(jobs):
             name = jobs[job]
             fits[name] = job.result()
