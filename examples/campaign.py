@@ -21,8 +21,9 @@ speeds of 42, 1100 and 4300 um/s. What it does:
    c where the law has none (`--with-fixed`: the fixed threshold alone too);
 3. `compare_fits` on the joint fits: the simplest law the data do not reject (a
    parametric bootstrap of sets of three runs, each through its own measurement; of two
-   laws with as many free parameters, the likelier); the chosen law saved as
-   `DIR/campaign_fit.json` (`stickslip.load_fit`);
+   laws with as many free parameters, the likelier); the chosen law fitted again with
+   profile-likelihood intervals (`--no-profile`: its Wald intervals, often none here)
+   and saved as `DIR/campaign_fit.json` (`stickslip.load_fit`);
 4. leave one out: each stick-slip run predicted (`FitResult.predict(run)`, through the
    run's own measurement) from the chosen law fitted to the two others: medians of stick
    time, slip time and force drop against the run's, KS p-values;
@@ -79,13 +80,13 @@ def candidates(reference, with_fixed=False):
     return laws
 
 
-def joint_fit(law, runs, n_sim, seed):
+def joint_fit(law, runs, n_sim, seed, intervals="wald"):
     import stickslip as ss
 
     model, free, fixed = law
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        r = ss.fit(model, runs, free, fixed, n_sim=n_sim, seed=seed)
+        r = ss.fit(model, runs, free, fixed, n_sim=n_sim, seed=seed, intervals=intervals)
     said = [str(w.message) for w in caught if str(w.message).startswith("fit:")]
     return r, said
 
@@ -173,6 +174,9 @@ def main(argv=None):
     parser.add_argument("--with-fixed", action="store_true", help="a fixed static "
                         "threshold too (the simplest law; the comparison then takes three "
                         "times the replicates)")  # fmt: skip
+    parser.add_argument("--no-profile", action="store_true", help="keep the chosen law's "
+                        "Wald intervals (its refit with profile-likelihood intervals takes "
+                        "about 5 minutes more)")  # fmt: skip
     parser.add_argument("--check-only", action="store_true", help="read the runs and check "
                         "each law's box on them, fit nothing (seconds)")  # fmt: skip
     args = parser.parse_args(argv)
@@ -226,14 +230,22 @@ def main(argv=None):
         print(f"compared in {time.perf_counter() - t1:.0f} s")
         print("  " + comparison.summary().replace("\n", "\n  "))
         chosen = comparison.chosen_name
-        best = comparison.chosen
-        best.save(out / "campaign_fit.json")
-
+        best, said = fits[chosen]
         t1 = time.perf_counter()
+        # the chosen law again with profile-likelihood intervals (the same estimate: the
+        # intervals follow the likelihood where the surface's quadratic gives none),
+        # beside the leave-one-out fits
+        profiled = None if args.no_profile else pool.submit(
+            joint_fit, laws[chosen], stick, args.n_sim, args.seed, "profile")
         loo = list(pool.map(left_out, [laws[chosen]] * len(stick), [stick] * len(stick),
                             range(len(stick)), [args.n_sim] * len(stick),
                             [args.seed] * len(stick)))  # fmt: skip
         print(f"leave one out: {time.perf_counter() - t1:.0f} s")
+        if profiled is not None:
+            best, said = profiled.result()
+            print(f"{chosen}, profile intervals: {time.perf_counter() - t1:.0f} s")
+            print("  " + best.summary().replace("\n", "\n  "))
+        best.save(out / "campaign_fit.json")
     with open(out / "leave_one_out.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(loo[0]))
         writer.writeheader()
@@ -252,6 +264,9 @@ def main(argv=None):
         f"# The public grid, {len(stick)} stick-slip runs fitted jointly",
         "", f"Chosen: **{chosen}** (`{laws[chosen][0]}`), saved as campaign_fit.json.", "",
         fits_md, "", "## The choice", "", "```", comparison.summary(), "```", "",
+        f"## {chosen}: {'Wald' if args.no_profile else 'profile-likelihood'} intervals", "",
+        fits_markdown({chosen: (best, said)}).split("\n\n")[0], "",
+        *[f"- {w}" for w in said if "interval" in w], "",
         "## Each stick-slip run from a fit to the others", "", loo_md, "",
         "## The other runs: measured regime, predicted regime", "",
         "| run | measured | predicted |", "|---|---|---|", *regimes, "",
