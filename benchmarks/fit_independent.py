@@ -35,6 +35,8 @@ measurement read from generator trace i, as many as that trace gave. A lean that
 there is the estimator's; one that goes is the generator's data (physics, sensor,
 extraction) differing from the model's. `--own-cycles 4`: four times as many cycles a set
 (a lean of the estimator's that shrinks with the data is a small-sample one).
+`--likelihood pair` (an experiment, `_pair_likelihood.py`): each stick time scored given
+the drop before it, in place of its marginal density.
 """
 
 from __future__ import annotations
@@ -157,12 +159,18 @@ def model_data(data, case: str, release: str, slider, seed: int, factor: float =
 def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold",
             keep: pathlib.Path | None = None, coords: str = "normal",
             intervals: str = "wald", source: str = "generator",
-            factor: float = 1.0) -> dict:  # fmt: skip
+            factor: float = 1.0, likelihood: str = "marginal") -> dict:  # fmt: skip
     """Make trace i, extract its cycles, fit them; the record of the set (`keep`: the
     cycles and the fit pickled there too, for a later look at the fit's surface).
     `source="model"`: fit the model's own cycles through that trace's measurement,
-    `factor` times as many."""
+    `factor` times as many. `likelihood="pair"`: stick times scored given their drops
+    (`_pair_likelihood`, an experiment)."""
     import stickslip as ss
+
+    if likelihood == "pair":
+        import _pair_likelihood
+
+        _pair_likelihood.install()
     from stickslip._inference.likelihood import cycle_log_likelihood
 
     rig = rig_of(case)
@@ -205,6 +213,7 @@ def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold",
         coords=coords,
         intervals=intervals,
         data=source if factor == 1.0 else f"{source} x{factor:g}",
+        likelihood=likelihood,
         set=i,
         n_cycles=len(data["slip_time"]),
         seconds=time.perf_counter() - t0,
@@ -252,7 +261,9 @@ def _label(record: dict) -> str:
     return (record["case"] + ("" if release == "threshold" else f" (release from the {release})")
             + ("" if coords == "normal" else f" ({coords})")
             + ("" if intervals == "wald" else f" ({intervals} intervals)")
-            + ("" if source == "generator" else f" ({source}'s own data)"))  # fmt: skip
+            + ("" if source == "generator" else f" ({source}'s own data)")
+            + ("" if record.get("likelihood", "marginal") == "marginal"
+               else ", stick given drop"))  # fmt: skip
 
 
 def _with_wald(records: list[dict], reread: bool = True) -> list[dict]:
@@ -383,6 +394,9 @@ def main():
         default=1.0,
         help="--data model: this many times the trace's cycles",
     )
+    parser.add_argument("--likelihood", choices=("marginal", "pair"), default="marginal",
+                        help="the fit's (marginal) or, an experiment, stick times scored "
+                        "given their drops (_pair_likelihood.py)")  # fmt: skip
     args = parser.parse_args()
     if args.summary:
         text = table(summary(_with_wald(_read(args.summary))))
@@ -396,12 +410,15 @@ def main():
             and r.get("release", "threshold") == args.release
             and r.get("coords", "normal") == args.coords
             and r.get("intervals", "wald") == args.intervals
-            and r.get("data", "generator") == source} if args.log else set()  # fmt: skip
+            and r.get("data", "generator") == source
+            and r.get("likelihood", "marginal") == args.likelihood
+            } if args.log else set()  # fmt: skip
     todo = [i for i in range(args.first, args.first + args.sets) if i not in done]
     with concurrent.futures.ProcessPoolExecutor(args.jobs) as pool:
         keep = None if args.keep is None else pathlib.Path(args.keep)
         futures = {pool.submit(one_set, args.case, i, args.n_sim, args.release, keep,
-                               args.coords, args.intervals, args.data, args.own_cycles): i
+                               args.coords, args.intervals, args.data, args.own_cycles,
+                               args.likelihood): i
                    for i in todo}  # fmt: skip
         for f in concurrent.futures.as_completed(futures):
             r = f.result()

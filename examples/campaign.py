@@ -31,8 +31,8 @@ speeds of 42, 1100 and 4300 um/s. What it does:
    v_b=)`).
 
 Writes `DIR/fits.md`, `DIR/leave_one_out.csv` and `.md`, and `DIR/summary.md`; prints
-the summary. About 20 minutes on 2 quiet cores at `--n-sim 1000`, the fits in worker
-processes (`--workers`, 2 by default; docs/runs.md).
+the summary. About 14 minutes on 2 quiet cores at `--n-sim 1000` (10 with
+`--no-profile`), the fits in worker processes (`--workers`, 2 by default; docs/runs.md).
 """
 
 from __future__ import annotations
