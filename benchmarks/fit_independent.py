@@ -168,9 +168,11 @@ def one_set(case: str, i: int, n_sim: int | None, release: str = "threshold",
     import stickslip as ss
 
     if likelihood == "pair":
-        import _pair_likelihood
-
-        _pair_likelihood.install()
+        spec = importlib.util.spec_from_file_location("_pair_likelihood",
+                                                      HERE / "_pair_likelihood.py")  # fmt: skip
+        pair = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(pair)
+        pair.install()
     from stickslip._inference.likelihood import cycle_log_likelihood
 
     rig = rig_of(case)

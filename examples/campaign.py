@@ -175,8 +175,8 @@ def main(argv=None):
                         "threshold too (the simplest law; the comparison then takes three "
                         "times the replicates)")  # fmt: skip
     parser.add_argument("--no-profile", action="store_true", help="keep the chosen law's "
-                        "Wald intervals (its refit with profile-likelihood intervals takes "
-                        "about 5 minutes more)")  # fmt: skip
+                        "Wald intervals (its refit with profile-likelihood intervals, beside the "
+                        "left-out fits, takes about 4 minutes more)")  # fmt: skip
     parser.add_argument("--check-only", action="store_true", help="read the runs and check "
                         "each law's box on them, fit nothing (seconds)")  # fmt: skip
     args = parser.parse_args(argv)
