@@ -250,7 +250,14 @@ def noisy_threshold(c, noise, level=0.95):
     def below(t):
         return float(w @ chi2.cdf(np.maximum(t - noise * z, 0.0) / c, 1)) - level
 
-    return float(brentq(below, plain, plain + 12 * noise))
+    # noise far below the threshold (a surface the polynomial fits to rounding): the
+    # bracket is a point within rounding, and its ends are the quantile
+    top = plain + 12 * noise
+    if below(plain) >= 0.0:
+        return plain
+    if not below(top) > 0.0:
+        return float(top)
+    return float(brentq(below, plain, top))
 
 
 def _side(prof, j, u1, best, q, sign, first, slope, steps, lo, hi, record, side):
