@@ -53,7 +53,7 @@ ORIENTATION = dict(mass=MASS, normal_force=NORMAL_FORCE, mu0=0.3, a=A, b=0.015, 
                    tau=TAU, D=(0.3 * NORMAL_FORCE * A / MASS) ** 2 * TAU)  # fmt: skip
 D_C_BOX = (0.25e-6, 8e-6)  # m: the orientation value 1 um lies off its geometric centre
 # The runs fitted by default: on the soft spring at 42 um/s the law's sticks load some 6 s
-# (four times the run's), and 1000 model cycles of that run cost ~5 minutes a point.
+# (four times the run's), and with that run a point took ~6 minutes (the three runs).
 RUNS = ("k1002Nm_v42.mat", "k168Nm_v1100.mat")
 
 
