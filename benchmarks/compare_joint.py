@@ -4,6 +4,7 @@ which shares no code with the library) on springs of 168 and 400 N/m.
 
     python benchmarks/compare_joint.py --gap-sd 0.0028 [--seed 500] [--n-sim 1000]
     python benchmarks/compare_joint.py --gap-sd 0          # the fixed threshold true
+    python benchmarks/compare_joint.py --gap-sd 0 --again  # the fits' kept cycles' saving
 
 Each trace is 200 s at 2 kHz with the generator's sensor noise, spikes, drift and a mains
 hum, read by `extract_cycles`; both laws are fitted jointly to the two runs (`langevin`:
@@ -147,6 +148,8 @@ def main(argv=None) -> None:
     parser.add_argument("--summary", nargs="+", default=None, help="summarise study logs")
     parser.add_argument("--seed", type=int, default=500)
     parser.add_argument("--n-sim", type=int, default=1000)
+    parser.add_argument("--again", action="store_true", help="time the comparison from the "
+                        "fits' kept design cycles against the same simulated again")  # fmt: skip
     args = parser.parse_args(argv)
     if args.kept or args.summary:
         return study_main(args)
@@ -170,6 +173,30 @@ def main(argv=None) -> None:
     comparison = ss.compare_fits(fits, seed=11)
     print(f"compared in {time.perf_counter() - t0:.0f} s")
     print(comparison.summary())
+    if args.again:
+        again_main(ss, fits, comparison)
+
+
+def again_main(ss, fits, comparison) -> None:
+    """The comparison once more from the fits' kept design cycles and once with them
+    simulated again (the same cycles: a function of the point, the run and the seed), both
+    after the first comparison has compiled and warmed everything; the same statistics."""
+    seconds = {}
+    for how in ("simulated again", "kept"):
+        designs = [r.diagnostics.design for r in fits.values()]
+        kept = [d.samples for d in designs]
+        if how == "simulated again":
+            for d in designs:
+                object.__setattr__(d, "samples", None)
+        t0 = time.perf_counter()
+        other = ss.compare_fits(fits, seed=11)
+        seconds[how] = time.perf_counter() - t0
+        for d, k in zip(designs, kept, strict=True):
+            object.__setattr__(d, "samples", k)
+        same = [t["statistic"] for t in other.tests] == [t["statistic"] for t in comparison.tests]
+        print(f"compared from the design cycles {how}: {seconds[how]:.1f} s "
+              f"({'the same' if same else 'OTHER'} statistics)")  # fmt: skip
+    print(f"kept / simulated again: {seconds['kept'] / seconds['simulated again']:.3f}")
 
 
 if __name__ == "__main__":

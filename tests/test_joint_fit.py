@@ -158,6 +158,40 @@ def test_a_joint_fit_finds_the_slider_behind_two_springs(tmp_path):
     assert c.chosen is r, c.summary()
 
 
+def test_a_joint_fit_keeps_its_design_cycles_for_compare_fits():
+    """A joint fit keeps each run's cycles at its design points, and the comparison's
+    scores from them are those of the same cycles simulated again (a function of the
+    point, the run and the seed): the generator's traces of one slider on two springs."""
+    from stickslip._inference.compare import _Candidate
+
+    gen = _generator()
+    runs = []
+    for i, k in enumerate((168.0, 400.0)):
+        rig = dataclasses.replace(gen.Rig(gap_sd=0.0, hum=1.5e-4), stiffness=k)
+        t, force, _ = gen.make_trace(500 + i, 40.0, rig)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            cycles = ss.extract_cycles(t, force=force, stiffness=k, v_b=rig.v_b)
+        runs.append((ss.Cycles({c: cycles[c] for c in ("slip_time", "stick_time")},
+                               cycles.info), Slider.from_cycles(cycles, mass=0.03)))  # fmt: skip
+    fixed = {"kinetic_friction": rig.kinetic_friction, "damping": rig.damping,
+             "noise_time": rig.noise_time, "noise": rig.noise_intensity,
+             "static_friction": rig.kinetic_friction + rig.gap_mean}  # fmt: skip
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = ss.fit("langevin", runs, {"mass": (0.005, 0.05)}, fixed, n_sim=1000, seed=7)
+    kept = _Candidate.of("kept", r)
+    design = kept.design()
+    assert all(len(per_run) == 2 and all(isinstance(x, dict) for x in per_run)
+               for per_seed in design[2] for per_run in per_seed)  # fmt: skip
+    again = list(design)
+    again[2] = [[[None, None] for _ in per_seed] for per_seed in design[2]]
+    for which in (0, 1):
+        a = kept.best(design, kept.columns, 1, which)
+        b = kept.best(tuple(again), kept.columns, 1, which)
+        assert np.isfinite(a).all() and np.array_equal(a, b), (a, b)
+
+
 def _joint_result(names, log_likelihood=-10.0, joint=True):
     from stickslip._inference.result import FitResult
 

@@ -62,8 +62,8 @@ cost `2 n_boot` fits.
 Several runs (fits of one slider to several runs, `joint`): the log-likelihood is the sum
 of the runs', so is $T$; a replicate is a set of runs, each drawn from the null's fitted
 slider on that run's spring and speed, through that run's measurement, at its number of
-cycles (run 0 from the test's stream, the others from streams of their own); each run's
-design cycles are simulated again. $T$ is not clipped at 0 there (nesting is not checked
+cycles (run 0 from the test's stream, the others from streams of their own), scored
+against each run's design cycles as the fit kept them. $T$ is not clipped at 0 there (nesting is not checked
 in SI values).
 
 Fits in other units (a creeping slider in SI, a slider in its reference `Slider`'s):
@@ -471,7 +471,10 @@ class _Candidate:
             models.append(m)
             offsets.append((u - centre) / steps)
             for j in range(2):
-                samples[j].append([None] * len(m) if kept is None else [kept[j][i]])
+                cycles = None if kept is None else kept[j][i]  # (several runs: a list)
+                if cycles is None:  # (not kept: simulated again)
+                    cycles = [None] * len(m)
+                samples[j].append([cycles] if isinstance(cycles, dict) else list(cycles))
         if not models:
             raise ParameterError(
                 "compare_fits", "fits", f"holds {self.name}, whose fit has no design point "

@@ -278,10 +278,11 @@ class Likelihood:
             models = p.build(p.params(u))
         except (ValueError, ArithmeticError):
             models = [None] * len(p.parts)
-        per_run, sim, left_out = [], None, 0.0
+        per_run, sims, left_out = [], [], 0.0
         for m, (d, measure, h) in zip(models, p.parts, strict=True):
             try:
                 sim = None if m is None else sample(m, p.n_sim, p.dt, p.t_max, at_seed, measure)
+                sims.append(sim)
             except ParameterError as err:  # simulate's names are fit's arguments
                 name = {"n_paths": "n_sim"}.get(err.parameter, err.parameter)
                 raise ParameterError("fit", name, err.reason, err.value) from None
@@ -302,8 +303,11 @@ class Likelihood:
             terms = per_run[0]
         else:
             terms = {k: np.concatenate([t[k] for t in per_run]) for k in p.data}
-        sim = None if sim is None or not self.keep else {k: np.asarray(sim[k], float)
-                                                         for k in p.data}  # fmt: skip
+        kept = None
+        if self.keep and terms is not None:  # (one run: its cycles; several: a list, per run)
+            kept = [{k: np.asarray(s[k], float) for k in d}
+                    for s, (d, _, _) in zip(sims, p.parts, strict=True)]  # fmt: skip
+            kept = kept[0] if p.runs is None else kept
         value = -np.inf if terms is None else float(sum(np.sum(v) for v in terms.values()))
         if at_seed == p.seed:  # the surface's points (the second seed's are in mc_noise)
             self.points.append((np.array([p.params(u)[k] for k in p.names]), value))
@@ -312,7 +316,7 @@ class Likelihood:
 
             shown = ", ".join(f"{k}={v:.4g}" for k, v in p.params(u).items())
             print(f"fit: {shown}: log-likelihood {value:.2f}", file=sys.stderr, flush=True)
-        return value, terms, sim
+        return value, terms, kept
 
 
 def simulated_mle(
@@ -327,7 +331,7 @@ def simulated_mle(
     p = problem(model, data, free, fixed, seed=seed, n_sim=n_sim, dt=dt, t_max=t_max,
                 scales=scales, trace=trace, sampling=sampling, measurement=measurement,
                 runs=runs)  # fmt: skip
-    keep = p.runs is None and _keeps_samples(p.n_sim, len(p.data), len(p.names))
+    keep = _keeps_samples(p.n_sim, sum(len(d) for d, _, _ in p.parts), len(p.names))
     loglik = Likelihood(p, progress=progress, keep=keep)
     # 1. a coarse grid over the box, Nelder-Mead from its best point
     u_best, optimizer, caught = search(loglik, p.lo, p.hi, p.free)
@@ -480,9 +484,9 @@ def _method(p: Problem, dependence: dict, intervals: str = "wald") -> str:
 
 
 # The most memory a fit keeps of the cycles simulated at its design points (both seeds),
-# for `compare_fits`: 8 B a simulated cycle and fitted column. Through a measurement: ~2 MB
-# at n_sim 1000 with three columns and four free parameters (41 points), ~8 MB at the
-# default 4000. Per-cycle values at the default 10^5 cycles a point: kept for one free
+# for `compare_fits`: 8 B a simulated cycle and fitted column (of each run, for a fit of
+# several). Through a measurement: ~2 MB at n_sim 1000 with three columns and four free
+# parameters (41 points), ~8 MB at the default 4000 (16 MB for two runs: kept). Per-cycle values at the default 10^5 cycles a point: kept for one free
 # parameter (5 points, 8 MB a column), not from two (13 points, 21 MB a column): the
 # comparison simulates them again, the same cycles (a function of the point and the
 # seed), ~0.1-0.3 s a point.
@@ -491,7 +495,7 @@ KEEP_SAMPLES_BYTES = 16 * 2**20
 
 class _DesignSamples(list):
     """Per seed, the cycles simulated at each design point (`None` where the model refused
-    it): a list, shown in one line (a `FitResult`'s repr shows its diagnostics)."""
+    it; for a fit of several runs, a list of each run's): a list, shown in one line (a `FitResult`'s repr shows its diagnostics)."""
 
     def __repr__(self) -> str:
         return f"<cycles simulated at {len(self[0])} design points, {len(self)} seeds>"
