@@ -690,3 +690,11 @@ def test_a_ramp_and_a_single_slip_are_named_as_such():
     v[slip] = 1.0 - np.sin(np.pi * (t[slip] - 4.0))
     with pytest.raises(ss.DataError, match="a single slip between two stick phases"):
         ss.extract_cycles(t, v=v, v_b=1.0)
+
+
+def test_a_table_cut_to_some_columns_keeps_its_length():
+    """The cycles a fit takes (a table cut to, say, slip and stick times: no period) count
+    their rows; an empty table has none."""
+    cut = ss.Cycles({"slip_time": np.ones(7), "stick_time": np.ones(7)}, {})
+    assert len(cut) == 7
+    assert len(ss.Cycles({}, {})) == 0

@@ -36,7 +36,8 @@ class Cycles:
     info: dict[str, Any]
 
     def __len__(self) -> int:
-        return int(self.table["period"].size)
+        # (any column: a table cut to the columns a fit takes may lack the period)
+        return int(next(iter(self.table.values()), np.empty(0)).size)
 
     def __getitem__(self, name: str) -> np.ndarray:
         return self.table[name]
