@@ -63,8 +63,8 @@ Several runs (fits of one slider to several runs, `joint`): the log-likelihood i
 of the runs', so is $T$; a replicate is a set of runs, each drawn from the null's fitted
 slider on that run's spring and speed, through that run's measurement, at its number of
 cycles (run 0 from the test's stream, the others from streams of their own), scored
-against each run's design cycles as the fit kept them. $T$ is not clipped at 0 there (nesting is not checked
-in SI values).
+against each run's design cycles as the fit kept them. $T$ is not clipped at 0 there
+(nesting is not checked in SI values).
 
 Fits in other units (a creeping slider in SI, a slider in its reference `Slider`'s):
 the richer candidate scores the sets converted into its units, and each set's statistic

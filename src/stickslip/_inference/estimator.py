@@ -486,16 +486,18 @@ def _method(p: Problem, dependence: dict, intervals: str = "wald") -> str:
 # The most memory a fit keeps of the cycles simulated at its design points (both seeds),
 # for `compare_fits`: 8 B a simulated cycle and fitted column (of each run, for a fit of
 # several). Through a measurement: ~2 MB at n_sim 1000 with three columns and four free
-# parameters (41 points), ~8 MB at the default 4000 (16 MB for two runs: kept). Per-cycle values at the default 10^5 cycles a point: kept for one free
-# parameter (5 points, 8 MB a column), not from two (13 points, 21 MB a column): the
-# comparison simulates them again, the same cycles (a function of the point and the
-# seed), ~0.1-0.3 s a point.
+# parameters (41 points), ~8 MB at the default 4000 (16 MB for two such runs: kept).
+# Per-cycle values at the default 10^5 cycles a point: kept for one free parameter (5
+# points, 8 MB a column), not from two (13 points, 21 MB a column): the comparison
+# simulates them again, the same cycles (a function of the point and the seed), ~0.1-0.3 s
+# a point.
 KEEP_SAMPLES_BYTES = 16 * 2**20
 
 
 class _DesignSamples(list):
     """Per seed, the cycles simulated at each design point (`None` where the model refused
-    it; for a fit of several runs, a list of each run's): a list, shown in one line (a `FitResult`'s repr shows its diagnostics)."""
+    it; for a fit of several runs, a list of each run's): a list, shown in one line (a
+    `FitResult`'s repr shows its diagnostics)."""
 
     def __repr__(self) -> str:
         return f"<cycles simulated at {len(self[0])} design points, {len(self)} seeds>"
