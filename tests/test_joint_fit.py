@@ -105,26 +105,33 @@ def _generator():
     return benchmark_module("independent_slider")
 
 
+def _two_springs(duration, columns):
+    """The generator's traces of one slider (a fixed threshold) on springs of 168 and 400
+    N/m, `duration` s each: the runs `(Cycles of columns, Slider)` a joint fit takes, each
+    trace's whole cycles, and the second rig."""
+    gen = _generator()
+    runs, full = [], []
+    for i, k in enumerate((168.0, 400.0)):
+        rig = dataclasses.replace(gen.Rig(gap_sd=0.0, hum=1.5e-4), stiffness=k)
+        t, force, _ = gen.make_trace(500 + i, duration, rig)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            cycles = ss.extract_cycles(t, force=force, stiffness=k, v_b=rig.v_b)
+        full.append(cycles)
+        runs.append((ss.Cycles({c: cycles[c] for c in columns}, cycles.info),
+                     Slider.from_cycles(cycles, mass=0.03)))  # fmt: skip
+    return runs, full, rig
+
+
 @pytest.mark.slow
 def test_a_joint_fit_finds_the_slider_behind_two_springs(tmp_path):
     """Two traces of one slider (mass 17.8 g, noise 2.44e-8 N^2 s, a fixed threshold) on
     springs of 168 and 400 N/m, from a generator that shares no code with the library;
     the boxes are not centred on the truth, the reference mass (30 g) is not it either.
     Each estimate within 3.3 standard errors of the truth (a 1e-3 chance each)."""
-    gen = _generator()
-    runs, full, truth = [], [], None
-    for i, k in enumerate((168.0, 400.0)):
-        rig = dataclasses.replace(gen.Rig(gap_sd=0.0, hum=1.5e-4), stiffness=k)
-        t, force, _ = gen.make_trace(500 + i, 200.0, rig)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            cycles = ss.extract_cycles(t, force=force, stiffness=k, v_b=rig.v_b)
-        ref = Slider.from_cycles(cycles, mass=0.03)
-        full.append(cycles)
-        columns = ("slip_time", "stick_time", "slip_distance")
-        runs.append((ss.Cycles({c: cycles[c] for c in columns}, cycles.info), ref))
-        truth = {"mass": rig.mass, "noise": rig.noise_intensity,
-                 "static_friction": rig.kinetic_friction + rig.gap_mean}  # fmt: skip
+    runs, full, rig = _two_springs(200.0, ("slip_time", "stick_time", "slip_distance"))
+    truth = {"mass": rig.mass, "noise": rig.noise_intensity,
+             "static_friction": rig.kinetic_friction + rig.gap_mean}  # fmt: skip
     fixed = {"kinetic_friction": rig.kinetic_friction, "damping": rig.damping,
              "noise_time": rig.noise_time}  # fmt: skip
     free = {"mass": (0.005, 0.05), "noise": (3e-9, 3e-7), "static_friction": (0.093, 0.099)}
@@ -164,16 +171,7 @@ def test_a_joint_fit_keeps_its_design_cycles_for_compare_fits():
     point, the run and the seed): the generator's traces of one slider on two springs."""
     from stickslip._inference.compare import _Candidate
 
-    gen = _generator()
-    runs = []
-    for i, k in enumerate((168.0, 400.0)):
-        rig = dataclasses.replace(gen.Rig(gap_sd=0.0, hum=1.5e-4), stiffness=k)
-        t, force, _ = gen.make_trace(500 + i, 40.0, rig)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            cycles = ss.extract_cycles(t, force=force, stiffness=k, v_b=rig.v_b)
-        runs.append((ss.Cycles({c: cycles[c] for c in ("slip_time", "stick_time")},
-                               cycles.info), Slider.from_cycles(cycles, mass=0.03)))  # fmt: skip
+    runs, _, rig = _two_springs(40.0, ("slip_time", "stick_time"))
     fixed = {"kinetic_friction": rig.kinetic_friction, "damping": rig.damping,
              "noise_time": rig.noise_time, "noise": rig.noise_intensity,
              "static_friction": rig.kinetic_friction + rig.gap_mean}  # fmt: skip
