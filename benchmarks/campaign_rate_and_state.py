@@ -28,9 +28,9 @@ units: `compare_fits` sets them side by side the same way). `--compare` runs
 `compare_fits` too: the rate-and-state law, with fewer free parameters, is the simpler
 candidate, so the bootstrap draws its replicates from it (`--n-boot` sets of the runs,
 each at the run's number of cycles through its measurement; 33 minutes at 19 on the
-default runs beside three other jobs, most of it those replicates); `--alpha` sets the level (the smallest p-value `--n-boot` allows is
-1 / (n_boot + 1)). Prints both fits, their per-run KS p-values and the seconds each took;
-`--log` appends one JSON line.
+default runs beside three other jobs, most of it those replicates); `--alpha` sets the
+level (the smallest p-value `--n-boot` allows is 1 / (n_boot + 1)). Prints both fits,
+their per-run KS p-values and the seconds each took; `--log` appends one JSON line.
 """
 
 from __future__ import annotations
