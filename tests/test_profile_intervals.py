@@ -97,6 +97,10 @@ def test_an_adjusted_threshold_scales_the_interval():
     for i, k in enumerate("xy"):
         half = 1.5 * 1.959964 * math.sqrt(C[i, i])
         assert records[k]["adjustment"] == pytest.approx(2.25, rel=1e-6)
+        parts = records[k]["variances"]  # the adjustment's parts: no simulation here
+        assert parts["sandwich"] == pytest.approx(2.25 * C[i, i], rel=1e-12)
+        assert parts["simulation"] == 0.0
+        assert parts["curvature"] == pytest.approx(C[i, i], rel=1e-6)
         assert ci[k][0] == pytest.approx(-half, rel=0.03)
         assert ci[k][1] == pytest.approx(half, rel=0.03)
 

@@ -211,9 +211,14 @@ def profile_intervals(loglik, surface, cov, mc, names, coords, lo, hi):
         # the statistic's own noise: the reference's and a try's, each about var_ref
         noise = 2.0 * math.sqrt(2.0 * var_ref)
         q = noisy_threshold(c, noise)
+        # (the adjustment's parts, fit coordinates: the sandwich's variance, the
+        # simulation's in one seed's vertex, and the curvature's own)
+        parts = dict(sandwich=float(np.asarray(cov, float)[j, j]),
+                     simulation=float(var[j] - np.asarray(cov, float)[j, j]),
+                     curvature=float(h_inv[j]))  # fmt: skip
         record = dict(threshold=float(q), adjustment=float(c), noise=float(noise),
-                      estimate=float(u1[j]), value=float(ref), psi=[], statistic=[],
-                      vertex=[], box=[False, False])  # fmt: skip
+                      variances=parts, estimate=float(u1[j]), value=float(ref), psi=[],
+                      statistic=[], vertex=[], box=[False, False])  # fmt: skip
         for side, sign in enumerate((-1.0, 1.0)):
             rises = _side(prof, j, u1, ref, q, sign, first, slope, steps, lo, hi, record, side)
             if rises > q:  # (the statistic below -q: not the profile's noise alone)
