@@ -179,7 +179,7 @@ def profile_intervals(loglik, surface, cov, mc, names, coords, lo, hi):
     H = np.asarray(surface.hessian, float)
     # the estimate's covariance: one seed's vertex, so twice the two seeds' mean's noise
     total = np.asarray(cov, float) + (0.0 if mc is None else 2.0 * np.asarray(mc, float))
-    var = np.diag(total)
+    var, sandwich = np.diag(total), np.diag(np.asarray(cov, float))
     try:
         h_inv = np.diag(np.linalg.inv(-0.5 * (H + H.T)))
     except np.linalg.LinAlgError:
@@ -213,8 +213,7 @@ def profile_intervals(loglik, surface, cov, mc, names, coords, lo, hi):
         q = noisy_threshold(c, noise)
         # (the adjustment's parts, fit coordinates: the sandwich's variance, the
         # simulation's in one seed's vertex, and the curvature's own)
-        parts = dict(sandwich=float(np.asarray(cov, float)[j, j]),
-                     simulation=float(var[j] - np.asarray(cov, float)[j, j]),
+        parts = dict(sandwich=float(sandwich[j]), simulation=float(var[j] - sandwich[j]),
                      curvature=float(h_inv[j]))  # fmt: skip
         record = dict(threshold=float(q), adjustment=float(c), noise=float(noise),
                       variances=parts, estimate=float(u1[j]), value=float(ref), psi=[],
