@@ -350,6 +350,74 @@ def table(rows) -> str:
     return "\n".join(lines)
 
 
+def variance_parts(records: list[dict]) -> str:
+    """Where profile records keep their adjustment's parts (`variances`: the sandwich's,
+    the simulation's in one seed's vertex, the curvature's own), per parameter the sd over
+    sets of z = (estimate - truth) / sqrt(variance), the estimate the profiled seed's own:
+    1 where that variance is the estimate's. Sets whose adjustment passes
+    `profile.WIDE_ADJUSTMENT` (a nearly singular bread) are left out and counted."""
+    from stickslip._inference.profile import WIDE_ADJUSTMENT
+
+    kept = [r for r in records if r.get("intervals") == "profile" and r.get("profile")]
+    if not kept:
+        return ""
+    lines = ["| parameter | sets (wide c left out) | z sd: sandwich + simulation | sandwich "
+             "| curvature | median c | median simulation / sandwich | tries' scatter / "
+             "allowed (dof) |",
+             "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    for k in kept[0]["profile"]:
+        z = {"total": [], "sandwich": [], "curvature": []}
+        c, share, wide, scatter = [], [], 0, np.zeros(3)
+        for r in kept:
+            v = r["profile"][k]
+            if not v["adjustment"] <= WIDE_ADJUSTMENT:
+                wide += 1
+                continue
+            c.append(v["adjustment"])
+            scatter += _tries_scatter(v)
+            if "variances" not in v:  # (a log of an earlier version)
+                continue
+            err = v["estimate"] - _to_fit(r["scales"][k], r["truth"][k])
+            parts = v["variances"]
+            total = parts["sandwich"] + parts["simulation"]
+            for name, var in (("total", total), ("sandwich", parts["sandwich"]),
+                              ("curvature", parts["curvature"])):  # fmt: skip
+                if var > 0:
+                    z[name].append(err / math.sqrt(var))
+            share.append(parts["simulation"] / parts["sandwich"])
+        sd = {name: float(np.std(v, ddof=1)) if len(v) > 1 else math.nan for name, v in z.items()}
+        lines.append(
+            f"| {k} | {len(c)} ({wide}) | {sd['total']:.2f} | {sd['sandwich']:.2f} | "
+            f"{sd['curvature']:.2f} | {np.median(c):.2f} | "
+            f"{np.median(share) if share else math.nan:.2f} | "
+            f"{scatter[0] / scatter[1]:.2f} ({scatter[2]:.0f}) |"
+        )
+    return "\n".join(lines)
+
+
+def _tries_scatter(record) -> np.ndarray:
+    """A profile's tries against its noise allowance: on each side with three tries or more
+    that found the others' vertex,
+    the residual sum of squares of their statistic about a + b (psi - estimate)^2, the
+    same divided by the variance the allowance gives one try's statistic (`noise`^2 / 2:
+    the reference's and a try's noise alike and independent), and the degrees of freedom;
+    summed over the sides, the first over the second's sum is the tries' scatter as a
+    share of what the allowance assumes (1: as assumed)."""
+    psi, stat = np.asarray(record["psi"], float), np.asarray(record["statistic"], float)
+    vertex = np.asarray(record["vertex"], bool)
+    allowed = record["noise"] ** 2 / 2
+    out = np.zeros(3)
+    for sign in (-1.0, 1.0):
+        on = (np.sign(psi - record["estimate"]) == sign) & vertex
+        if on.sum() < 3 or not allowed > 0:
+            continue
+        X = np.c_[(psi[on] - record["estimate"]) ** 2, np.ones(on.sum())]
+        rss = float(np.sum((stat[on] - X @ np.linalg.lstsq(X, stat[on], rcond=None)[0]) ** 2))
+        dof = on.sum() - 2
+        out += (rss, allowed * dof, dof)
+    return out
+
+
 def _read(paths) -> list[dict]:
     records = {}
     for path in paths:
@@ -401,7 +469,10 @@ def main():
                         "given their drops (_pair_likelihood.py)")  # fmt: skip
     args = parser.parse_args()
     if args.summary:
-        text = table(summary(_with_wald(_read(args.summary))))
+        records = _read(args.summary)
+        text = table(summary(_with_wald(records)))
+        parts = variance_parts(records)
+        text += "\n\n" + parts if parts else ""
         print(text)
         print("bar: covered 88-99 %; under 70 % of estimates on one side of the truth")
         if args.out:

@@ -73,11 +73,11 @@ def problem(case: str, rig):
     return CASES[case]["model"], free, fixed, truth
 
 
-def one_set(case: str, i: int, n_sim: int | None, keep: pathlib.Path | None = None,
-            intervals: str = "wald") -> dict:  # fmt: skip
+def campaign(case: str, i: int):
+    """Set i's runs, each `(Cycles, reference Slider)`, and the generator's rig (the last
+    spring's)."""
     import stickslip as ss
 
-    t0 = time.perf_counter()
     runs, rig = [], None
     for j, k in enumerate(SPRINGS):
         rig = dataclasses.replace(gen.Rig(gap_sd=CASES[case]["gap_sd"], hum=1.5e-4),
@@ -88,6 +88,15 @@ def one_set(case: str, i: int, n_sim: int | None, keep: pathlib.Path | None = No
             cycles = ss.extract_cycles(t, force=force, stiffness=k, v_b=rig.v_b)
         ref = ss.Slider.from_cycles(cycles, mass=REFERENCE_MASS)
         runs.append((ss.Cycles({c: cycles[c] for c in COLUMNS}, cycles.info), ref))
+    return runs, rig
+
+
+def one_set(case: str, i: int, n_sim: int | None, keep: pathlib.Path | None = None,
+            intervals: str = "wald") -> dict:  # fmt: skip
+    import stickslip as ss
+
+    t0 = time.perf_counter()
+    runs, rig = campaign(case, i)
     model, free, fixed, truth = problem(case, rig)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -124,8 +133,10 @@ def main():
     parser.add_argument("--out", default=None, help="write the summary table here")
     args = parser.parse_args()
     if args.summary:
-        rows = single.summary(single._with_wald(single._read(args.summary), reread=False))
-        text = single.table(rows)
+        records = single._read(args.summary)
+        text = single.table(single.summary(single._with_wald(records, reread=False)))
+        parts = single.variance_parts(records)
+        text += "\n\n" + parts if parts else ""
         print(text)
         if args.out:
             pathlib.Path(args.out).write_text(text + "\n")

@@ -1,7 +1,7 @@
 """Coverage of profile-likelihood intervals on a known surface with simulation-like noise.
 
     python benchmarks/profile_calibration.py [--free 4] [--sigma 1.5] [--tilt 0] [--step 1]
-        [--sets 200] [--allowance 1] [--exact-covariance]
+        [--sets 200] [--allowance 1] [--exact-covariance] [--warp 0]
 
 The log-likelihood is a known quadratic, $-\\frac12 (u - m)^T C^{-1} (u - m)$, about a
 maximum $m$ drawn from $N(0, C)$ (the data; the truth is 0), in `--free` parameters with
@@ -19,7 +19,10 @@ interval holds the truth (its sampling sd is about 0.015 at 200 sets), the inter
 mean width over the data-only Wald width, and the estimates' spread over the intervals'
 mean half-width / 1.96 (near 1 for calibrated intervals). `--allowance` scales the
 profile's noise allowance (`profile.noisy_threshold`'s noise; 0: none), to see what it
-does.
+does. `--warp W` makes the likelihood a quadratic in g(u) = u + W u^3 / sd^2 (each axis):
+a true likelihood (its profile statistic at the truth still chi-square; the sandwich is
+then the curvature's inverse) that the design's polynomial does not fit, so that its
+residuals hold a lack of fit beside the noise.
 """
 
 from __future__ import annotations
@@ -39,13 +42,21 @@ def correlation(p: int, rho: float = 0.5) -> np.ndarray:
 
 class NoisyQuadratic:
     """The fit's `Likelihood` interface on the known surface: `(value, None)`; the noise
-    at a point is a function of the point, the set and the seed (asked twice, the same)."""
+    at a point is a function of the point, the set and the seed (asked twice, the same).
+    With `warp` the quadratic is in g(u) = u + warp u^3 / sd^2 (each axis; monotone), a
+    likelihood that is not a polynomial in u, whose profile statistic at the truth is
+    still chi-square: the design's polynomial then has a lack of fit."""
 
-    def __init__(self, m, precision, sigma, tilts, salt):
+    def __init__(self, m, precision, sigma, tilts, salt, warp=0.0, sd=None):
         self.m, self.P, self.sigma, self.tilts, self.salt = m, precision, sigma, tilts, salt
+        self.warp, self.sd = warp, sd
+
+    def g(self, u):
+        u = np.asarray(u, float)
+        return u if not self.warp else u + self.warp * u**3 / self.sd**2
 
     def clean(self, u, tilt):
-        d = np.asarray(u, float) - self.m
+        d = self.g(u) - self.m
         return -0.5 * d @ self.P @ d + tilt @ np.asarray(u, float)
 
     def __call__(self, u, at_seed=0):
@@ -56,7 +67,9 @@ class NoisyQuadratic:
         return self.clean(u, self.tilts[at_seed % 2]) + self.sigma * e, None
 
 
-def one_set(rng, C, sigma, tilt, step, exact):
+def one_set(rng, C, sigma, tilt, step, exact, warp=0.0):
+    from scipy.optimize import brentq
+
     from stickslip._inference.profile import profile_intervals
     from stickslip._inference.surface import local_surface, polynomial_vertex
 
@@ -65,10 +78,14 @@ def one_set(rng, C, sigma, tilt, step, exact):
     L = np.linalg.cholesky(C)
     m = L @ rng.standard_normal(p)
     tilts = [tilt * rng.standard_normal(p) for _ in range(2)]
-    lik = NoisyQuadratic(m, P, sigma, tilts, int(rng.integers(2**62)))
+    sd = np.sqrt(np.diag(C))
+    lik = NoisyQuadratic(m, P, sigma, tilts, int(rng.integers(2**62)), warp, sd)
     lo, hi = np.full(p, -40.0), np.full(p, 40.0)
     names = [f"x{i}" for i in range(p)]
-    surf = local_surface(lik, m + 0.1 * L @ rng.standard_normal(p), lo, hi, {}, names,
+    # the maximum in u: g^-1(m) each axis (g monotone)
+    top = np.array([brentq(lambda x, i=i: lik.g(np.full(p, x))[i] - m[i], -40.0, 40.0)
+                    for i in range(p)])  # fmt: skip
+    surf = local_surface(lik, top + 0.1 * L @ rng.standard_normal(p), lo, hi, {}, names,
                          step=step)  # fmt: skip
     design, centre = np.asarray(surf.design), np.asarray(surf.centre)
     shifts = []
@@ -83,6 +100,8 @@ def one_set(rng, C, sigma, tilt, step, exact):
     H = np.asarray(surf.hessian)
     h_inv = np.linalg.inv(-0.5 * (H + H.T))
     cov = C if exact else h_inv @ P @ h_inv
+    if warp:  # a true likelihood, not quadratic: no composite adjustment (c = 1 but for mc)
+        cov = h_inv
     ci, records, _ = profile_intervals(lik, surf, cov, mc, names, {k: "linear" for k in names},
                                        lo, hi)  # fmt: skip
     return [(ci[k], records[k]) for k in names]
@@ -98,6 +117,9 @@ def main(argv=None):
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--allowance", type=float, default=1.0)
     parser.add_argument("--exact-covariance", action="store_true")
+    parser.add_argument("--warp", type=float, default=0.0,
+                        help="the quadratic in u + warp u^3 / sd^2: a lack of fit (the "
+                        "sandwich then the curvature's inverse: a true likelihood)")
     args = parser.parse_args(argv)
 
     from stickslip._inference import profile
@@ -111,9 +133,11 @@ def main(argv=None):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         for _ in range(args.sets):
-            rows.append(one_set(rng, C, args.sigma, args.tilt, args.step, args.exact_covariance))
+            rows.append(one_set(rng, C, args.sigma, args.tilt, args.step, args.exact_covariance,
+                                args.warp))  # fmt: skip
     sd = np.sqrt(np.diag(C))
     print(f"{args.free} free, sigma {args.sigma}, tilt {args.tilt}, step {args.step}, "
+          f"warp {args.warp}, "
           f"allowance x{args.allowance}, {args.sets} sets, "
           f"{'exact' if args.exact_covariance else 'sandwich'} covariance "
           f"({time.perf_counter() - t0:.0f} s)")  # fmt: skip
