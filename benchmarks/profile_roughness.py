@@ -15,7 +15,6 @@ their sd is the noise a value of the statistic carries, which the allowance esti
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import math
 import pathlib
 import sys
@@ -24,18 +23,9 @@ import warnings
 
 import numpy as np
 
-HERE = pathlib.Path(__file__).resolve().parent
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+import fit_joint_independent as joint  # noqa: E402
 
-
-def _load(name):
-    spec = importlib.util.spec_from_file_location(name, HERE / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules.setdefault(spec.name, module)
-    spec.loader.exec_module(module)
-    return module
-
-
-joint = _load("fit_joint_independent")
 NEIGHBOUR = 0.01  # the neighbours' distance, in steps
 REPLICATE = 0.05  # the profile's values near the estimate, this many standard errors apart
 
