@@ -358,7 +358,8 @@ def variance_parts(records: list[dict]) -> str:
     `profile.WIDE_ADJUSTMENT` (a nearly singular bread) are left out and counted."""
     from stickslip._inference.profile import WIDE_ADJUSTMENT
 
-    kept = [r for r in records if r.get("intervals") == "profile" and r.get("profile")]
+    kept = [r for r in records
+            if str(r.get("intervals")).startswith("profile") and r.get("profile")]
     if not kept:
         return ""
     lines = ["| parameter | sets (wide c left out) | z sd: sandwich + simulation | sandwich "

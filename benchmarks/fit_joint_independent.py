@@ -46,6 +46,7 @@ def _load(name):
 
 gen = _load("independent_slider")
 single = _load("fit_independent")
+calibration = _load("profile_calibration")
 
 DURATION = 200.0
 SPRINGS = (168.0, 400.0)
@@ -92,13 +93,14 @@ def campaign(case: str, i: int):
 
 
 def one_set(case: str, i: int, n_sim: int | None, keep: pathlib.Path | None = None,
-            intervals: str = "wald") -> dict:  # fmt: skip
+            intervals: str = "wald", inner_se: float | None = None) -> dict:  # fmt: skip
     import stickslip as ss
 
     t0 = time.perf_counter()
     runs, rig = campaign(case, i)
     model, free, fixed, truth = problem(case, rig)
-    with warnings.catch_warnings(record=True) as caught:
+    with warnings.catch_warnings(record=True) as caught, \
+            calibration.capped_inner_steps(inner_se):  # fmt: skip
         warnings.simplefilter("always")
         r = ss.fit(model, runs, free, fixed, n_sim=n_sim, seed=60_000 + i, intervals=intervals)
     d = r.diagnostics
@@ -110,7 +112,8 @@ def one_set(case: str, i: int, n_sim: int | None, keep: pathlib.Path | None = No
         case=case, set=i, n_cycles=[row["cycles"] for row in d["runs"]],
         seconds=time.perf_counter() - t0, fit_seconds=d["seconds"],
         evaluations=d["evaluations"], estimate=r.estimate, ci=r.ci, truth=truth,
-        intervals=intervals, profile=d["profile"],
+        intervals=intervals if inner_se is None else f"{intervals}, inner {inner_se:g} SE",
+        profile=d["profile"],
         wald_ci=({k: v["wald"] for k, v in d["profile"].items()} if d["profile"] else r.ci),
         scales=d["scales"], p_values=[row["p_values"] for row in d["runs"]],
         dependence=dict(lag=d["dependence"].get("lag"), acf={}, se_ratio=None),
@@ -126,6 +129,9 @@ def main():
     parser.add_argument("--n-sim", type=int, default=1000, help="fit's n_sim a run")
     parser.add_argument("--intervals", choices=("wald", "profile"), default="wald",
                         help="fit's intervals (profile: the Wald ones kept beside them)")
+    parser.add_argument("--inner-se", type=float, default=None,
+                        help="an experiment (profile_calibration.capped_inner_steps): the "
+                        "profile's designs at most this many standard errors a step")  # fmt: skip
     parser.add_argument("--log", default=None, help="JSON lines, one a set (appended)")
     parser.add_argument("--keep", default=None,
                         help="a folder: each set's runs and fit pickled (CASE-SET.pkl)")
@@ -147,7 +153,8 @@ def main():
         if i in done:
             continue
         record = one_set(args.case, i, args.n_sim,
-                         None if args.keep is None else pathlib.Path(args.keep), args.intervals)
+                         None if args.keep is None else pathlib.Path(args.keep), args.intervals,
+                         args.inner_se)  # fmt: skip
         line = json.dumps(record, default=float)
         if args.log:
             with open(args.log, "a") as f:

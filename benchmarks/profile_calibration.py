@@ -28,6 +28,7 @@ residuals hold a lack of fit beside the noise.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import hashlib
 import time
 import warnings
@@ -67,10 +68,43 @@ class NoisyQuadratic:
         return self.clean(u, self.tilts[at_seed % 2]) + self.sigma * e, None
 
 
+@contextlib.contextmanager
+def capped_inner_steps(k: float | None):
+    """An experiment on `profile_intervals` (while the context lasts): the designs in the
+    other parameters take steps of at most `k` of their curvature standard errors
+    (`sqrt(diag(-H^-1))`, where finite) instead of the fit's; `None`: as built. Where the
+    fit's steps span several standard errors the polynomial's lack of fit is read as the
+    statistic's noise, and the steps cap it."""
+    from stickslip._inference import estimator, profile
+
+    if k is None:
+        yield
+        return
+    built, plain = profile.profile_intervals, profile._Profiler.profiled
+
+    def capped(loglik, surface, *args):
+        H = np.asarray(surface.hessian, float)
+        with np.errstate(invalid="ignore"):
+            se = np.sqrt(np.diag(np.linalg.inv(-0.5 * (H + H.T))))
+        steps = np.asarray(surface.steps, float)
+        inner = np.where(np.isfinite(se) & (se > 0), np.minimum(steps, k * se), steps)
+        profile._Profiler.profiled = lambda self, j, psi, start, _: plain(self, j, psi, start,
+                                                                          inner)  # fmt: skip
+        try:
+            return built(loglik, surface, *args)
+        finally:
+            profile._Profiler.profiled = plain
+
+    estimator.profile_intervals = profile.profile_intervals = capped
+    try:
+        yield
+    finally:
+        estimator.profile_intervals = profile.profile_intervals = built
+
+
 def one_set(rng, C, sigma, tilt, step, exact, warp=0.0):
     from scipy.optimize import brentq
 
-    from stickslip._inference.profile import profile_intervals
     from stickslip._inference.surface import local_surface, polynomial_vertex
 
     p = C.shape[0]
@@ -102,8 +136,10 @@ def one_set(rng, C, sigma, tilt, step, exact, warp=0.0):
     cov = C if exact else h_inv @ P @ h_inv
     if warp:  # a true likelihood, not quadratic: no composite adjustment (c = 1 but for mc)
         cov = h_inv
-    ci, records, _ = profile_intervals(lik, surf, cov, mc, names, {k: "linear" for k in names},
-                                       lo, hi)  # fmt: skip
+    from stickslip._inference import profile
+
+    ci, records, _ = profile.profile_intervals(lik, surf, cov, mc, names,
+                                               {k: "linear" for k in names}, lo, hi)  # fmt: skip
     return [(ci[k], records[k]) for k in names]
 
 
@@ -117,6 +153,9 @@ def main(argv=None):
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--allowance", type=float, default=1.0)
     parser.add_argument("--exact-covariance", action="store_true")
+    parser.add_argument("--inner-se", type=float, default=None,
+                        help="an experiment: the profile's designs in the other parameters "
+                        "at most this many of their standard errors a step")  # fmt: skip
     parser.add_argument("--warp", type=float, default=0.0,
                         help="the quadratic in u + warp u^3 / sd^2: a lack of fit (the "
                         "sandwich then the curvature's inverse: a true likelihood)")
@@ -130,14 +169,14 @@ def main(argv=None):
     rng = np.random.default_rng(args.seed)
     t0 = time.perf_counter()
     rows = []
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), capped_inner_steps(args.inner_se):
         warnings.simplefilter("ignore")
         for _ in range(args.sets):
             rows.append(one_set(rng, C, args.sigma, args.tilt, args.step, args.exact_covariance,
                                 args.warp))  # fmt: skip
     sd = np.sqrt(np.diag(C))
     print(f"{args.free} free, sigma {args.sigma}, tilt {args.tilt}, step {args.step}, "
-          f"warp {args.warp}, "
+          f"warp {args.warp}, inner steps at most {args.inner_se} SE, "
           f"allowance x{args.allowance}, {args.sets} sets, "
           f"{'exact' if args.exact_covariance else 'sandwich'} covariance "
           f"({time.perf_counter() - t0:.0f} s)")  # fmt: skip
