@@ -398,9 +398,9 @@ def variance_parts(records: list[dict]) -> str:
 
 def _tries_scatter(record) -> np.ndarray:
     """A profile's tries against its noise allowance: on each side with three tries or more
-    that found the others' vertex,
-    the residual sum of squares of their statistic about a + b (psi - estimate)^2, the
-    same divided by the variance the allowance gives one try's statistic (`noise`^2 / 2:
+    that found the others' vertex, the residual sum of squares of their statistic about
+    a + b (psi - estimate)^2, the same divided by the variance the allowance gives one
+    try's statistic (`noise`^2 / 2:
     the reference's and a try's noise alike and independent), and the degrees of freedom;
     summed over the sides, the first over the second's sum is the tries' scatter as a
     share of what the allowance assumes (1: as assumed)."""

@@ -105,6 +105,7 @@ def capped_inner_steps(k: float | None):
 def one_set(rng, C, sigma, tilt, step, exact, warp=0.0):
     from scipy.optimize import brentq
 
+    from stickslip._inference import profile
     from stickslip._inference.surface import local_surface, polynomial_vertex
 
     p = C.shape[0]
@@ -136,8 +137,6 @@ def one_set(rng, C, sigma, tilt, step, exact, warp=0.0):
     cov = C if exact else h_inv @ P @ h_inv
     if warp:  # a true likelihood, not quadratic: no composite adjustment (c = 1 but for mc)
         cov = h_inv
-    from stickslip._inference import profile
-
     ci, records, _ = profile.profile_intervals(lik, surf, cov, mc, names,
                                                {k: "linear" for k in names}, lo, hi)  # fmt: skip
     return [(ci[k], records[k]) for k in names]

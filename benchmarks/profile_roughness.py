@@ -6,8 +6,10 @@ them (the residual variance about the polynomial `profile_intervals` reads its n
 allowance from), and the values of the unit design's points against neighbours 1 % of a
 step away, the polynomial's own difference between the two taken off (half their mean
 squared difference: the surface's roughness at that scale). Last, the profile's own
-values at five values of the parameter 0.05 standard errors apart about the estimate:
-their sd is the noise a value of the statistic carries, which the allowance estimates.
+values at five values of the parameter 0.05 standard errors apart about the estimate
+(their sd is small: common random numbers keep nearby designs' values together, and the
+noise that moves the statistic lives at the scale of the tries, a good part of a
+standard error apart).
 
     python benchmarks/profile_roughness.py --set 40
 """
