@@ -92,6 +92,11 @@ def campaign(case: str, i: int):
     return runs, rig
 
 
+def _intervals_label(intervals: str, inner_se: float | None) -> str:
+    """The intervals a record was made with (a resumed study skips the sets it has)."""
+    return intervals if inner_se is None else f"{intervals}, inner {inner_se:g} SE"
+
+
 def one_set(case: str, i: int, n_sim: int | None, keep: pathlib.Path | None = None,
             intervals: str = "wald", inner_se: float | None = None) -> dict:  # fmt: skip
     import stickslip as ss
@@ -112,7 +117,7 @@ def one_set(case: str, i: int, n_sim: int | None, keep: pathlib.Path | None = No
         case=case, set=i, n_cycles=[row["cycles"] for row in d["runs"]],
         seconds=time.perf_counter() - t0, fit_seconds=d["seconds"],
         evaluations=d["evaluations"], estimate=r.estimate, ci=r.ci, truth=truth,
-        intervals=intervals if inner_se is None else f"{intervals}, inner {inner_se:g} SE",
+        intervals=_intervals_label(intervals, inner_se),
         profile=d["profile"],
         wald_ci=({k: v["wald"] for k, v in d["profile"].items()} if d["profile"] else r.ci),
         scales=d["scales"], p_values=[row["p_values"] for row in d["runs"]],
@@ -147,8 +152,9 @@ def main():
         if args.out:
             pathlib.Path(args.out).write_text(text + "\n")
         return
+    label = _intervals_label(args.intervals, args.inner_se)
     done = {r["set"] for r in single._read([args.log]) if r["case"] == args.case
-            and r.get("intervals", "wald") == args.intervals} if args.log else set()
+            and r.get("intervals", "wald") == label} if args.log else set()
     for i in range(args.first, args.first + args.sets):
         if i in done:
             continue
